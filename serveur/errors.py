@@ -1,0 +1,117 @@
+"""One exception root for everything serveur raises on purpose.
+
+Every error a client can see carries a stable machine ``code`` (clients switch on it, so it
+never changes once released) and a human message. I/O modules map foreign exceptions
+(websockets, sqlite, OS errors) to these at their boundary with ``raise ... from exc`` so that
+callers only ever handle ``ServeurError``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = [
+    "BadJson",
+    "Conflict",
+    "InvalidField",
+    "LinkError",
+    "MapError",
+    "NavigationError",
+    "NotAllowedInStatus",
+    "NotFound",
+    "RosbridgeError",
+    "ServeurError",
+    "StoreError",
+    "Unreachable",
+    "UnknownMessage",
+]
+
+
+class ServeurError(Exception):
+    """Root of every serveur error. ``code`` is stable and machine-readable."""
+
+    code: str = "internal_error"
+
+    def __init__(self, message: str, **details: Any) -> None:
+        super().__init__(message)
+        self.message = message
+        self.details: dict[str, Any] = details
+
+    def to_dict(self) -> dict[str, Any]:
+        """The error as the fields of a protocol error reply."""
+        out: dict[str, Any] = {"code": self.code, "message": self.message}
+        if self.details:
+            out["details"] = self.details
+        return out
+
+
+class BadJson(ServeurError):
+    """The frame is not a JSON object."""
+
+    code = "bad_json"
+
+
+class UnknownMessage(ServeurError):
+    """The ``clientmsg`` (or rosbridge ``op``) is missing or not one we know."""
+
+    code = "unknown_message"
+
+
+class InvalidField(ServeurError):
+    """A field is missing, of the wrong type or out of range."""
+
+    code = "invalid_field"
+
+
+class NotFound(ServeurError):
+    """A named robot, waypoint, order or task does not exist."""
+
+    code = "not_found"
+
+
+class NotAllowedInStatus(ServeurError):
+    """The instruction is not in the allowed-actions table for the robot's status."""
+
+    code = "not_allowed_in_status"
+
+
+class Conflict(ServeurError):
+    """The instruction contradicts the current state (order already assigned, key reused...)."""
+
+    code = "conflict"
+
+
+class StoreError(ServeurError):
+    """The database failed (I/O error, corruption, lost connection)."""
+
+    code = "store_error"
+
+
+class MapError(ServeurError):
+    """A map file is missing or malformed."""
+
+    code = "map_error"
+
+
+class NavigationError(ServeurError):
+    """A path cannot be planned."""
+
+    code = "navigation_error"
+
+
+class Unreachable(NavigationError):
+    """The goal is occupied, outside the map or not connected to the start."""
+
+    code = "unreachable"
+
+
+class RosbridgeError(ServeurError):
+    """A rosbridge frame is malformed or names an unknown op/topic/service."""
+
+    code = "rosbridge_error"
+
+
+class LinkError(ServeurError):
+    """The link to a robot is down or the robot did not answer in time."""
+
+    code = "link_error"
