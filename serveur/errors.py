@@ -31,6 +31,8 @@ class ServeurError(Exception):
     """Root of every serveur error. ``code`` is stable and machine-readable."""
 
     code: str = "internal_error"
+    #: The ``id`` of the client request this error answers, when it could be read.
+    request_id: str | int | None = None
 
     def __init__(self, message: str, **details: Any) -> None:
         super().__init__(message)

@@ -1,0 +1,148 @@
+"""The restaurant's records: robots, waypoints, orders, tasks (trips) and events.
+
+These are what the store returns, what the server pushes to subscribers and what
+``docs/protocol.md`` shows, so they are pydantic models: one definition gives validation, the
+JSON a client receives and the JSON Schema that ``serveur schema`` prints.
+
+Lifecycle of a dish (an *order*):
+``pending`` (ready at the kitchen pass) -> ``assigned`` (in a task: on a trip, queued or under
+way) -> ``delivered`` (the guest pressed "food collected"). Cancelling a trip puts its
+undelivered orders back to ``pending``; ``cancelled`` is for an order the kitchen withdraws.
+
+A *task* is one trip of one robot: ordered stops, one per table, each carrying that table's
+dishes. Staff confirm a cart of dishes; the scheduler splits it into tasks of at most the tray
+capacity in tables, each ``queued`` until a robot takes it (``active``), then ``done`` or
+``cancelled``.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from serveur.status import RobotMode, RobotStatus
+
+__all__ = [
+    "EventRecord",
+    "Order",
+    "OrderStatus",
+    "Robot",
+    "Stop",
+    "StopStatus",
+    "Task",
+    "TaskStatus",
+    "WaypointKind",
+    "WaypointRecord",
+]
+
+
+class OrderStatus(StrEnum):
+    PENDING = "pending"
+    ASSIGNED = "assigned"
+    DELIVERED = "delivered"
+    CANCELLED = "cancelled"
+
+
+class TaskStatus(StrEnum):
+    QUEUED = "queued"
+    ACTIVE = "active"
+    DONE = "done"
+    CANCELLED = "cancelled"
+
+
+class StopStatus(StrEnum):
+    PENDING = "pending"  # not reached yet
+    ARRIVED = "arrived"  # robot at the table, waiting for "food collected"
+    DONE = "done"  # food collected
+    SKIPPED = "skipped"  # trip cancelled before this stop was served
+
+
+class WaypointKind(StrEnum):
+    TABLE = "table"
+    HOME = "home"
+    PASS = "pass"
+    OTHER = "other"
+
+
+class _Record(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid", use_enum_values=False)
+
+
+class Robot(_Record):
+    """A robot as the server knows it. ``x, y, yaw`` is the last reported map pose."""
+
+    name: str
+    url: str
+    home: str | None = None
+    kinematics: str = "omni"
+    mode: RobotMode = RobotMode.OFF
+    status: RobotStatus = RobotStatus.OFFLINE
+    resume: RobotStatus | None = None
+    current_task: int | None = None
+    battery: float | None = Field(default=None, description="0..1, None if unknown")
+    x: float | None = None
+    y: float | None = None
+    yaw: float | None = None
+    last_error: str | None = None
+    updated_at: float = 0.0
+
+
+class WaypointRecord(_Record):
+    """A named map pose: a table's serving spot, a robot's home, the kitchen pass."""
+
+    name: str
+    x: float
+    y: float
+    yaw: float = 0.0
+    kind: WaypointKind = WaypointKind.OTHER
+
+
+class Order(_Record):
+    """One dish for one table. ``ready_at`` is when it was ready at the pass."""
+
+    id: int
+    dish: str
+    table: str
+    status: OrderStatus = OrderStatus.PENDING
+    task_id: int | None = None
+    key: str | None = None
+    ready_at: float
+    dispatched_at: float | None = None
+    delivered_at: float | None = None
+
+
+class Stop(_Record):
+    """One table on a trip, with the ids of the dishes for it."""
+
+    seq: int
+    table: str
+    status: StopStatus = StopStatus.PENDING
+    orders: list[int] = Field(default_factory=list)
+    arrived_at: float | None = None
+    done_at: float | None = None
+
+
+class Task(_Record):
+    """One trip of one robot: stops in visiting order; ``current_stop`` indexes ``stops``."""
+
+    id: int
+    robot: str | None = None
+    status: TaskStatus = TaskStatus.QUEUED
+    stops: list[Stop] = Field(default_factory=list)
+    current_stop: int = 0
+    created_at: float
+    started_at: float | None = None
+    finished_at: float | None = None
+
+
+class EventRecord(_Record):
+    """One recorded state change (audit trail and replay analysis)."""
+
+    id: int
+    ts: float
+    kind: str
+    robot: str | None = None
+    task_id: int | None = None
+    order_id: int | None = None
+    data: dict[str, object] = Field(default_factory=dict)

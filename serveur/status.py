@@ -1,0 +1,200 @@
+"""The robot status machine and the allowed-actions table (pure; no I/O).
+
+Every robot has exactly one :class:`RobotStatus`. It decides which instructions staff, screens
+and scripts may give (:data:`ALLOWED`): anything else is refused with ``not_allowed_in_status``,
+never silently ignored. The server turns client instructions and robot reports into
+:class:`Event` values and asks :func:`apply` for the next state, so the rules live here, in one
+table, tested without sockets.
+
+``mode`` is kept beside the status because it survives what the status does not: a robot that
+drops off the network while in automatic mode is Offline, but comes back automatic. ``resume``
+is the status to return to after Stopped, Error or Offline (Delivering or Transit), so that
+"continue" and a reconnect go back to the same kind of move.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from enum import StrEnum
+
+from serveur.errors import NotAllowedInStatus
+
+__all__ = [
+    "ALLOWED",
+    "TRANSITIONS",
+    "Action",
+    "Event",
+    "RobotMode",
+    "RobotState",
+    "RobotStatus",
+    "allowed_actions",
+    "apply",
+    "check_allowed",
+]
+
+
+class RobotStatus(StrEnum):
+    """What a robot is doing, as staff and screens see it."""
+
+    OFFLINE = "Offline"  # no rosbridge link (or its status heartbeat stopped)
+    READY = "Ready"  # linked, not activated
+    AWAITING = "Awaiting"  # automatic, at home, no job
+    DELIVERING = "Delivering"  # moving to a table with food
+    DELIVERED = "Delivered"  # at a table, waiting for "food collected" (next)
+    STOPPED = "Stopped"  # halted by staff during a move
+    TRANSIT = "Transit"  # moving without food: going home
+    MANUAL = "Manual"  # under staff control (teleop, calibration, goals, go-to)
+    ERROR = "Error"  # navigation aborted or a goal was never acknowledged
+
+
+class RobotMode(StrEnum):
+    """Who drives the robot; persisted so it survives Offline and server restarts."""
+
+    OFF = "off"
+    AUTO = "auto"
+    MANUAL = "manual"
+
+
+class Action(StrEnum):
+    """Robot-bound instructions a client can give (the allowed-actions table's columns)."""
+
+    AUTO = "auto"  # control: switch to automatic mode
+    MANUAL = "manual"  # control: take manual control
+    TELEOP = "teleop"  # control: velocity command
+    INITIALPOSE = "initialpose"  # control: calibrate (set the initial pose)
+    GOAL = "goal"  # control: post a goal pose
+    GOTO = "goto"  # control: go to a named waypoint
+    READY = "ready"  # control finished: hand the robot back (leave manual or automatic)
+    NEXT = "next"  # food collected at this table
+    STOP = "stop"
+    CONTINUE = "continue"
+    CANCEL = "cancel"
+    SAVE_WAYPOINT = "save_waypoint"  # create a waypoint at the robot's current pose
+
+
+S = RobotStatus
+A = Action
+
+#: Which instructions each status allows. Reading (``data``, ``order``) and creating orders,
+#: tasks and waypoints from explicit poses are not robot-bound and always allowed.
+ALLOWED: dict[RobotStatus, frozenset[Action]] = {
+    S.OFFLINE: frozenset(),
+    S.READY: frozenset({A.AUTO, A.MANUAL, A.SAVE_WAYPOINT}),
+    S.AWAITING: frozenset({A.READY, A.SAVE_WAYPOINT}),
+    S.DELIVERING: frozenset({A.STOP, A.SAVE_WAYPOINT}),
+    S.DELIVERED: frozenset({A.NEXT, A.SAVE_WAYPOINT}),
+    S.STOPPED: frozenset({A.CONTINUE, A.CANCEL, A.SAVE_WAYPOINT}),
+    S.TRANSIT: frozenset({A.STOP, A.SAVE_WAYPOINT}),
+    S.MANUAL: frozenset({A.TELEOP, A.INITIALPOSE, A.GOAL, A.GOTO, A.READY, A.SAVE_WAYPOINT}),
+    S.ERROR: frozenset({A.CONTINUE, A.CANCEL, A.MANUAL, A.SAVE_WAYPOINT}),
+}
+
+
+class Event(StrEnum):
+    """Everything that can change a robot's status: instructions and robot reports."""
+
+    LINK_UP = "link_up"
+    LINK_DOWN = "link_down"
+    AUTO = "auto"
+    MANUAL = "manual"
+    RELEASE = "release"  # the ``ready`` instruction
+    DISPATCH = "dispatch"  # a trip starts: goal sent to its first table
+    GO_HOME = "go_home"  # an automatic robot is sent home without food
+    ARRIVED = "arrived"  # the current goal succeeded
+    NAV_FAILED = "nav_failed"  # the goal aborted, was rejected or never acknowledged
+    NEXT_TABLE = "next_table"  # food collected, more tables on this trip
+    NEXT_HOME = "next_home"  # food collected at the trip's last table
+    STOP = "stop"
+    CONTINUE = "continue"
+    CANCEL = "cancel"
+
+
+@dataclass(frozen=True, slots=True)
+class RobotState:
+    """A robot's status plus what survives it: the mode and the status to resume."""
+
+    status: RobotStatus = RobotStatus.OFFLINE
+    mode: RobotMode = RobotMode.OFF
+    resume: RobotStatus | None = None
+
+
+_MOVING = (S.DELIVERING, S.TRANSIT)
+
+#: (status, event) -> next status, for the transitions that need no context.
+TRANSITIONS: dict[tuple[RobotStatus, Event], RobotStatus] = {
+    (S.READY, Event.AUTO): S.AWAITING,
+    (S.READY, Event.MANUAL): S.MANUAL,
+    (S.ERROR, Event.MANUAL): S.MANUAL,
+    (S.MANUAL, Event.RELEASE): S.READY,
+    (S.AWAITING, Event.RELEASE): S.READY,
+    (S.AWAITING, Event.DISPATCH): S.DELIVERING,
+    (S.AWAITING, Event.GO_HOME): S.TRANSIT,
+    (S.DELIVERING, Event.ARRIVED): S.DELIVERED,
+    (S.TRANSIT, Event.ARRIVED): S.AWAITING,
+    (S.MANUAL, Event.ARRIVED): S.MANUAL,
+    (S.MANUAL, Event.NAV_FAILED): S.MANUAL,
+    (S.DELIVERED, Event.NEXT_TABLE): S.DELIVERING,
+    (S.DELIVERED, Event.NEXT_HOME): S.TRANSIT,
+    (S.STOPPED, Event.CANCEL): S.TRANSIT,
+    (S.ERROR, Event.CANCEL): S.TRANSIT,
+    # A stopped or failed robot whose trip is handed back goes home without food.
+    (S.STOPPED, Event.GO_HOME): S.TRANSIT,
+    (S.ERROR, Event.GO_HOME): S.TRANSIT,
+}
+
+
+def allowed_actions(status: RobotStatus) -> frozenset[Action]:
+    """The instructions a robot in ``status`` accepts."""
+    return ALLOWED[status]
+
+
+def check_allowed(status: RobotStatus, action: Action) -> None:
+    """Raise ``NotAllowedInStatus`` unless ``action`` is allowed in ``status``."""
+    if action not in ALLOWED[status]:
+        allowed = ", ".join(sorted(a.value for a in ALLOWED[status])) or "nothing"
+        raise NotAllowedInStatus(
+            f"{action.value!r} is not allowed while the robot is {status.value} "
+            f"(allowed: {allowed})",
+            status=status.value,
+            action=action.value,
+        )
+
+
+def _by_mode(mode: RobotMode) -> RobotStatus:
+    return {RobotMode.OFF: S.READY, RobotMode.AUTO: S.AWAITING, RobotMode.MANUAL: S.MANUAL}[mode]
+
+
+def apply(state: RobotState, event: Event) -> RobotState:
+    """The state after ``event``; raises ``NotAllowedInStatus`` for a transition not in the table."""
+    status = state.status
+    if event is Event.LINK_DOWN:
+        if status is S.OFFLINE:
+            return state
+        keep = status if status not in (S.READY, S.AWAITING, S.MANUAL) else None
+        return RobotState(S.OFFLINE, state.mode, keep if keep is not None else state.resume)
+    if event is Event.LINK_UP:
+        if status is not S.OFFLINE:
+            return state
+        target = state.resume if state.resume is not None else _by_mode(state.mode)
+        return RobotState(target, state.mode, None)
+    if event is Event.STOP and status in _MOVING:
+        return RobotState(S.STOPPED, state.mode, status)
+    if event is Event.NAV_FAILED and status in _MOVING:
+        return RobotState(S.ERROR, state.mode, status)
+    if event is Event.CONTINUE and status in (S.STOPPED, S.ERROR):
+        return RobotState(state.resume or S.TRANSIT, state.mode, None)
+    target = TRANSITIONS.get((status, event))
+    if target is None:
+        raise NotAllowedInStatus(
+            f"{event.value!r} cannot happen while the robot is {status.value}",
+            status=status.value,
+            event=event.value,
+        )
+    mode = state.mode
+    if event is Event.AUTO:
+        mode = RobotMode.AUTO
+    elif event is Event.MANUAL:
+        mode = RobotMode.MANUAL
+    elif event is Event.RELEASE:
+        mode = RobotMode.OFF
+    return replace(state, status=target, mode=mode, resume=None)
