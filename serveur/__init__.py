@@ -1,4 +1,4 @@
-"""serveur: fleet server for restaurant waiter robots (orders, trips, rosbridge v2 robot links, simulator)."""
+"""serveur: fleet server for restaurant waiter robots, with a rosbridge v2 robot simulator."""
 
 __all__ = ["__version__"]
 

@@ -22,8 +22,8 @@ __all__ = [
     "RosbridgeError",
     "ServeurError",
     "StoreError",
-    "Unreachable",
     "UnknownMessage",
+    "Unreachable",
 ]
 
 

@@ -165,13 +165,15 @@ def _by_mode(mode: RobotMode) -> RobotStatus:
 
 
 def apply(state: RobotState, event: Event) -> RobotState:
-    """The state after ``event``; raises ``NotAllowedInStatus`` for a transition not in the table."""
+    """The state after ``event``; ``NotAllowedInStatus`` for a transition not in the table."""
     status = state.status
     if event is Event.LINK_DOWN:
         if status is S.OFFLINE:
             return state
-        keep = status if status not in (S.READY, S.AWAITING, S.MANUAL) else None
-        return RobotState(S.OFFLINE, state.mode, keep if keep is not None else state.resume)
+        keep: RobotStatus | None = status
+        if status in (S.READY, S.AWAITING, S.MANUAL):
+            keep = state.resume  # re-derived from the mode on link-up
+        return RobotState(S.OFFLINE, state.mode, keep)
     if event is Event.LINK_UP:
         if status is not S.OFFLINE:
             return state
