@@ -185,8 +185,8 @@ def apply(state: RobotState, event: Event) -> RobotState:
         return RobotState(S.ERROR, state.mode, status)
     if event is Event.CONTINUE and status in (S.STOPPED, S.ERROR):
         return RobotState(state.resume or S.TRANSIT, state.mode, None)
-    target = TRANSITIONS.get((status, event))
-    if target is None:
+    nxt = TRANSITIONS.get((status, event))
+    if nxt is None:
         raise NotAllowedInStatus(
             f"{event.value!r} cannot happen while the robot is {status.value}",
             status=status.value,
@@ -199,4 +199,4 @@ def apply(state: RobotState, event: Event) -> RobotState:
         mode = RobotMode.MANUAL
     elif event is Event.RELEASE:
         mode = RobotMode.OFF
-    return replace(state, status=target, mode=mode, resume=None)
+    return replace(state, status=nxt, mode=mode, resume=None)
