@@ -1,0 +1,129 @@
+"""Assembling a running serveur: store + core + websocket server (+ simulated robots for demos).
+
+The CLI, the tests and the replay tool all start the system through :class:`App`, so there is
+one way to wire it and the tests exercise the same path that production uses.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from serveur.clock import Clock, ScaledClock
+from serveur.core import Core, CoreConfig
+from serveur.domain import WaypointKind, WaypointRecord
+from serveur.errors import Conflict
+from serveur.server import Server
+from serveur.store import Store, open_store
+
+__all__ = ["App", "RobotSpec", "parse_robot_spec"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    name: str
+    url: str
+    home: str | None = None
+    kinematics: str = "omni"
+
+
+def parse_robot_spec(text: str) -> RobotSpec:
+    """``NAME=URL[,home=WAYPOINT][,kinematics=omni|diff]`` as given to ``--robot``."""
+    name, sep, rest = text.partition("=")
+    if not sep or not name or not rest:
+        raise ValueError(f"--robot wants NAME=URL[,home=WAYPOINT], got {text!r}")
+    url, *opts = rest.split(",")
+    fields: dict[str, str] = {}
+    for opt in opts:
+        k, sep, v = opt.partition("=")
+        if not sep or k not in ("home", "kinematics"):
+            raise ValueError(f"unknown robot option {opt!r} (home=, kinematics=)")
+        fields[k] = v
+    return RobotSpec(name, url, fields.get("home"), fields.get("kinematics", "omni"))
+
+
+class App:
+    """A running server. Use ``async with App(...) as app`` or ``start()``/``close()``."""
+
+    def __init__(
+        self,
+        db: str | Path,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 8765,
+        clock: Clock | None = None,
+        map_path: str | Path | None = None,
+        nav_map: Any = None,
+        waypoints: Mapping[str, Any] | None = None,
+        robots: Sequence[RobotSpec] = (),
+        config: CoreConfig | None = None,
+    ) -> None:
+        self.clock = clock or ScaledClock(1.0)
+        self.store: Store = open_store(str(db))
+        self._map_path = map_path
+        self._nav_map = nav_map
+        self._waypoints = waypoints
+        self._robots = robots
+        self._config = config
+        self._host, self._port = host, port
+        self.core: Core | None = None
+        self.server: Server | None = None
+
+    async def start(self) -> App:
+        await self.store.open()
+        nav_map = self._nav_map
+        if nav_map is None and self._map_path is not None:
+            from serveur.navigation import load_map
+
+            nav_map = load_map(self._map_path)
+        now = self.clock.epoch()
+        if self._waypoints:
+            await import_waypoints(self.store, self._waypoints.values(), now=now)
+        for spec in self._robots:
+            await self._register(spec, now)
+        self.core = Core(self.store, self.clock, config=self._config, nav_map=nav_map)
+        await self.core.start()
+        self.server = Server(self.core, host=self._host, port=self._port)
+        await self.server.start()
+        return self
+
+    async def _register(self, spec: RobotSpec, now: float) -> None:
+        try:
+            await self.store.add_robot(
+                spec.name, spec.url, home=spec.home, kinematics=spec.kinematics, now=now
+            )
+        except Conflict:
+            await self.store.update_robot(spec.name, url=spec.url, home=spec.home)
+
+    @property
+    def url(self) -> str:
+        assert self.server is not None
+        return self.server.url
+
+    async def close(self) -> None:
+        if self.server is not None:
+            await self.server.close()
+        if self.core is not None:
+            await self.core.close()
+        await self.store.close()
+
+    async def __aenter__(self) -> App:
+        return await self.start()
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+
+async def import_waypoints(store: Store, waypoints: Iterable[Any], *, now: float) -> int:
+    """Store navigation waypoints (e.g. a map's waypoints file); existing names are updated."""
+    n = 0
+    for w in waypoints:
+        rec = WaypointRecord(name=w.name, x=w.x, y=w.y, yaw=w.yaw, kind=WaypointKind(w.kind))
+        await store.put_waypoint(rec, replace=True, now=now)
+        n += 1
+    return n

@@ -1,0 +1,172 @@
+"""Subscriptions and fan-out: who hears which topic, and how each client is fed.
+
+Each update is serialised once (:meth:`Hub.publish` takes the JSON of ``data``), then spliced
+into a frame per subscriber with that connection's own ``seq`` — so a pose update reaching 200
+tablets costs one ``json.dumps``, not 200.
+
+A client that stops reading must not delay anyone else nor grow memory without bound (the
+classic rosbridge complaint). So every subscriber has its own writer task and bounded queues:
+
+* stream topics (``pose:<robot>``, ``scan:<robot>``) keep only the newest frame per topic —
+  a slow reader skips stale poses instead of queueing them;
+* state topics (robots, orders, tasks, ...) are never dropped silently: a subscriber more than
+  ``max_pending`` updates behind is disconnected with close code 4002, and resynchronises from
+  a fresh snapshot when it reconnects (the ``seq`` numbers let it notice the gap).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections import deque
+from collections.abc import Awaitable, Callable, Iterable
+
+from serveur import protocol
+
+__all__ = ["CLOSE_TOO_SLOW", "Hub", "Subscriber", "is_stream_topic"]
+
+log = logging.getLogger(__name__)
+
+CLOSE_TOO_SLOW = 4002
+
+
+def is_stream_topic(topic: str) -> bool:
+    """Pose and scan streams are latest-only; everything else is a state topic."""
+    return topic.startswith(("pose:", "scan:"))
+
+
+class Subscriber:
+    """One client connection's outgoing side: replies, state updates, latest stream frames."""
+
+    def __init__(
+        self,
+        send: Callable[[str], Awaitable[None]],
+        close: Callable[[int, str], Awaitable[None]],
+        *,
+        max_pending: int = 2000,
+        name: str = "",
+    ) -> None:
+        self._send = send
+        self._close = close
+        self._max_pending = max_pending
+        self.name = name
+        self.topics: set[str] = set()
+        self.seq = 0
+        # Replies and state updates share one FIFO so a client never sees a reply overtaken by
+        # an older update (or the reverse); only latest-only stream frames jump the queue.
+        self._state: deque[tuple[str | None, str]] = deque()
+        self._latest: dict[str, str] = {}
+        self._wake = asyncio.Event()
+        self._task: asyncio.Task[None] | None = None
+        self.closed = False
+        self.dropped_stream_frames = 0
+
+    def start(self) -> None:
+        self._task = asyncio.create_task(self._writer(), name=f"writer-{self.name}")
+
+    async def stop(self) -> None:
+        self.closed = True
+        task, self._task = self._task, None
+        if task is not None and task is not asyncio.current_task():
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+
+    def reply(self, frame: str) -> None:
+        if not self.closed:
+            self._state.append((None, frame))
+            self._wake.set()
+
+    def update(self, topic: str, data_json: str) -> None:
+        if self.closed:
+            return
+        if is_stream_topic(topic):
+            if topic in self._latest:
+                self.dropped_stream_frames += 1
+            self._latest[topic] = data_json
+        else:
+            if len(self._state) >= self._max_pending:
+                self.closed = True
+                log.warning("client %s is %d updates behind: disconnecting", self.name, len(self._state))
+                asyncio.get_running_loop().create_task(
+                    self._close(CLOSE_TOO_SLOW, "too slow: reconnect and resubscribe")
+                )
+                return
+            self._state.append((topic, data_json))
+        self._wake.set()
+
+    def _next_frame(self) -> str | None:
+        if self._state:
+            topic, data = self._state.popleft()
+            if topic is None:
+                return data
+        elif self._latest:
+            stream = next(iter(self._latest))
+            topic, data = stream, self._latest.pop(stream)
+        else:
+            return None
+        self.seq += 1
+        return protocol.update_frame(topic, self.seq, data)
+
+    async def _writer(self) -> None:
+        try:
+            while not self.closed:
+                await self._wake.wait()
+                self._wake.clear()
+                while (frame := self._next_frame()) is not None:
+                    await self._send(frame)
+        except asyncio.CancelledError:
+            raise
+        except Exception as exc:  # a dead socket ends this writer, nothing else
+            log.debug("writer for %s ended: %s", self.name, exc)
+            self.closed = True
+
+
+class Hub:
+    """Topic -> subscribers. ``on_watch`` hears when a topic gains its first or loses its last."""
+
+    def __init__(self, on_watch: Callable[[str, bool], None] | None = None) -> None:
+        self._by_topic: dict[str, set[Subscriber]] = {}
+        self._on_watch = on_watch
+        self.subscribers: set[Subscriber] = set()
+
+    def add(self, sub: Subscriber) -> None:
+        self.subscribers.add(sub)
+
+    def remove(self, sub: Subscriber) -> None:
+        self.subscribers.discard(sub)
+        self.unsubscribe(sub, list(sub.topics))
+
+    def subscribe(self, sub: Subscriber, topics: Iterable[str]) -> None:
+        for t in topics:
+            subs = self._by_topic.setdefault(t, set())
+            first = not subs
+            subs.add(sub)
+            sub.topics.add(t)
+            if first and self._on_watch is not None:
+                self._on_watch(t, True)
+
+    def unsubscribe(self, sub: Subscriber, topics: Iterable[str]) -> None:
+        for t in topics:
+            sub.topics.discard(t)
+            subs = self._by_topic.get(t)
+            if subs is None:
+                continue
+            subs.discard(sub)
+            if not subs:
+                del self._by_topic[t]
+                if self._on_watch is not None:
+                    self._on_watch(t, False)
+
+    def watched(self, topic: str) -> bool:
+        return topic in self._by_topic
+
+    def publish(self, topic: str, data_json: str) -> int:
+        """Queue ``data_json`` (already serialised) for every subscriber of ``topic``."""
+        subs = self._by_topic.get(topic)
+        if not subs:
+            return 0
+        for s in subs:
+            s.update(topic, data_json)
+        return len(subs)

@@ -1,0 +1,247 @@
+"""Trips: batching dishes into trips, ordering stops, choosing robots (pure) + the dispatch loop.
+
+Staff pick *dishes*, never tables; the server knows each dish's table. A confirmed cart becomes
+one or more trips of at most ``capacity`` tables (a tray holds about four tables' dishes, as on
+commercial waiter robots). Which tables share a trip and in which order the robot visits them
+is decided by path distance on the map, not by the order staff tapped them in:
+
+* :func:`group_by_table` — the cart's dishes per table, tables in first-ready order;
+* :func:`split_trips` — tables into trips: seed each trip with the table farthest from the pass
+  still unserved, then add its nearest unserved neighbours (so one trip serves one area);
+* :func:`order_stops` — the shortest open route from the start through every stop (exact for
+  up to 7 stops by permutation, else nearest neighbour + 2-opt);
+* :func:`choose_robot` — the free robot that has waited longest (ties: most battery), so work
+  spreads over the fleet instead of one robot doing everything while others idle.
+
+:class:`Dispatcher` is the loop (the design report's flowchart): whenever something changes it
+gives each queued trip, oldest first, to the best free robot. The I/O it needs is behind the
+small :class:`Fleet` protocol that the server core implements.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import logging
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+from serveur.domain import Order
+
+__all__ = [
+    "DEFAULT_CAPACITY",
+    "Candidate",
+    "Dispatcher",
+    "Distance",
+    "Fleet",
+    "choose_robot",
+    "group_by_table",
+    "order_stops",
+    "plan_trips",
+    "route_length",
+    "split_trips",
+]
+
+log = logging.getLogger(__name__)
+
+DEFAULT_CAPACITY = 4
+#: ``distance(a, b)`` in metres between two named places (waypoints).
+Distance = Callable[[str, str], float]
+
+_EXACT_LIMIT = 7
+
+
+def group_by_table(orders: Iterable[Order]) -> list[tuple[str, list[int]]]:
+    """Dishes per table; tables in the order their first dish became ready."""
+    groups: dict[str, list[int]] = {}
+    first: dict[str, tuple[float, int]] = {}
+    for o in sorted(orders, key=lambda o: (o.ready_at, o.id)):
+        groups.setdefault(o.table, []).append(o.id)
+        first.setdefault(o.table, (o.ready_at, o.id))
+    return [(t, groups[t]) for t in sorted(groups, key=lambda t: first[t])]
+
+
+def route_length(start: str, stops: Sequence[str], distance: Distance, end: str | None) -> float:
+    """Length of start -> stops... (-> end, if given)."""
+    total = 0.0
+    here = start
+    for s in stops:
+        total += distance(here, s)
+        here = s
+    if end is not None and stops:
+        total += distance(here, end)
+    return total
+
+
+def _cumulative(start: str, stops: Sequence[str], distance: Distance) -> float:
+    """Sum of the distances travelled before each stop: lower means dishes arrive sooner."""
+    total = here_total = 0.0
+    here = start
+    for s in stops:
+        here_total += distance(here, s)
+        total += here_total
+        here = s
+    return total
+
+
+def order_stops(
+    start: str, stops: Sequence[str], distance: Distance, *, end: str | None = None
+) -> list[str]:
+    """The visiting order of ``stops`` minimising the route from ``start`` (and back to ``end``).
+
+    Exact below :data:`_EXACT_LIMIT` stops (7! = 5040 routes is still fast); above it, nearest
+    neighbour improved by 2-opt, which is within a few percent on restaurant-sized problems.
+    A round trip and its reverse are equally long; between equal routes the one that reaches
+    its tables sooner wins (guests wait less), then the given order, so the result is
+    deterministic.
+    """
+    stops = list(dict.fromkeys(stops))
+    if len(stops) <= 1:
+        return stops
+    if len(stops) <= _EXACT_LIMIT:
+        best = min(
+            itertools.permutations(stops),
+            key=lambda p: (
+                round(route_length(start, p, distance, end), 6),
+                _cumulative(start, p, distance),
+            ),
+        )
+        return list(best)
+    route: list[str] = []
+    left = list(stops)
+    here = start
+    while left:
+        nxt = min(left, key=lambda s: distance(here, s))
+        route.append(nxt)
+        left.remove(nxt)
+        here = nxt
+    improved = True
+    while improved:
+        improved = False
+        for i in range(len(route) - 1):
+            for j in range(i + 1, len(route)):
+                cand = route[:i] + route[i : j + 1][::-1] + route[j + 1 :]
+                if route_length(start, cand, distance, end) + 1e-9 < route_length(
+                    start, route, distance, end
+                ):
+                    route = cand
+                    improved = True
+    return route
+
+
+def split_trips(
+    tables: Sequence[str], origin: str, distance: Distance, capacity: int = DEFAULT_CAPACITY
+) -> list[list[str]]:
+    """Tables into trips of at most ``capacity`` tables, each trip one area of the room.
+
+    Seeding with the farthest table keeps the far corners from being left for a last, long,
+    nearly empty trip; growing by nearest neighbour keeps each trip's tables close together.
+    """
+    if capacity < 1:
+        raise ValueError("capacity must be >= 1")
+    left = list(dict.fromkeys(tables))
+    trips: list[list[str]] = []
+    while left:
+        seed = max(left, key=lambda t: distance(origin, t))
+        trip = [seed]
+        left.remove(seed)
+        while left and len(trip) < capacity:
+            nxt = min(left, key=lambda t: min(distance(s, t) for s in trip))
+            trip.append(nxt)
+            left.remove(nxt)
+        trips.append(trip)
+    return trips
+
+
+def plan_trips(
+    orders: Iterable[Order],
+    origin: str,
+    distance: Distance,
+    capacity: int = DEFAULT_CAPACITY,
+) -> list[list[tuple[str, list[int]]]]:
+    """A cart of dishes as trips: each trip's stops in visiting order with their dish ids."""
+    groups = dict(group_by_table(orders))
+    trips = split_trips(list(groups), origin, distance, capacity)
+    return [
+        [(t, groups[t]) for t in order_stops(origin, trip, distance, end=origin)] for trip in trips
+    ]
+
+
+@dataclass(frozen=True, slots=True)
+class Candidate:
+    """A robot that could take a trip now."""
+
+    name: str
+    idle_since: float
+    battery: float | None = None
+
+
+def choose_robot(candidates: Sequence[Candidate], *, min_battery: float = 0.15) -> str | None:
+    """The free robot that has waited longest; robots below ``min_battery`` are skipped."""
+    usable = [c for c in candidates if c.battery is None or c.battery >= min_battery]
+    if not usable:
+        return None
+    best = min(usable, key=lambda c: (c.idle_since, -(c.battery or 0.0), c.name))
+    return best.name
+
+
+class Fleet(Protocol):
+    """What the dispatcher needs from the server core."""
+
+    async def queued_task_ids(self) -> list[int]: ...
+
+    def free_robots(self) -> list[Candidate]: ...
+
+    async def start_trip(self, task_id: int, robot: str) -> bool:
+        """Give the trip to the robot; False if either was taken meanwhile."""
+        ...
+
+
+class Dispatcher:
+    """Gives queued trips to free robots whenever :meth:`kick` says something changed."""
+
+    def __init__(self, fleet: Fleet) -> None:
+        self._fleet = fleet
+        self._wake = asyncio.Event()
+        self._task: asyncio.Task[None] | None = None
+        self.rounds = 0
+
+    def kick(self) -> None:
+        """Something changed (a trip queued, a robot freed): dispatch soon."""
+        self._wake.set()
+
+    async def dispatch_once(self) -> int:
+        """One round: assign as many queued trips as there are free robots. Returns the count."""
+        self.rounds += 1
+        assigned = 0
+        for task_id in await self._fleet.queued_task_ids():
+            robot = choose_robot(self._fleet.free_robots())
+            if robot is None:
+                break
+            if await self._fleet.start_trip(task_id, robot):
+                assigned += 1
+        return assigned
+
+    async def run(self) -> None:
+        while True:
+            await self._wake.wait()
+            self._wake.clear()
+            try:
+                await self.dispatch_once()
+            except Exception:  # the loop must outlive any one failed round
+                log.exception("dispatch round failed")
+
+    def start(self) -> None:
+        if self._task is None:
+            self._task = asyncio.create_task(self.run(), name="dispatcher")
+            self.kick()
+
+    async def stop(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            try:
+                await self._task
+            except asyncio.CancelledError:
+                pass
+            self._task = None

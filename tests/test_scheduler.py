@@ -1,0 +1,120 @@
+"""Trip planning (pure) and the dispatch loop against a fake fleet."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import pytest
+
+from serveur.domain import Order
+from serveur.scheduler import (
+    Candidate,
+    Dispatcher,
+    choose_robot,
+    group_by_table,
+    order_stops,
+    plan_trips,
+    route_length,
+    split_trips,
+)
+
+# Tables on a line and a grid; the pass at the origin.
+POS = {"pass": (0.0, 0.0), **{f"T{i}": (float(i), 0.0) for i in range(1, 9)}}
+GRID = {"pass": (0.0, 0.0), **{f"G{i}{j}": (i * 2.0, j * 2.0) for i in range(1, 4) for j in range(1, 4)}}
+
+
+def euclid(pos: dict[str, tuple[float, float]]):  # type: ignore[no-untyped-def]
+    def d(a: str, b: str) -> float:
+        (ax, ay), (bx, by) = pos[a], pos[b]
+        return math.hypot(ax - bx, ay - by)
+
+    return d
+
+
+def order(i: int, table: str, t: float) -> Order:
+    return Order(id=i, dish=f"dish{i}", table=table, ready_at=t)
+
+
+def test_group_by_table_keeps_first_ready_order() -> None:
+    orders = [order(1, "T3", 5), order(2, "T1", 1), order(3, "T3", 0), order(4, "T2", 9)]
+    assert group_by_table(orders) == [("T3", [3, 1]), ("T1", [2]), ("T2", [4])]
+
+
+def test_stops_are_ordered_by_distance_not_cart_order() -> None:
+    d = euclid(POS)
+    assert order_stops("pass", ["T5", "T1", "T3"], d) == ["T1", "T3", "T5"]
+
+
+def test_order_stops_is_optimal_for_small_trips() -> None:
+    d = euclid(GRID)
+    stops = ["G33", "G11", "G21", "G13", "G32"]
+    best = min(itertools.permutations(stops), key=lambda p: route_length("pass", p, d, "pass"))
+    got = order_stops("pass", stops, d, end="pass")
+    assert route_length("pass", got, d, "pass") == pytest.approx(route_length("pass", best, d, "pass"))
+
+
+def test_order_stops_large_uses_heuristic_and_visits_all() -> None:
+    d = euclid(GRID)
+    stops = [n for n in GRID if n != "pass"]
+    got = order_stops("pass", stops, d, end="pass")
+    assert sorted(got) == sorted(stops)
+    # 2-opt on a 3x3 grid finds a tour no longer than a serpentine one.
+    serp = ["G11", "G12", "G13", "G23", "G22", "G21", "G31", "G32", "G33"]
+    assert route_length("pass", got, d, "pass") <= route_length("pass", serp, d, "pass") + 1e-9
+
+
+def test_split_trips_respects_capacity_and_groups_areas() -> None:
+    d = euclid(POS)
+    trips = split_trips([f"T{i}" for i in range(1, 9)], "pass", d, capacity=4)
+    assert [sorted(t) for t in trips] == [["T5", "T6", "T7", "T8"], ["T1", "T2", "T3", "T4"]]
+    with pytest.raises(ValueError):
+        split_trips(["T1"], "pass", d, capacity=0)
+
+
+def test_plan_trips_every_order_once() -> None:
+    d = euclid(POS)
+    orders = [order(i, f"T{1 + i % 6}", float(i)) for i in range(15)]
+    trips = plan_trips(orders, "pass", d, capacity=4)
+    ids = [oid for trip in trips for _, oids in trip for oid in oids]
+    assert sorted(ids) == list(range(15))
+    assert all(len(trip) <= 4 for trip in trips)
+    for trip in trips:  # each trip in distance order from the pass
+        xs = [POS[t][0] for t, _ in trip]
+        assert xs == sorted(xs)
+
+
+def test_choose_robot_longest_idle_and_battery() -> None:
+    c = [Candidate("a", 10.0, 0.9), Candidate("b", 5.0, 0.5), Candidate("c", 5.0, 0.8)]
+    assert choose_robot(c) == "c"
+    assert choose_robot([Candidate("a", 1.0, 0.05)]) is None
+    assert choose_robot([]) is None
+
+
+class FakeFleet:
+    def __init__(self, tasks: list[int], robots: list[str]) -> None:
+        self.tasks = tasks
+        self.free = {r: float(i) for i, r in enumerate(robots)}
+        self.started: list[tuple[int, str]] = []
+
+    async def queued_task_ids(self) -> list[int]:
+        return [t for t in self.tasks if t not in {s for s, _ in self.started}]
+
+    def free_robots(self) -> list[Candidate]:
+        return [Candidate(r, t) for r, t in self.free.items()]
+
+    async def start_trip(self, task_id: int, robot: str) -> bool:
+        self.started.append((task_id, robot))
+        del self.free[robot]
+        return True
+
+
+async def test_dispatch_gives_each_trip_to_one_robot() -> None:
+    fleet = FakeFleet([1, 2, 3], ["r1", "r2"])
+    d = Dispatcher(fleet)
+    assert await d.dispatch_once() == 2
+    assert fleet.started == [(1, "r1"), (2, "r2")]
+    assert await d.dispatch_once() == 0  # no robot left for trip 3
+    fleet.free["r3"] = 9.0
+    assert await d.dispatch_once() == 1
+    assert fleet.started[-1] == (3, "r3")
