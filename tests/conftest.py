@@ -1,0 +1,188 @@
+"""Shared fixtures: a real server on a real SQLite file, real simulated robots, real clients.
+
+``Client`` keeps the latest state of every record it has heard of (from snapshots and pushed
+updates) and lets a test wait for a condition on it with a timeout — never a sleep.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import itertools
+import json
+from collections.abc import AsyncIterator, Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+import websockets
+from websockets.asyncio.client import ClientConnection, connect
+
+from serveur.app import App, RobotSpec
+from serveur.clock import ScaledClock
+from serveur.core import CoreConfig
+
+TIME_SCALE = 10.0
+WAIT = 30.0  # wall seconds: generous for a loaded 2-core CI box; tests end as soon as they can
+
+
+class Client:
+    """A scripted staff tablet: request/reply by id, and a live view of every topic."""
+
+    def __init__(self, ws: ClientConnection) -> None:
+        self.ws = ws
+        self._ids = itertools.count(1)
+        self._pending: dict[int, asyncio.Future[dict[str, Any]]] = {}
+        self.records: dict[str, dict[Any, dict[str, Any]]] = {}
+        self.streams: dict[str, Any] = {}
+        self.seqs: list[int] = []
+        self.frames: list[dict[str, Any]] = []
+        self._changed = asyncio.Condition()
+        self._reader = asyncio.create_task(self._read())
+
+    async def _read(self) -> None:
+        with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+            async for frame in self.ws:
+                msg = json.loads(frame)
+                self.frames.append(msg)
+                if msg["servermsg"] == "update":
+                    self.seqs.append(msg["seq"])
+                    self._apply(msg["topic"], msg["data"])
+                else:
+                    fut = self._pending.pop(msg.get("id"), None)
+                    if fut is not None and not fut.done():
+                        fut.set_result(msg)
+                async with self._changed:
+                    self._changed.notify_all()
+
+    def _apply(self, topic: str, data: Any) -> None:
+        if topic in ("robots", "orders", "tasks", "waypoints", "events"):
+            key = "name" if topic in ("robots", "waypoints") else "id"
+            self.records.setdefault(topic, {})[data[key]] = data
+        else:
+            self.streams[topic] = data
+
+    async def call(self, verb: str, **fields: Any) -> dict[str, Any]:
+        rid = next(self._ids)
+        fut: asyncio.Future[dict[str, Any]] = asyncio.get_running_loop().create_future()
+        self._pending[rid] = fut
+        await self.ws.send(json.dumps({"clientmsg": verb, "id": rid, **fields}))
+        return await asyncio.wait_for(fut, WAIT)
+
+    async def ok(self, verb: str, **fields: Any) -> dict[str, Any]:
+        reply = await self.call(verb, **fields)
+        assert reply["servermsg"] == "ok", reply
+        return reply
+
+    async def error(self, verb: str, code: str, **fields: Any) -> dict[str, Any]:
+        reply = await self.call(verb, **fields)
+        assert reply["servermsg"] == "error" and reply["code"] == code, reply
+        return reply
+
+    async def subscribe(self, *topics: str) -> dict[str, Any]:
+        reply = await self.ok("data", topics=list(topics))
+        for topic, snap in reply["data"].items():
+            if isinstance(snap, list):
+                for rec in snap:
+                    self._apply(topic, rec)
+            elif snap is not None:
+                self._apply(topic, snap)
+        return reply
+
+    def robot(self, name: str) -> dict[str, Any]:
+        return self.records.get("robots", {}).get(name, {})
+
+    def order(self, oid: int) -> dict[str, Any]:
+        return self.records.get("orders", {}).get(oid, {})
+
+    def task(self, tid: int) -> dict[str, Any]:
+        return self.records.get("tasks", {}).get(tid, {})
+
+    async def until(self, cond: Callable[[], Any], timeout: float = WAIT, what: str = "") -> Any:
+        async def wait() -> Any:
+            async with self._changed:
+                while not (res := cond()):
+                    await self._changed.wait()
+                return res
+
+        try:
+            return await asyncio.wait_for(wait(), timeout)
+        except TimeoutError:
+            raise AssertionError(f"timed out waiting for {what or cond}") from None
+
+    async def status(self, robot: str, status: str, timeout: float = WAIT) -> dict[str, Any]:
+        await self.until(lambda: self.robot(robot).get("status") == status, timeout,
+                         f"{robot} to be {status} (is {self.robot(robot).get('status')})")
+        return self.robot(robot)
+
+    async def close(self) -> None:
+        await self.ws.close()
+        self._reader.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await self._reader
+
+
+@dataclass
+class Restaurant:
+    app: App
+    sim: Any
+    clock: ScaledClock
+    db: Path
+    specs: list[RobotSpec]
+    clients: list[Client]
+
+    async def client(self) -> Client:
+        c = Client(await connect(self.app.url, max_size=2**24))
+        self.clients.append(c)
+        return c
+
+    async def restart_server(self) -> None:
+        """Stop the server (clean close) and start a new one on the same database file."""
+        for c in self.clients:
+            await c.close()
+        self.clients.clear()
+        await self.app.close()
+        self.app = make_app(self.db, self.clock, self.specs)
+        await self.app.start()
+
+
+def make_app(db: Path, clock: ScaledClock, specs: list[RobotSpec]) -> App:
+    from serveur.navigation import load_demo
+
+    nav_map, waypoints = load_demo()
+    cfg = CoreConfig(heartbeat=2.0, ack_timeout=3.0)
+    return App(db, port=0, clock=clock, nav_map=nav_map, waypoints=waypoints, robots=specs, config=cfg)
+
+
+@contextlib.asynccontextmanager
+async def restaurant(tmp_path: Path, robots: int = 1, time_scale: float = TIME_SCALE) -> AsyncIterator[Restaurant]:
+    from serveur.navigation import demo_map_path
+    from serveur.robot_sim import start_simulation
+
+    clock = ScaledClock(time_scale)
+    sim = await start_simulation(robots, port=0, map_path=demo_map_path(), time_scale=time_scale, clock=clock)
+    specs = [RobotSpec(r.name, url, f"home{i + 1}") for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))]
+    db = tmp_path / "serveur.db"
+    app = make_app(db, clock, specs)
+    await app.start()
+    r = Restaurant(app, sim, clock, db, specs, [])
+    try:
+        yield r
+    finally:
+        for c in r.clients:
+            await c.close()
+        await r.app.close()
+        await sim.close()
+
+
+@pytest.fixture
+async def one_robot(tmp_path: Path) -> AsyncIterator[Restaurant]:
+    async with restaurant(tmp_path, robots=1) as r:
+        yield r
+
+
+@pytest.fixture
+async def two_robots(tmp_path: Path) -> AsyncIterator[Restaurant]:
+    async with restaurant(tmp_path, robots=2) as r:
+        yield r
