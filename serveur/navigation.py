@@ -16,11 +16,11 @@ polyline. Every failure is a :class:`~serveur.errors.ServeurError` subclass.
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 from collections import OrderedDict, deque
 from collections.abc import Mapping, Sequence
-from itertools import pairwise
 from weakref import WeakKeyDictionary
 
 import numpy as np
@@ -57,6 +57,7 @@ HIT_THRESHOLD = 65
 """Occupancy at which a laser ray stops (map_saver's own "occupied" threshold)."""
 
 _SQRT2 = math.sqrt(2.0)
+_FIELD_CACHE_BYTES = 256 * 2**20
 _EPS = 1e-6  # cell units: how close to a grid line a point counts as touching both sides
 # (d_row, d_col) of the 8 neighbours; diagonal moves also need both orthogonal cells free so
 # that a path never squeezes between two blocked cells touching at a corner.
@@ -129,15 +130,24 @@ def _sweep_field(free: np.ndarray, goal: tuple[int, int], step: float) -> np.nda
             np.minimum(cand[:-1], prev[1:] + dc[k], out=cand[:-1])
             np.minimum(d[r], cand, out=d[r])
 
-    for _ in range(h * w):  # a bound never reached: every sweep but the last improves a cell
+    sweeps = itertools.cycle(
+        [
+            (dist, v_cost, d_cost, True),  # up
+            (dist.T, h_cost, d_cost.T, True),  # right
+            (dist, v_cost, d_cost, False),  # down
+            (dist.T, h_cost, d_cost.T, False),  # left
+        ]
+    )
+    quiet = 0  # consecutive sweeps that changed nothing
+    # Converged once the other three directions change nothing after the last change (a
+    # sweep repeated on its own output is a no-op). Each round of four sweeps that changes
+    # something fixes at least one more cell of every shortest path, hence the bound.
+    for _ in range(4 * h * w):
         before = dist.copy()
-        sweep(dist, v_cost, d_cost, True)
-        sweep(dist.T, h_cost, d_cost.T, True)
-        sweep(dist, v_cost, d_cost, False)
-        sweep(dist.T, h_cost, d_cost.T, False)
-        if np.array_equal(before, dist):
+        sweep(*next(sweeps))
+        quiet = quiet + 1 if np.array_equal(before, dist) else 0
+        if quiet == 3:
             break
-    dist[~free] = inf
     return dist
 
 
@@ -162,7 +172,7 @@ def _next_cells(dist: np.ndarray, free: np.ndarray, step: float) -> np.ndarray:
     rows, cols = np.indices((h, w))
     nxt: np.ndarray = (rows + d_row) * w + (cols + d_col)
     nxt[~np.isfinite(dist) | (dist == 0.0) | ~free] = -1
-    return nxt
+    return nxt.astype(np.int32) if h * w < 2**31 else nxt
 
 
 def _segment_clear(ok: np.ndarray, a: tuple[float, float], b: tuple[float, float]) -> bool:
@@ -226,10 +236,11 @@ class Planner:
     """Shortest collision-free paths for a disc robot on one map.
 
     Distance fields (one per goal cell, the expensive part) are cached in an LRU of
-    ``cache_size`` entries (~1 MB each on the demo map): robots keep going to the same
-    tables, the pass and their homes, so most plans after warm-up are a pointer walk plus
-    line-of-sight smoothing (a few milliseconds). Thread-safe, so that callers can run plans
-    in worker threads (``asyncio.to_thread``) and keep the event loop responsive.
+    ``cache_size`` entries (1.1 MB each on the demo map, at most 256 MB in all): robots keep
+    going to the same tables, the pass and their homes, so most plans after warm-up are a
+    pointer walk plus line-of-sight smoothing (a millisecond or two). Thread-safe, so that
+    callers can run plans in worker threads (``asyncio.to_thread``) and keep the event loop
+    responsive.
     """
 
     def __init__(self, m: OccupancyMap, robot_radius: float = 0.2, *, cache_size: int = 32) -> None:
@@ -239,7 +250,10 @@ class Planner:
         self._ok = ~self._blocked
         self._ok.flags.writeable = False
         self._raw_free = m.grid == 0
-        self._cache_size = max(1, cache_size)
+        # Bounded by count and by memory (a field is 12 bytes a cell: float64 + int32), so a
+        # 200 m SLAM map cannot eat gigabytes.
+        per_field = 12 * m.width * m.height
+        self._cache_size = max(1, min(cache_size, _FIELD_CACHE_BYTES // per_field))
         self._fields: OrderedDict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = OrderedDict()
         self.fields_computed = 0  # how many distance fields were built (cache misses)
         self._lock = threading.Lock()
@@ -358,7 +372,7 @@ class Planner:
         self, start: tuple[float, float], goal: tuple[float, float]
     ) -> list[tuple[float, float]]:
         """World points from ``start`` to ``goal`` inclusive; every segment is collision-free
-        on the inflated grid (except the first leg of an escape, see below).
+        on the inflated grid, except the legs of an escape (below), which are on raw-free cells.
 
         Raises Unreachable when the goal is off the map, in or too close to an obstacle, in
         unknown space or not connected to the start, or the start is off the map or inside an
@@ -410,7 +424,7 @@ class Planner:
     def path_length(self, start: tuple[float, float], goal: tuple[float, float]) -> float:
         """Metres along :meth:`plan`'s smoothed path; raises Unreachable like plan()."""
         pts = self.plan(start, goal)
-        return float(sum(math.dist(p, q) for p, q in pairwise(pts)))
+        return float(sum(math.dist(p, q) for p, q in itertools.pairwise(pts)))
 
 
 class DistanceTable:
@@ -426,12 +440,16 @@ class DistanceTable:
         self.planner = planner
         self._waypoints: dict[str, Waypoint] = dict(waypoints)
         self._cache: dict[tuple[str, str], float | str] = {}  # metres, or why unreachable
+        # Guards the dicts, not the planning: matrix() typically runs in a worker thread while
+        # the event loop asks for single distances and adds waypoints.
+        self._lock = threading.Lock()
 
     def _get(self, name: str) -> Waypoint:
-        try:
-            return self._waypoints[name]
-        except KeyError:
-            raise NotFound(f"unknown waypoint {name!r}", waypoint=name) from None
+        with self._lock:
+            wp = self._waypoints.get(name)
+        if wp is None:
+            raise NotFound(f"unknown waypoint {name!r}", waypoint=name)
+        return wp
 
     def distance(self, a: str, b: str) -> float:
         """Metres between waypoints ``a`` and ``b``; NotFound / Unreachable otherwise."""
@@ -439,10 +457,13 @@ class DistanceTable:
         if a == b:
             return 0.0
         key = (a, b) if a < b else (b, a)
-        value = self._cache.get(key)
+        with self._lock:
+            value = self._cache.get(key)
         if value is None:
             value = self._compute(wa, wb) if a < b else self._compute(wb, wa)
-            self._cache[key] = value
+            with self._lock:  # unless add() moved one of them meanwhile: that would be stale
+                if self._waypoints.get(a) == wa and self._waypoints.get(b) == wb:
+                    self._cache[key] = value
         if isinstance(value, str):
             raise Unreachable(value, waypoints=[key[0], key[1]])
         return value
@@ -475,14 +496,16 @@ class DistanceTable:
 
     def add(self, wp: Waypoint) -> None:
         """Add or move a waypoint; forgets only the distances that involve it."""
-        old = self._waypoints.get(wp.name)
-        self._waypoints[wp.name] = wp
-        if old is not None and (old.x, old.y) != (wp.x, wp.y):
-            for key in [k for k in self._cache if wp.name in k]:
-                del self._cache[key]
+        with self._lock:
+            old = self._waypoints.get(wp.name)
+            self._waypoints[wp.name] = wp
+            if old is not None and (old.x, old.y) != (wp.x, wp.y):
+                for key in [k for k in self._cache if wp.name in k]:
+                    del self._cache[key]
 
     def __contains__(self, name: object) -> bool:
-        return name in self._waypoints
+        with self._lock:
+            return name in self._waypoints
 
 
 _HIT_CELLS: WeakKeyDictionary[OccupancyMap, np.ndarray] = WeakKeyDictionary()
