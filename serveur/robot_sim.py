@@ -31,6 +31,7 @@ import logging
 import math
 import random
 import signal
+import socket
 import sys
 import threading
 from collections import deque
@@ -107,6 +108,7 @@ MAX_FRAME: Final = 1 << 20  # bytes: larger incoming frames close the connection
 DEFAULT_QUEUE: Final = 10  # per-topic buffer of a subscription without queue_length
 MAX_QUEUE: Final = 100  # cap on a client's queue_length (memory bound)
 CONTROL_QUEUE: Final = 256  # replies (status, service_response) kept for a client that lags
+SEND_BUFFER: Final = 64 * 1024  # SO_SNDBUF of client sockets (the kernel doubles it)
 MAX_FRAGMENTED: Final = 8  # messages being reassembled from fragments at once, per client
 
 #: Topics the robot subscribes to (clients may publish here; anything else is refused).
@@ -1172,13 +1174,35 @@ class _Endpoint:
         if self.port == 0:
             self.port = int(self.server.sockets[0].getsockname()[1])
 
-    async def stop(self) -> None:
+    async def stop(self, close_timeout: float = 2.0) -> None:
+        """Stop listening and close every connection with 1001 (Going Away).
+
+        websockets' own ``Server.close`` waits for each close handshake while flushing what is
+        queued, and a client that stopped reading never lets that flush end; so each client
+        gets ``close_timeout`` wall seconds, then its TCP connection is aborted.
+        """
         server, self.server = self.server, None
-        if server is not None:
-            server.close()
-            await server.wait_closed()
+        if server is None:
+            return
+        server.close(close_connections=False)
+
+        async def close_one(ws: ServerConnection) -> None:
+            try:
+                await asyncio.wait_for(ws.close(1001, "endpoint stopped"), close_timeout)
+            except TimeoutError:
+                ws.transport.abort()
+
+        await asyncio.gather(*(close_one(c.ws) for c in list(self.clients)))
+        await server.wait_closed()
 
     async def _handler(self, ws: ServerConnection) -> None:
+        sock = ws.transport.get_extra_info("socket")
+        if sock is not None:
+            # A small kernel send buffer: a client that stops reading then backs up into our
+            # bounded per-topic queues (which drop the oldest) within a few frames, instead of
+            # into megabytes of stale scans in the kernel (loopback autotunes up to 4 MiB).
+            with contextlib.suppress(OSError):
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER)
         client = _Client(self, ws)
         self.clients.add(client)
         writer = asyncio.ensure_future(client.writer())
