@@ -25,7 +25,7 @@ import json
 import logging
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from serveur import protocol as P
@@ -121,6 +121,9 @@ class Core:
             self._waypoints[wp.name] = wp
         if self._map is not None:
             self._set_map(self._map)
+            # Path distances between all waypoints, computed once before any robot is driven,
+            # off the event loop: the scheduler's first cart must not stall every link.
+            await asyncio.to_thread(self._distances.matrix, sorted(self._waypoints))
         for robot in await self.store.list_robots():
             self._add_runtime(robot)
             # Every robot starts Offline and resumes what it was doing once its link is up.
@@ -343,6 +346,11 @@ class Core:
             rt.goal_id = None
             await self._event(rt, Event.STOP)
         elif action is Action.CONTINUE:
+            if rt.state.resume is None:
+                # What to resume is lost when a Stopped/Error robot's link drops (the status
+                # column holds one "resume"); the trip tells: dishes aboard -> back to the table.
+                has_trip = self._robots[rt.name].current_task is not None
+                rt.state = replace(rt.state, resume=S.DELIVERING if has_trip else S.TRANSIT)
             await self._event(rt, Event.CONTINUE)
             await self._resume_move(rt)
         elif action is Action.CANCEL:
@@ -522,7 +530,8 @@ class Core:
             and rt.link is not None
             and rt.link.up
             and self._robots[rt.name].current_task is None
-            and not rt.lock.locked()
+            # Locked robots are listed too: start_trip waits for the lock and re-checks, so a
+            # robot freed inside a locked section is not missed by the kick it caused.
         ]
 
     async def start_trip(self, task_id: int, robot: str) -> bool:
