@@ -9,9 +9,10 @@ the caller (``asyncio.to_thread``); repeated ones are cached.
 
 Conventions: a robot is a disc of ``robot_radius``; anything not known free (occupied,
 partially occupied or unknown, and everything off the map) is an obstacle for planning,
-because bumping into a chair costs more than a detour. Paths are shortest on the
-8-connected inflated grid, then shortened by line-of-sight shortcuts into an any-angle
-polyline. Every failure is a :class:`~serveur.errors.ServeurError` subclass.
+because bumping into a chair costs more than a detour. Paths are cheapest on the
+8-connected inflated grid (length, plus a surcharge for hugging obstacles: see Planner),
+then shortened by line-of-sight shortcuts into an any-angle polyline. Every failure is a
+:class:`~serveur.errors.ServeurError` subclass.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ from serveur.mapio import (
 
 __all__ = [
     "HIT_THRESHOLD",
+    "MARGIN_COST",
     "DistanceTable",
     "OccupancyMap",
     "Planner",
@@ -58,6 +60,10 @@ HIT_THRESHOLD = 65
 
 _SQRT2 = math.sqrt(2.0)
 _FIELD_CACHE_BYTES = 256 * 2**20
+MARGIN_COST = 3.0
+"""What a metre driven right along the inflated obstacles costs the planner; the surcharge
+falls off in steps to nothing at ``clearance`` further out (a costmap's inflation decay)."""
+_BANDS = 3
 _EPS = 1e-6  # cell units: how close to a grid line a point counts as touching both sides
 # (d_row, d_col) of the 8 neighbours; diagonal moves also need both orthogonal cells free so
 # that a path never squeezes between two blocked cells touching at a corner.
@@ -98,50 +104,63 @@ def inflate(m: OccupancyMap, radius: float) -> np.ndarray:
     return out
 
 
-def _sweep_field(free: np.ndarray, goal: tuple[int, int], step: float) -> np.ndarray:
-    """8-connected shortest distances to ``goal`` over ``free`` cells (np.inf elsewhere).
+def _pair_costs(weight: np.ndarray, step: float) -> tuple[np.ndarray, ...]:
+    """Cost of each allowed move between neighbouring cells: its length times the mean weight
+    of its two cells (inf where a cell is blocked or a diagonal would cut a blocked corner).
+    Returns (vertical (k, k+1) rows, horizontal (k, k+1) cols, diagonal (k, c)-(k+1, c+1),
+    anti-diagonal (k, c+1)-(k+1, c))."""
+    w = weight
+    vertical = step * (w[1:] + w[:-1]) / 2
+    horizontal = step * (w[:, 1:] + w[:, :-1]) / 2
+    corners = np.isfinite(w[1:, 1:] + w[:-1, :-1] + w[:-1, 1:] + w[1:, :-1])
+    diag = step * _SQRT2 / 2
+    d1 = np.where(corners, diag * (w[:-1, :-1] + w[1:, 1:]), np.inf)
+    d2 = np.where(corners, diag * (w[:-1, 1:] + w[1:, :-1]), np.inf)
+    return vertical, horizontal, d1, d2
+
+
+def _sweep_field(weight: np.ndarray, goal: tuple[int, int], step: float) -> np.ndarray:
+    """Least cost to ``goal`` over 8-connected cells (see _pair_costs; inf weight = blocked).
 
     Gauss-Seidel sweeps (up, right, down, left) repeated until nothing improves: each row (or
     column) is relaxed in one vectorised step from its already-updated neighbour row, so a
-    sweep carries distances across the whole map and 3-5 sweeps converge on a dining room.
-    Measured on the demo map (2-core VM, 57k free cells, bounding box cropped): 25-40 ms a
-    field, against 100-170 ms for a heapq Dijkstra and 230-300 ms for whole-array Jacobi
+    sweep carries costs across the whole map and a dozen or so sweeps converge on a dining
+    room. Measured on the demo map (2-core VM, 57k free cells, bounding box cropped): 20-30 ms
+    a field, against 100-170 ms for a heapq Dijkstra and 230-300 ms for whole-array Jacobi
     relaxation with array shifts (~270 iterations: one per cell of path length). The results
     are the same (the tests check them against a plain Dijkstra).
     """
-    h, w = free.shape
-    inf = np.inf
-    diag = step * _SQRT2
-    dist = np.full((h, w), inf)
+    h, w = weight.shape
+    dist = np.full((h, w), np.inf)
     dist[goal] = 0.0
-    # Cost of stepping between rows r and r+1 (and cols c, c+1): inf where not allowed.
-    both = free[1:, 1:] & free[:-1, :-1] & free[:-1, 1:] & free[1:, :-1]
-    d_cost = np.where(both, diag, inf)
-    v_cost = np.where(free[1:] & free[:-1], step, inf)
-    h_cost = np.where(free[:, 1:] & free[:, :-1], step, inf).T
+    vertical, horizontal, d1, d2 = _pair_costs(weight, step)
 
-    def sweep(d: np.ndarray, pair: np.ndarray, dc: np.ndarray, forward: bool) -> None:
+    def sweep(
+        d: np.ndarray, pair: np.ndarray, left: np.ndarray, right: np.ndarray, fwd: bool
+    ) -> None:
+        # Row r takes its candidates from row r-1 (forward) or r+1 (backward); ``left`` costs
+        # the move from column c-1 of that row, ``right`` from column c+1.
         n = d.shape[0]
-        for r in range(1, n) if forward else range(n - 2, -1, -1):
-            k = r - 1 if forward else r  # index of the (k, k+1) pair between r and its source
-            prev = d[r - 1] if forward else d[r + 1]
+        for r in range(1, n) if fwd else range(n - 2, -1, -1):
+            k = r - 1 if fwd else r  # index of the (k, k+1) pair between r and its source
+            prev = d[r - 1] if fwd else d[r + 1]
             cand = prev + pair[k]
-            np.minimum(cand[1:], prev[:-1] + dc[k], out=cand[1:])
-            np.minimum(cand[:-1], prev[1:] + dc[k], out=cand[:-1])
+            np.minimum(cand[1:], prev[:-1] + left[k], out=cand[1:])
+            np.minimum(cand[:-1], prev[1:] + right[k], out=cand[:-1])
             np.minimum(d[r], cand, out=d[r])
 
     sweeps = itertools.cycle(
         [
-            (dist, v_cost, d_cost, True),  # up
-            (dist.T, h_cost, d_cost.T, True),  # right
-            (dist, v_cost, d_cost, False),  # down
-            (dist.T, h_cost, d_cost.T, False),  # left
+            (dist, vertical, d1, d2, True),  # up
+            (dist.T, horizontal.T, d1.T, d2.T, True),  # right
+            (dist, vertical, d2, d1, False),  # down
+            (dist.T, horizontal.T, d2.T, d1.T, False),  # left
         ]
     )
     quiet = 0  # consecutive sweeps that changed nothing
     # Converged once the other three directions change nothing after the last change (a
     # sweep repeated on its own output is a no-op). Each round of four sweeps that changes
-    # something fixes at least one more cell of every shortest path, hence the bound.
+    # something fixes at least one more cell of every cheapest path, hence the bound.
     for _ in range(4 * h * w):
         before = dist.copy()
         sweep(*next(sweeps))
@@ -151,27 +170,26 @@ def _sweep_field(free: np.ndarray, goal: tuple[int, int], step: float) -> np.nda
     return dist
 
 
-def _next_cells(dist: np.ndarray, free: np.ndarray, step: float) -> np.ndarray:
-    """For each cell, the flat index of its neighbour one step closer to the goal (-1: none).
-
-    Precomputed per goal so that extracting a path from any start is a pointer walk."""
+def _next_cells(dist: np.ndarray, weight: np.ndarray, step: float) -> np.ndarray:
+    """For each cell, the flat index of the neighbour its cheapest path to the goal goes
+    through (-1: none). Precomputed per goal, so that a path from any start is a pointer walk."""
     h, w = dist.shape
     pad_d = np.pad(dist, 1, constant_values=np.inf)
-    pad_f = np.pad(free, 1, constant_values=False)
+    pad_w = np.pad(weight, 1, constant_values=np.inf)
     cand = np.empty((len(_MOVES), h, w))
     for i, (dr, dc) in enumerate(_MOVES):
-        nb = pad_d[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w]
-        if dr and dc:
-            ok = pad_f[1 + dr : 1 + dr + h, 1 : 1 + w] & pad_f[1 : 1 + h, 1 + dc : 1 + dc + w]
-            cand[i] = np.where(ok, nb + step * _SQRT2, np.inf)
-        else:
-            cand[i] = nb + step
+        nb_w = pad_w[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w]
+        cost = (weight + nb_w) / 2 * step
+        if dr and dc:  # no corner cutting: both orthogonal cells must be free too
+            side = pad_w[1 + dr : 1 + dr + h, 1 : 1 + w] + pad_w[1 : 1 + h, 1 + dc : 1 + dc + w]
+            cost = np.where(np.isfinite(side), cost * _SQRT2, np.inf)
+        cand[i] = pad_d[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w] + cost
     best = cand.argmin(axis=0)
     d_row = np.array([dr for dr, _ in _MOVES])[best]
     d_col = np.array([dc for _, dc in _MOVES])[best]
     rows, cols = np.indices((h, w))
     nxt: np.ndarray = (rows + d_row) * w + (cols + d_col)
-    nxt[~np.isfinite(dist) | (dist == 0.0) | ~free] = -1
+    nxt[~np.isfinite(dist) | (dist == 0.0)] = -1
     return nxt.astype(np.int32) if h * w < 2**31 else nxt
 
 
@@ -233,7 +251,17 @@ def _shortcut(points: list[tuple[float, float]], ok: np.ndarray) -> list[tuple[f
 
 
 class Planner:
-    """Shortest collision-free paths for a disc robot on one map.
+    """Collision-free paths for a disc robot on one map: shortest, but keeping clear of
+    obstacles when that costs little.
+
+    A path that is strictly shortest grazes the inflated obstacles at every corner, and a
+    real path follower (a carrot ``lookahead`` ahead, acceleration limits) cuts those corners
+    into the table. So, as move_base's costmap inflation does, a metre within ``clearance``
+    of the inflation costs up to MARGIN_COST metres: paths keep ~``clearance`` off tables
+    where the room allows, run down the middle of narrow aisles, and still go wherever the
+    robot fits (spots next to tables, the narrowest aisle). ``clearance=0`` gives the plain
+    shortest path on the inflated grid. Line-of-sight smoothing may not cut back into the
+    margin except along the path's own cells.
 
     Distance fields (one per goal cell, the expensive part) are cached in an LRU of
     ``cache_size`` entries (1.1 MB each on the demo map, at most 256 MB in all): robots keep
@@ -243,18 +271,41 @@ class Planner:
     responsive.
     """
 
-    def __init__(self, m: OccupancyMap, robot_radius: float = 0.2, *, cache_size: int = 32) -> None:
+    def __init__(
+        self,
+        m: OccupancyMap,
+        robot_radius: float = 0.2,
+        *,
+        clearance: float = 0.3,
+        cache_size: int = 32,
+    ) -> None:
+        if not (math.isfinite(clearance) and clearance >= 0):
+            raise InvalidField(f"clearance must be >= 0, got {clearance}", field="clearance")
         self.map = m
         self.robot_radius = float(robot_radius)
+        self.clearance = float(clearance)
         self._blocked = inflate(m, self.robot_radius)
-        self._ok = ~self._blocked
+        self._ok: np.ndarray = ~self._blocked
         self._ok.flags.writeable = False
-        self._raw_free = m.grid == 0
+        self._raw_free: np.ndarray = m.grid == 0
+        self._metric = np.where(self._ok, 1.0, np.inf)  # cell weights for distance_field()
+        self._comfy: np.ndarray
+        if self.clearance > 0:
+            # How many of the nested clearance bands (outermost at ``clearance`` beyond the
+            # inflation) cover each cell: the cost per metre rises towards obstacles.
+            level = np.zeros(m.grid.shape)
+            for k in range(1, _BANDS + 1):
+                level += inflate(m, self.robot_radius + self.clearance * k / _BANDS)
+            self._comfy = level == 0
+            self._weight = np.where(self._ok, 1.0 + (MARGIN_COST - 1.0) * level / _BANDS, np.inf)
+        else:
+            self._comfy, self._weight = self._ok, self._metric
         # Bounded by count and by memory (a field is 12 bytes a cell: float64 + int32), so a
         # 200 m SLAM map cannot eat gigabytes.
         per_field = 12 * m.width * m.height
         self._cache_size = max(1, min(cache_size, _FIELD_CACHE_BYTES // per_field))
-        self._fields: OrderedDict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = OrderedDict()
+        self._fields: OrderedDict[tuple[int, int, bool], tuple[np.ndarray, np.ndarray]]
+        self._fields = OrderedDict()
         self.fields_computed = 0  # how many distance fields were built (cache misses)
         self._lock = threading.Lock()
         rows, cols = np.nonzero(self._ok)
@@ -303,33 +354,54 @@ class Planner:
 
     # -- distance fields -------------------------------------------------------------------
 
-    def _field(self, goal_cell: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    def _field(self, goal_cell: tuple[int, int], *, metric: bool) -> tuple[np.ndarray, np.ndarray]:
+        """(cost to the goal, next cell towards it) for every cell; ``metric`` in metres, else
+        with the clearance margin's surcharge (what plan() follows)."""
+        metric = metric or self._weight is self._metric
+        key = (goal_cell[0], goal_cell[1], metric)
         with self._lock:
-            cached = self._fields.get(goal_cell)
+            cached = self._fields.get(key)
             if cached is not None:
-                self._fields.move_to_end(goal_cell)
+                self._fields.move_to_end(key)
                 return cached
         # Computed outside the lock: two threads may race to build the same field, which only
         # wastes time, while holding the lock would serialise every plan behind it.
+        weight = self._metric if metric else self._weight
         r0, r1, c0, c1 = self._box  # sweep only the bounding box of traversable cells
         dist = np.full(self._ok.shape, np.inf)
         dist[r0:r1, c0:c1] = _sweep_field(
-            self._ok[r0:r1, c0:c1], (goal_cell[0] - r0, goal_cell[1] - c0), self.map.resolution
+            weight[r0:r1, c0:c1], (goal_cell[0] - r0, goal_cell[1] - c0), self.map.resolution
         )
-        nxt = _next_cells(dist, self._ok, self.map.resolution)
+        nxt = _next_cells(dist, weight, self.map.resolution)
         dist.flags.writeable = False
         nxt.flags.writeable = False
         with self._lock:
             self.fields_computed += 1
-            self._fields[goal_cell] = (dist, nxt)
+            self._fields[key] = (dist, nxt)
             if len(self._fields) > self._cache_size:
                 self._fields.popitem(last=False)
         return dist, nxt
 
     def distance_field(self, goal: tuple[float, float]) -> np.ndarray:
-        """Geodesic distance (m, 8-connected grid metric) from every cell to the goal's cell;
-        np.inf where unreachable. Read-only and cached per goal cell."""
-        return self._field(self._check("goal", *goal))[0]
+        """Geodesic distance (m, 8-connected grid metric, no clearance surcharge) from every
+        cell to the goal's cell; np.inf where unreachable. Read-only, cached per goal cell."""
+        return self._field(self._check("goal", *goal), metric=True)[0]
+
+    def _corridor(self, cells: list[tuple[int, int]]) -> np.ndarray:
+        """Where shortcuts may go: comfortable cells, plus the path's own cells and their
+        neighbours. Smoothing must not cut back into the clearance margin that the path
+        only enters where it has to (a narrow aisle, a spot next to a table)."""
+        if self._comfy is self._ok:
+            return self._ok
+        near = np.zeros(self._ok.shape, dtype=bool)
+        rows, cols = zip(*cells, strict=True)
+        near[rows, cols] = True
+        near[1:] |= near[:-1].copy()
+        near[:-1] |= near[1:].copy()
+        near[:, 1:] |= near[:, :-1].copy()
+        near[:, :-1] |= near[:, 1:].copy()
+        allowed: np.ndarray = (near & self._ok) | self._comfy
+        return allowed
 
     # -- paths -----------------------------------------------------------------------------
 
@@ -381,7 +453,7 @@ class Planner:
         """
         goal_cell = self._check("goal", *goal)
         start_cell = self._check("start", *start)
-        dist, nxt = self._field(goal_cell)
+        dist, nxt = self._field(goal_cell, metric=False)
         res = self.map.resolution
         lead: list[tuple[int, int]] = []
         if not math.isfinite(dist[start_cell]):
@@ -409,13 +481,14 @@ class Planner:
             return cell[1] + 0.5, cell[0] + 0.5
 
         s_uv, g_uv = self._uv(*start), self._uv(*goal)
+        ok = self._corridor(cells)
         if lead:
             escape = _shortcut([s_uv] + [centre(c) for c in lead[1:]], self._raw_free)
-            main = _shortcut([centre(c) for c in cells[:-1]] + [g_uv], self._ok)
+            main = _shortcut([centre(c) for c in cells[:-1]] + [g_uv], ok)
             main = main if len(main) > 1 else [centre(entry), g_uv]
             pts = escape + main[1:]
         else:
-            pts = _shortcut([s_uv] + [centre(c) for c in cells[1:-1]] + [g_uv], self._ok)
+            pts = _shortcut([s_uv] + [centre(c) for c in cells[1:-1]] + [g_uv], ok)
         ox, oy, _ = self.map.origin
         out = [(ox + u * res, oy + v * res) for u, v in pts]
         out[0], out[-1] = (float(start[0]), float(start[1])), (float(goal[0]), float(goal[1]))

@@ -289,20 +289,45 @@ def wall_room() -> OccupancyMap:
     return room(6.0, 4.0, [(2.9, 0.0, 3.1, 3.0)], origin=(-1.0, 0.5))
 
 
-def test_plan_around_wall() -> None:
-    p = Planner(wall_room(), robot_radius=0.2)
+def wall_gap(x: float, y: float) -> float:
+    """Distance from (x, y) to wall_room's wall."""
+    return math.hypot(max(2.9 - x, 0.0, x - 3.1), max(0.5 - y, 0.0, y - 3.0))
+
+
+def test_shortest_plan_around_wall() -> None:
+    p = Planner(wall_room(), robot_radius=0.2, clearance=0.0)
     start, goal = (0.0, 1.5), (4.0, 1.5)
     path = p.plan(start, goal)
     assert path[0] == start and path[-1] == goal
     assert_path_clear(p, path)
     assert max(y for _, y in path) > 3.0 + 0.2  # over the wall's top with clearance
     assert len(path) <= 5  # any-angle, not a staircase
-    straight = math.dist(start, goal)
     # Lower bound: to the inflated wall's top-left corner, across, down to the goal; a robot
     # centre may pass up to half a cell diagonal closer than the radius, hence 0.98.
     around = math.hypot(2.9, 1.7) + 0.2 + math.hypot(0.9, 1.7)
     assert 0.98 * around < p.path_length(start, goal) < 1.05 * around
-    assert p.path_length(start, goal) > straight
+    assert p.path_length(start, goal) > math.dist(start, goal)
+    assert min(wall_gap(x, y) for x, y in path) < 0.2 + 0.05  # hugs the inflated wall
+
+
+def test_clearance_keeps_paths_off_obstacles() -> None:
+    # Above the wall there is room to pass 0.5 m off it; the default planner takes it, and
+    # pays only a little length for it.
+    p = Planner(wall_room(), robot_radius=0.2)
+    tight = Planner(wall_room(), robot_radius=0.2, clearance=0.0)
+    start, goal = (0.0, 1.5), (4.0, 1.5)
+    path = p.plan(start, goal)
+    assert_path_clear(p, path)
+    for (x0, y0), (x1, y1) in itertools.pairwise(path):
+        for t in np.linspace(0.0, 1.0, 200):
+            assert wall_gap(x0 + t * (x1 - x0), y0 + t * (y1 - y0)) > 0.2 + 0.3 - 0.05
+    assert p.path_length(start, goal) < 1.15 * tight.path_length(start, goal)
+    # ...but it still squeezes through where only the robot fits: a 0.5 m gap.
+    gap = room(4.0, 3.0, [(1.9, 0.0, 2.1, 1.25), (1.9, 1.75, 2.1, 3.0)])
+    squeeze = Planner(gap, robot_radius=0.2).plan((0.5, 1.5), (3.5, 1.5))
+    assert squeeze == [(0.5, 1.5), (3.5, 1.5)]
+    with pytest.raises(InvalidField):
+        Planner(gap, clearance=-1.0)
 
 
 def test_open_space_is_one_straight_segment() -> None:
@@ -613,3 +638,27 @@ def test_demo_narrowest_aisle_is_at_least_70cm(demo: tuple[OccupancyMap, Planner
         near = inflate(OccupancyMap(grid, m.resolution), 0.35)[margin:-margin, margin:-margin]
         count += near & (m.grid == 0)
     assert count.max() == 1
+
+
+def test_demo_paths_keep_clear_of_tables(demo: tuple[OccupancyMap, Planner]) -> None:
+    """Home -> table paths stay >= half the clearance beyond the inflation (0.35 m from any
+    obstacle) except in their first and last 0.6 m, so a follower cutting corners does not
+    touch a table; the demo aisles leave room for that everywhere."""
+    m, planner = demo
+    _, wps = load_demo()
+    roomy = ~inflate(m, 0.2 + 0.3 / 2)  # the default clearance is 0.3 m
+    for home, table in itertools.product(
+        [w for w in wps.values() if w.kind == "home"],
+        [w for w in wps.values() if w.kind == "table"],
+    ):
+        path = np.array(planner.plan((home.x, home.y), (table.x, table.y)))
+        seg = np.diff(path, axis=0)
+        seg_len = np.hypot(seg[:, 0], seg[:, 1])
+        total = seg_len.sum()
+        along = np.arange(0.6, total - 0.6, 0.01)
+        i = np.minimum(np.searchsorted(np.cumsum(seg_len), along), len(seg) - 1)
+        before = np.concatenate(([0.0], np.cumsum(seg_len)))[i]
+        pts = path[i] + seg[i] * ((along - before) / seg_len[i])[:, None]
+        rows = np.floor((pts[:, 1] - m.origin[1]) / m.resolution).astype(int)
+        cols = np.floor((pts[:, 0] - m.origin[0]) / m.resolution).astype(int)
+        assert roomy[rows, cols].all(), (home.name, table.name)
