@@ -55,7 +55,7 @@ def main() -> None:
 
     rows = [
         (f"DistanceTable.matrix, {len(names)} waypoints, cold", median_ms(matrix, args.repeat)),
-        ("Planner() construction (inflate r=0.2 m)", median_ms(lambda: Planner(m), 21)),
+        ("Planner() construction (inflation + clearance bands)", median_ms(lambda: Planner(m), 21)),
         ("plan home1 -> T16, cold (incl. Planner())", median_ms(cold_plan, 3 * args.repeat)),
         ("plan home1 -> T16, warm", median_ms(lambda: warm.plan(start, goal), 101)),
         (
@@ -76,9 +76,9 @@ def main() -> None:
         f"# demo map {m.width}x{m.height} cells at {m.resolution} m; path home1 -> T16 has "
         f"{len(path)} points, {warm.path_length(start, goal):.2f} m"
     )
-    print(f"{'case':<48} {'median ms':>10} {'min ms':>8}")
+    print(f"{'case':<54} {'median ms':>10} {'min ms':>8}")
     for name, (med, best) in rows:
-        print(f"{name:<48} {med:>10.2f} {best:>8.2f}")
+        print(f"{name:<54} {med:>10.2f} {best:>8.2f}")
 
 
 if __name__ == "__main__":
