@@ -74,8 +74,8 @@ def inflate(m: OccupancyMap, radius: float) -> np.ndarray:
     """Cells where a robot disc of ``radius`` (m) centred on the cell centre would collide.
 
     A cell collides when some obstacle cell (any value but 0, or off the map) comes strictly
-    closer than ``radius`` to its centre, measured to the obstacle cell's nearest edge, not
-    its centre, so a robot never overlaps an obstacle by up to half a cell. Vectorised: the
+    closer than ``radius`` to its centre, measured to the obstacle cell's nearest edge (to
+    its centre would let a robot overlap an obstacle by up to half a cell). Vectorised: the
     disc is split into horizontal runs; each run is a sliding-window sum on row prefix sums
     shifted vertically, so the cost is O(radius) whole-array operations.
     """
