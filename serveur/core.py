@@ -363,10 +363,11 @@ class Core:
         task_id = self._robots[rt.name].current_task
         if task_id is None:
             return
+        aboard = [o.id for o in await self.store.list_orders(task_id=task_id)]
         task = await self.store.cancel_task(task_id, now=self.clock.epoch(), reason=reason)
         self._robots[rt.name] = await self.store.get_robot(rt.name)
         self._pub_task(task)
-        await self._pub_orders([o for s in task.stops for o in s.orders])
+        await self._pub_orders(aboard)
 
     async def _next(self, rt: _Runtime) -> None:
         task = await self._current_task(rt)

@@ -100,8 +100,9 @@ async def test_stop_and_continue(one_robot: Restaurant) -> None:
     await activate(c, "r1")
     ids = await new_orders(c, ("Nasi lemak", "T14"))
     await c.ok("create", type="task", orders=ids)
+    await c.subscribe("pose:r1")
     await c.status("r1", "Delivering")
-    await c.until(lambda: not near(c.robot("r1"), "home1", 0.5), what="robot leaves home")
+    await c.until(lambda: not near(c.streams["pose:r1"], "home1", 1.0), what="robot leaves home")
     stopped = (await c.ok("stop", robot="r1"))["robot"]
     assert stopped["status"] == "Stopped"
     await c.error("next", "not_allowed_in_status", robot="r1")
@@ -143,12 +144,17 @@ async def test_manual_and_auto_exclude_each_other(one_robot: Restaurant) -> None
     await c.status("r1", "Manual")
     await c.error("control", "not_allowed_in_status", robot="r1", action="auto")
     # Under manual control: teleop moves the robot, go-to drives it to a waypoint.
-    x0 = c.robot("r1")["x"]
     pose = await c.subscribe("pose:r1")
-    assert pose["data"]["pose:r1"] is not None
-    for _ in range(3):
-        await c.ok("control", robot="r1", action="teleop", vx=0.5, vy=0.0, wz=0.0)
-    await c.until(lambda: abs(c.streams["pose:r1"]["x"] - x0) > 0.05, what="teleop moves the robot")
+    p0 = pose["data"]["pose:r1"]
+    assert p0 is not None
+
+    def moved() -> float:
+        p = c.streams["pose:r1"]
+        return math.hypot(p["x"] - p0["x"], p["y"] - p0["y"])
+
+    for _ in range(3):  # backwards: home faces the counter
+        await c.ok("control", robot="r1", action="teleop", vx=-0.5, vy=0.0, wz=0.0)
+    await c.until(lambda: moved() > 0.05, what="teleop moves the robot")
     await c.ok("control", robot="r1", action="goto", waypoint="T2")
     w = WAYPOINTS["T2"]
     await c.until(
@@ -214,7 +220,8 @@ async def test_restart_mid_service_finishes_the_service(one_robot: Restaurant) -
     second = await serve_current_stop(c, "r1")
     assert {first["table"], second["table"]} == {"T5", "T9"}
     await c.status("r1", "Awaiting")
-    assert all(c.order(i)["status"] == "delivered" for i in ids)
+    orders = await one_robot.app.store.list_orders()
+    assert [(o.id, o.status.value) for o in orders] == [(i, "delivered") for i in ids]
 
 
 async def test_create_is_idempotent_with_keys(one_robot: Restaurant) -> None:
