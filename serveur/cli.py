@@ -45,8 +45,13 @@ async def _run(ns: argparse.Namespace) -> int:
         waypoints = load_waypoints(ns.waypoints)
     robots = [parse_robot_spec(s) for s in ns.robot]
     app = App(
-        ns.db, host=ns.host, port=ns.port, clock=ScaledClock(ns.time_scale),
-        map_path=ns.map, waypoints=waypoints, robots=robots,
+        ns.db,
+        host=ns.host,
+        port=ns.port,
+        clock=ScaledClock(ns.time_scale),
+        map_path=ns.map,
+        waypoints=waypoints,
+        robots=robots,
     )
     await app.start()
     print(f"serveur {__version__} listening on {app.url} (database {ns.db})", flush=True)
@@ -67,23 +72,40 @@ async def _demo(ns: argparse.Namespace) -> int:
     nav_map, waypoints = load_demo()
     homes = sorted((w for w in waypoints.values() if w.kind == "home"), key=lambda w: w.name)
     if ns.robots > len(homes):
-        print(f"the demo restaurant has {len(homes)} home spots; --robots {ns.robots} is too many",
-              file=sys.stderr)
+        print(
+            f"the demo restaurant has {len(homes)} home spots; --robots {ns.robots} is too many",
+            file=sys.stderr,
+        )
         return 2
     sim = await start_simulation(
-        ns.robots, port=ns.sim_port, host=ns.host, map_path=demo_map_path(),
-        kinematics=ns.kinematics, time_scale=ns.time_scale, clock=clock, seed=ns.seed,
+        ns.robots,
+        port=ns.sim_port,
+        host=ns.host,
+        map_path=demo_map_path(),
+        kinematics=ns.kinematics,
+        time_scale=ns.time_scale,
+        clock=clock,
+        seed=ns.seed,
     )
     db = ns.db or str(Path(tempfile.mkdtemp(prefix="serveur-demo-")) / "serveur.db")
     specs = [
         RobotSpec(r.name, url, homes[i].name, ns.kinematics)
         for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
     ]
-    app = App(db, host=ns.host, port=ns.port, clock=clock, nav_map=nav_map,
-              waypoints=waypoints, robots=specs)
+    app = App(
+        db,
+        host=ns.host,
+        port=ns.port,
+        clock=clock,
+        nav_map=nav_map,
+        waypoints=waypoints,
+        robots=specs,
+    )
     try:
         await app.start()
-        print(f"serveur demo: {ns.robots} simulated robots, time scale {ns.time_scale}x", flush=True)
+        print(
+            f"serveur demo: {ns.robots} simulated robots, time scale {ns.time_scale}x", flush=True
+        )
         for spec in specs:
             print(f"  robot {spec.name}: {spec.url} (home {spec.home})")
         print(f"  clients connect to {app.url}")
@@ -104,7 +126,9 @@ def _schema(ns: argparse.Namespace) -> int:
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="serveur", description="Fleet server for restaurant waiter robots")
+    p = argparse.ArgumentParser(
+        prog="serveur", description="Fleet server for restaurant waiter robots"
+    )
     p.add_argument("--version", action="version", version=f"serveur {__version__}")
     p.add_argument("-v", "--verbose", action="count", default=0)
     sub = p.add_subparsers(dest="command", required=True)
@@ -113,8 +137,13 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--host", default="127.0.0.1")
     run.add_argument("--port", type=int, default=8765)
     run.add_argument("--db", default="./serveur.db", help="SQLite file (or sqlite:///path)")
-    run.add_argument("--robot", action="append", default=[],
-                     metavar="NAME=URL[,home=WP]", help="register a robot (repeatable)")
+    run.add_argument(
+        "--robot",
+        action="append",
+        default=[],
+        metavar="NAME=URL[,home=WP]",
+        help="register a robot (repeatable)",
+    )
     run.add_argument("--map", help="ROS map YAML (default: adopt the map a robot publishes)")
     run.add_argument("--waypoints", help="waypoints JSON to import (tables, homes)")
     run.add_argument("--time-scale", type=float, default=1.0)

@@ -36,7 +36,7 @@ from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurE
 from serveur.hub import Hub
 from serveur.robot_link import RobotLink
 from serveur.scheduler import Candidate, Dispatcher, plan_trips
-from serveur.status import Action, Event, RobotMode, RobotState, RobotStatus, apply, check_allowed
+from serveur.status import Action, Event, RobotState, RobotStatus, apply, check_allowed
 from serveur.store import Store
 
 __all__ = ["Core", "CoreConfig", "Destination"]
@@ -149,8 +149,12 @@ class Core:
             if rt.pose is not None:
                 with contextlib.suppress(ServeurError):
                     await self.store.save_robot_pose(
-                        rt.name, x=rt.pose[0], y=rt.pose[1], yaw=rt.pose[2],
-                        battery=rt.battery, now=self.clock.epoch(),
+                        rt.name,
+                        x=rt.pose[0],
+                        y=rt.pose[1],
+                        yaw=rt.pose[2],
+                        battery=rt.battery,
+                        now=self.clock.epoch(),
                     )
 
     def _add_runtime(self, robot: Robot) -> _Runtime:
@@ -167,9 +171,14 @@ class Core:
     def _start_link(self, rt: _Runtime) -> None:
         robot = self._robots[rt.name]
         rt.link = RobotLink(
-            rt.name, robot.url, self, self.clock,
-            heartbeat=self.config.heartbeat, ack_timeout=self.config.ack_timeout,
-            ack_retries=self.config.ack_retries, want_map=self._map is None,
+            rt.name,
+            robot.url,
+            self,
+            self.clock,
+            heartbeat=self.config.heartbeat,
+            ack_timeout=self.config.ack_timeout,
+            ack_retries=self.config.ack_retries,
+            want_map=self._map is None,
         )
         rt.link.start()
 
@@ -181,7 +190,9 @@ class Core:
         self._map = m
         self._map_json = P.dump(_map_snapshot(m))
         planner = nav.Planner(m, robot_radius=self.config.robot_radius)
-        self._distances = nav.DistanceTable(planner, {n: _nav_wp(w) for n, w in self._waypoints.items()})
+        self._distances = nav.DistanceTable(
+            planner, {n: _nav_wp(w) for n, w in self._waypoints.items()}
+        )
         self.hub.publish("map", self._map_json)
 
     def distance(self, a: str, b: str) -> float:
@@ -228,15 +239,27 @@ class Core:
                 self._pub("orders", await self.store.get_order(oid))
 
     async def _save_state(
-        self, name: str, st: RobotState, *, event: str = "robot.status",
-        error: str | None = None, keep_error: bool = False, data: Mapping[str, Any] | None = None,
+        self,
+        name: str,
+        st: RobotState,
+        *,
+        event: str = "robot.status",
+        error: str | None = None,
+        keep_error: bool = False,
+        data: Mapping[str, Any] | None = None,
     ) -> Robot:
         rt = self._rt[name]
         rt.state = st
         last_error = self._robots[name].last_error if keep_error else error
         robot = await self.store.save_robot_state(
-            name, status=st.status, mode=st.mode, resume=st.resume, last_error=last_error,
-            now=self.clock.epoch(), event=event, data=data,
+            name,
+            status=st.status,
+            mode=st.mode,
+            resume=st.resume,
+            last_error=last_error,
+            now=self.clock.epoch(),
+            event=event,
+            data=data,
         )
         self._robots[name] = robot
         self._pub("robots", self._robot_view(name))
@@ -454,7 +477,9 @@ class Core:
         kind = msg.type
         if kind == "order":
             self._waypoint(msg.table)
-            order = await self.store.add_order(msg.dish, msg.table, ready_at=now, key=msg.key, now=now)
+            order = await self.store.add_order(
+                msg.dish, msg.table, ready_at=now, key=msg.key, now=now
+            )
             self._pub("orders", order)
             return {"order": order}
         if kind == "task":
@@ -497,7 +522,9 @@ class Core:
             bad = sorted(o.id for o in orders if o.status is not OrderStatus.PENDING)
             raise Conflict(f"orders not pending: {bad}", orders=bad)
         trips = plan_trips(pending or orders, self._origin(), self.distance, self.config.capacity)
-        tasks = await self.store.create_tasks(trips, key=key, fingerprint=fp, now=self.clock.epoch())
+        tasks = await self.store.create_tasks(
+            trips, key=key, fingerprint=fp, now=self.clock.epoch()
+        )
         for t in tasks:
             self._pub_task(t)
         await self._pub_orders(order_ids)
@@ -547,7 +574,9 @@ class Core:
 
             stop_order = order_stops(home, order, self.distance, end=home)
             try:
-                task = await self.store.start_task(task_id, robot, stop_order=stop_order, now=self.clock.epoch())
+                task = await self.store.start_task(
+                    task_id, robot, stop_order=stop_order, now=self.clock.epoch()
+                )
             except Conflict:
                 return False
             self._robots[robot] = await self.store.get_robot(robot)
@@ -603,9 +632,13 @@ class Core:
         x, y, yaw = rt.pose or (0.0, 0.0, 0.0)
         data = {
             "stamp": rb.from_ros_time(msg["header"]["stamp"]),
-            "x": x, "y": y, "yaw": yaw,
-            "angle_min": msg["angle_min"], "angle_increment": msg["angle_increment"],
-            "range_max": msg["range_max"], "ranges": msg["ranges"],
+            "x": x,
+            "y": y,
+            "yaw": yaw,
+            "angle_min": msg["angle_min"],
+            "angle_increment": msg["angle_increment"],
+            "range_max": msg["range_max"],
+            "ranges": msg["ranges"],
         }
         self.hub.publish(f"scan:{robot}", P.dump(data))
 
@@ -645,12 +678,18 @@ class Core:
         elif kind == "down":
             rt.goal_id = None
             if rt.state.status is not S.OFFLINE:
-                await self._save_state(rt.name, apply(rt.state, Event.LINK_DOWN), error=f"link lost: {args[0]}")
+                await self._save_state(
+                    rt.name, apply(rt.state, Event.LINK_DOWN), error=f"link lost: {args[0]}"
+                )
         elif kind == "goal":
             await self._on_goal(rt, *args)
         elif kind == "persist_pose" and rt.pose is not None:
             await self.store.save_robot_pose(
-                rt.name, x=rt.pose[0], y=rt.pose[1], yaw=rt.pose[2], battery=rt.battery,
+                rt.name,
+                x=rt.pose[0],
+                y=rt.pose[1],
+                yaw=rt.pose[2],
+                battery=rt.battery,
                 now=self.clock.epoch(),
             )
 

@@ -20,7 +20,8 @@ import asyncio
 import contextlib
 import logging
 from collections import deque
-from collections.abc import Awaitable, Callable, Iterable
+from collections.abc import Awaitable, Callable, Coroutine, Iterable
+from typing import Any
 
 from serveur import protocol
 
@@ -42,7 +43,7 @@ class Subscriber:
     def __init__(
         self,
         send: Callable[[str], Awaitable[None]],
-        close: Callable[[int, str], Awaitable[None]],
+        close: Callable[[int, str], Coroutine[Any, Any, None]],
         *,
         max_pending: int = 2000,
         name: str = "",
@@ -88,7 +89,9 @@ class Subscriber:
         else:
             if len(self._state) >= self._max_pending:
                 self.closed = True
-                log.warning("client %s is %d updates behind: disconnecting", self.name, len(self._state))
+                log.warning(
+                    "client %s is %d updates behind: disconnecting", self.name, len(self._state)
+                )
                 asyncio.get_running_loop().create_task(
                     self._close(CLOSE_TOO_SLOW, "too slow: reconnect and resubscribe")
                 )

@@ -200,7 +200,9 @@ class RobotLink:
             await self._clock.sleep(tick)
             now = self._clock.now()
             if now - self._last_status > self._heartbeat:
-                log.warning("%s: no move_base status for %.1fs, link down", self.name, self._heartbeat)
+                log.warning(
+                    "%s: no move_base status for %.1fs, link down", self.name, self._heartbeat
+                )
                 await ws.close(code=1001, reason="heartbeat lost")
                 return
             goal = self._goal
@@ -242,7 +244,9 @@ class RobotLink:
                 self._maybe_up()
         elif topic == "/move_base/result":
             st = msg["status"]
-            self._on_goal_state(str(st["goal_id"]["id"]), int(st["status"]), str(st.get("text", "")))
+            self._on_goal_state(
+                str(st["goal_id"]["id"]), int(st["status"]), str(st.get("text", ""))
+            )
         elif topic == "/battery_state":
             pct = msg.get("percentage")
             if isinstance(pct, int | float) and math.isfinite(pct):
@@ -256,7 +260,9 @@ class RobotLink:
     def _on_status(self, msg: Mapping[str, Any]) -> None:
         self._last_status = self._clock.now()
         for st in msg["status_list"]:
-            self._on_goal_state(str(st["goal_id"]["id"]), int(st["status"]), str(st.get("text", "")))
+            self._on_goal_state(
+                str(st["goal_id"]["id"]), int(st["status"]), str(st.get("text", ""))
+            )
         if not self._have_status:
             self._have_status = True
             self._maybe_up()
@@ -322,7 +328,9 @@ class RobotLink:
             await self._send(
                 rb.op_publish(
                     "/move_base/goal",
-                    rb.move_base_action_goal(goal.id, goal.x, goal.y, goal.yaw, stamp=self._clock.epoch()),
+                    rb.move_base_action_goal(
+                        goal.id, goal.x, goal.y, goal.yaw, stamp=self._clock.epoch()
+                    ),
                 )
             )
 
@@ -337,7 +345,8 @@ class RobotLink:
     async def initial_pose(self, x: float, y: float, yaw: float) -> None:
         await self._send(
             rb.op_publish(
-                "/initialpose", rb.pose_with_covariance_stamped(x, y, yaw, stamp=self._clock.epoch())
+                "/initialpose",
+                rb.pose_with_covariance_stamped(x, y, yaw, stamp=self._clock.epoch()),
             )
         )
 

@@ -86,7 +86,7 @@ class Server:
             return None
         if path == "/healthz":
             body = json.dumps(
-                {"status": "ok", "robots": {n: r.status.value for n, r in self.core.robot_statuses()}}
+                {"status": "ok", "robots": {n: st.value for n, st in self.core.robot_statuses()}}
             ).encode()
             return _http(http.HTTPStatus.OK, body, "application/json")
         return _http(http.HTTPStatus.NOT_FOUND, b"not found\n", "text/plain; charset=utf-8")

@@ -112,8 +112,11 @@ class Client:
             raise AssertionError(f"timed out waiting for {what or cond}") from None
 
     async def status(self, robot: str, status: str, timeout: float = WAIT) -> dict[str, Any]:
-        await self.until(lambda: self.robot(robot).get("status") == status, timeout,
-                         f"{robot} to be {status} (is {self.robot(robot).get('status')})")
+        await self.until(
+            lambda: self.robot(robot).get("status") == status,
+            timeout,
+            f"{robot} to be {status} (is {self.robot(robot).get('status')})",
+        )
         return self.robot(robot)
 
     async def close(self) -> None:
@@ -152,17 +155,26 @@ def make_app(db: Path, clock: ScaledClock, specs: list[RobotSpec]) -> App:
 
     nav_map, waypoints = load_demo()
     cfg = CoreConfig(heartbeat=2.0, ack_timeout=3.0)
-    return App(db, port=0, clock=clock, nav_map=nav_map, waypoints=waypoints, robots=specs, config=cfg)
+    return App(
+        db, port=0, clock=clock, nav_map=nav_map, waypoints=waypoints, robots=specs, config=cfg
+    )
 
 
 @contextlib.asynccontextmanager
-async def restaurant(tmp_path: Path, robots: int = 1, time_scale: float = TIME_SCALE) -> AsyncIterator[Restaurant]:
+async def restaurant(
+    tmp_path: Path, robots: int = 1, time_scale: float = TIME_SCALE
+) -> AsyncIterator[Restaurant]:
     from serveur.navigation import demo_map_path
     from serveur.robot_sim import start_simulation
 
     clock = ScaledClock(time_scale)
-    sim = await start_simulation(robots, port=0, map_path=demo_map_path(), time_scale=time_scale, clock=clock)
-    specs = [RobotSpec(r.name, url, f"home{i + 1}") for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))]
+    sim = await start_simulation(
+        robots, port=0, map_path=demo_map_path(), time_scale=time_scale, clock=clock
+    )
+    specs = [
+        RobotSpec(r.name, url, f"home{i + 1}")
+        for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
+    ]
     db = tmp_path / "serveur.db"
     app = make_app(db, clock, specs)
     await app.start()

@@ -124,7 +124,9 @@ async def test_stop_and_cancel_returns_orders(one_robot: Restaurant) -> None:
     reply = await c.ok("cancel", robot="r1")
     assert reply["robot"]["status"] == "Transit"
     assert reply["robot"]["current_task"] is None
-    await c.until(lambda: all(c.order(i).get("status") == "pending" for i in ids), what="orders pending")
+    await c.until(
+        lambda: all(c.order(i).get("status") == "pending" for i in ids), what="orders pending"
+    )
     assert c.task(task["id"])["status"] == "cancelled"
     await c.status("r1", "Awaiting")
     assert near(c.robot("r1"), "home1")
@@ -137,7 +139,9 @@ async def test_manual_and_auto_exclude_each_other(one_robot: Restaurant) -> None
     c = await staff(one_robot)
     await activate(c, "r1")
     await c.error("control", "not_allowed_in_status", robot="r1", action="manual")
-    await c.error("control", "not_allowed_in_status", robot="r1", action="teleop", vx=0.1, vy=0.0, wz=0.0)
+    await c.error(
+        "control", "not_allowed_in_status", robot="r1", action="teleop", vx=0.1, vy=0.0, wz=0.0
+    )
     await c.ok("ready", robot="r1")
     await c.status("r1", "Ready")
     await c.ok("control", robot="r1", action="manual")
@@ -166,8 +170,10 @@ async def test_manual_and_auto_exclude_each_other(one_robot: Restaurant) -> None
     assert math.hypot(wp["x"] - w.x, wp["y"] - w.y) < 0.4
     # Calibration: the robot believes it is where staff say.
     await c.ok("control", robot="r1", action="initialpose", x=3.0, y=3.0, yaw=0.0)
-    await c.until(lambda: math.hypot(c.streams["pose:r1"]["x"] - 3.0, c.streams["pose:r1"]["y"] - 3.0) < 0.3,
-                  what="relocalised")
+    await c.until(
+        lambda: math.hypot(c.streams["pose:r1"]["x"] - 3.0, c.streams["pose:r1"]["y"] - 3.0) < 0.3,
+        what="relocalised",
+    )
     await c.ok("ready", robot="r1")
     await c.status("r1", "Ready")
 
@@ -245,12 +251,18 @@ BAD_INPUTS = [
     ('{"id": 3}', "unknown_message"),
     ('{"clientmsg": "create", "type": "order", "table": "T1"}', "invalid_field"),
     ('{"clientmsg": "create", "type": "order", "dish": 5, "table": "T1"}', "invalid_field"),
-    ('{"clientmsg": "create", "type": "order", "dish": "x", "table": "T1", "extra": 1}', "invalid_field"),
+    (
+        '{"clientmsg": "create", "type": "order", "dish": "x", "table": "T1", "extra": 1}',
+        "invalid_field",
+    ),
     ('{"clientmsg": "create", "type": "order", "dish": "x", "table": "Nowhere"}', "not_found"),
     ('{"clientmsg": "create", "type": "task", "orders": [999]}', "not_found"),
     ('{"clientmsg": "create", "type": "task", "orders": []}', "invalid_field"),
     ('{"clientmsg": "control", "robot": "ghost", "action": "auto"}', "not_found"),
-    ('{"clientmsg": "control", "robot": "r1", "action": "teleop", "vx": 1e9, "vy": 0, "wz": 0}', "invalid_field"),
+    (
+        '{"clientmsg": "control", "robot": "r1", "action": "teleop", "vx": 1e9, "vy": 0, "wz": 0}',
+        "invalid_field",
+    ),
     ('{"clientmsg": "next", "robot": "r1"}', "not_allowed_in_status"),
     ('{"clientmsg": "cancel", "robot": "r1"}', "not_allowed_in_status"),
     ('{"clientmsg": "data", "topics": ["secrets"]}', "invalid_field"),
@@ -267,7 +279,7 @@ async def test_bad_input_gets_its_code_and_changes_nothing(one_robot: Restaurant
     for i, (frame, code) in enumerate(BAD_INPUTS):
         await c.ws.send(frame)
         reply = await c.until(
-            lambda n=i: [f for f in c.frames if f["servermsg"] == "error"][n:n + 1],
+            lambda n=i: [f for f in c.frames if f["servermsg"] == "error"][n : n + 1],
             what=f"error reply to {frame}",
         )
         assert reply[0]["code"] == code, (frame, reply)
@@ -289,3 +301,27 @@ async def test_update_seq_has_no_gaps(one_robot: Restaurant) -> None:
     await new_orders(c, ("a", "T1"), ("b", "T2"))
     await c.until(lambda: len(c.seqs) >= 4)
     assert c.seqs == list(range(1, len(c.seqs) + 1))
+
+
+async def test_healthz_and_unknown_paths(one_robot: Restaurant) -> None:
+    import json as _json
+    import urllib.request
+
+    base = one_robot.app.url.replace("ws://", "http://").removesuffix("/ws")
+    c = await staff(one_robot)
+    await c.status("r1", "Ready")
+
+    def get(path: str) -> tuple[int, bytes]:
+        try:
+            with urllib.request.urlopen(base + path, timeout=10) as resp:
+                return resp.status, resp.read()
+        except urllib.error.HTTPError as err:
+            return err.code, err.read()
+
+    import asyncio
+
+    status, body = await asyncio.to_thread(get, "/healthz")
+    assert status == 200
+    assert _json.loads(body) == {"status": "ok", "robots": {"r1": "Ready"}}
+    status, _ = await asyncio.to_thread(get, "/nope")
+    assert status == 404

@@ -21,7 +21,10 @@ from serveur.scheduler import (
 
 # Tables on a line and a grid; the pass at the origin.
 POS = {"pass": (0.0, 0.0), **{f"T{i}": (float(i), 0.0) for i in range(1, 9)}}
-GRID = {"pass": (0.0, 0.0), **{f"G{i}{j}": (i * 2.0, j * 2.0) for i in range(1, 4) for j in range(1, 4)}}
+GRID = {
+    "pass": (0.0, 0.0),
+    **{f"G{i}{j}": (i * 2.0, j * 2.0) for i in range(1, 4) for j in range(1, 4)},
+}
 
 
 def euclid(pos: dict[str, tuple[float, float]]):  # type: ignore[no-untyped-def]
@@ -51,7 +54,9 @@ def test_order_stops_is_optimal_for_small_trips() -> None:
     stops = ["G33", "G11", "G21", "G13", "G32"]
     best = min(itertools.permutations(stops), key=lambda p: route_length("pass", p, d, "pass"))
     got = order_stops("pass", stops, d, end="pass")
-    assert route_length("pass", got, d, "pass") == pytest.approx(route_length("pass", best, d, "pass"))
+    assert route_length("pass", got, d, "pass") == pytest.approx(
+        route_length("pass", best, d, "pass")
+    )
 
 
 def test_order_stops_large_uses_heuristic_and_visits_all() -> None:

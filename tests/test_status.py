@@ -115,8 +115,12 @@ def test_allowed_table_is_enforced(status: RobotStatus) -> None:
 def test_every_allowed_action_has_a_transition_or_needs_none() -> None:
     """Actions that change status must be accepted by apply() in every status allowing them."""
     changes = {
-        Action.AUTO: Event.AUTO, Action.MANUAL: Event.MANUAL, Action.READY: Event.RELEASE,
-        Action.STOP: Event.STOP, Action.CONTINUE: Event.CONTINUE, Action.CANCEL: Event.CANCEL,
+        Action.AUTO: Event.AUTO,
+        Action.MANUAL: Event.MANUAL,
+        Action.READY: Event.RELEASE,
+        Action.STOP: Event.STOP,
+        Action.CONTINUE: Event.CONTINUE,
+        Action.CANCEL: Event.CANCEL,
     }
     for status, actions in ALLOWED.items():
         for action in actions & set(changes):
