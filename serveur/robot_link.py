@@ -69,7 +69,8 @@ class LinkListener(Protocol):
 
 @dataclass(slots=True)
 class _Goal:
-    id: str
+    handle: str  # the first id: what callers hold, stable across re-sends
+    id: str  # the id on the wire now
     x: float
     y: float
     yaw: float
@@ -275,7 +276,7 @@ class RobotLink:
         st = rb.GoalStatus(status)
         if st in rb.TERMINAL_STATUSES:
             self._goal = None
-            self._listener.goal_done(self.name, goal_id, st, text)
+            self._listener.goal_done(self.name, goal.handle, st, text)
 
     def _maybe_up(self) -> None:
         if self._have_status and self._have_pose and not self._up:
@@ -299,11 +300,15 @@ class RobotLink:
 
     @property
     def goal_id(self) -> str | None:
-        return self._goal.id if self._goal else None
+        return self._goal.handle if self._goal else None
 
     async def send_goal(self, x: float, y: float, yaw: float) -> str:
-        """Send a move_base goal; its fate arrives as ``goal_done`` or ``goal_lost``."""
-        goal = _Goal(self._new_goal_id(), x, y, yaw, self._clock.now())
+        """Send a move_base goal; its fate arrives as ``goal_done`` or ``goal_lost``.
+
+        Returns the goal's handle: re-sends go out under fresh ids, reports use the handle.
+        """
+        gid = self._new_goal_id()
+        goal = _Goal(gid, gid, x, y, yaw, self._clock.now())
         self._goal = goal
         await self._send(
             rb.op_publish(
@@ -311,13 +316,13 @@ class RobotLink:
                 rb.move_base_action_goal(goal.id, x, y, yaw, stamp=self._clock.epoch()),
             )
         )
-        return goal.id
+        return goal.handle
 
     async def _resend(self, goal: _Goal) -> None:
         if goal.attempts > self._ack_retries:
             self._goal = None
             reason = f"goal not acknowledged by the robot after {goal.attempts} attempts"
-            self._listener.goal_lost(self.name, goal.id, reason)
+            self._listener.goal_lost(self.name, goal.handle, reason)
             return
         old = goal.id
         goal.id = self._new_goal_id()
