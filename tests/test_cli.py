@@ -1,0 +1,132 @@
+"""The `serveur` command as a user runs it: real subprocesses, real ports."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import signal
+import socket
+import sys
+from pathlib import Path
+
+from websockets.asyncio.client import connect
+
+from serveur.cli import main
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_schema_lists_every_verb(capsys) -> None:  # type: ignore[no-untyped-def]
+    assert main(["schema"]) == 0
+    text = capsys.readouterr().out
+    schema = json.loads(text)
+    for verb in (
+        "data",
+        "create",
+        "control",
+        "ready",
+        "next",
+        "stop",
+        "continue",
+        "cancel",
+        "order",
+    ):
+        assert f'"{verb}"' in text, verb
+    assert {"client", "server"} <= set(schema)
+
+
+async def read_until(proc: asyncio.subprocess.Process, marker: str, timeout: float = 30) -> str:
+    assert proc.stdout is not None
+    seen = ""
+
+    async def read() -> str:
+        nonlocal seen
+        while marker not in seen:
+            line = await proc.stdout.readline()  # type: ignore[union-attr]
+            if not line:
+                raise AssertionError(f"process ended before {marker!r}:\n{seen}")
+            seen += line.decode()
+        return seen
+
+    return await asyncio.wait_for(read(), timeout)
+
+
+async def test_demo_runs_the_restaurant_and_stops_on_sigterm(tmp_path: Path) -> None:
+    port, sim_port = free_port(), free_port()
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "serveur.cli",
+        "demo",
+        "--robots",
+        "2",
+        "--port",
+        str(port),
+        "--sim-port",
+        str(sim_port),
+        "--time-scale",
+        "5",
+        "--db",
+        str(tmp_path / "demo.db"),
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.STDOUT,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    try:
+        out = await read_until(proc, "Ctrl-C")
+        assert f"ws://127.0.0.1:{port}/ws" in out
+        assert "robot r1" in out and "robot r2" in out
+        async with connect(f"ws://127.0.0.1:{port}/ws") as ws:
+            await ws.send(
+                json.dumps({"clientmsg": "data", "id": 1, "topics": ["robots", "waypoints"]})
+            )
+
+            async def snapshot() -> dict:  # type: ignore[type-arg]
+                while True:
+                    msg = json.loads(await ws.recv())
+                    if msg.get("id") == 1:
+                        return msg  # type: ignore[no-any-return]
+
+            reply = await asyncio.wait_for(snapshot(), 10)
+        robots = reply["data"]["robots"]
+        assert [r["name"] for r in robots] == ["r1", "r2"]
+        assert [r["home"] for r in robots] == ["home1", "home2"]
+        tables = [w for w in reply["data"]["waypoints"] if w["kind"] == "table"]
+        assert len(tables) >= 12
+        proc.send_signal(signal.SIGTERM)
+        assert await asyncio.wait_for(proc.wait(), 20) == 0
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+
+
+async def test_sim_command_prints_urls_and_stops(tmp_path: Path) -> None:
+    port = free_port()
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "serveur.cli",
+        "sim",
+        "--robots",
+        "2",
+        "--port",
+        str(port),
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.STDOUT,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    try:
+        out = await read_until(proc, f"ws://127.0.0.1:{port + 1}")
+        assert f"ws://127.0.0.1:{port}" in out
+        proc.send_signal(signal.SIGINT)
+        assert await asyncio.wait_for(proc.wait(), 20) in (0, 130)
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
