@@ -113,10 +113,14 @@ class Core:
         self._map_json: str | None = None
         self._distances: Any = None
         self._closing = False
+        self._last_event: int = 0
+        self._events_lock = asyncio.Lock()
 
     # -- lifecycle ---------------------------------------------------------------------------
 
     async def start(self) -> None:
+        while batch := await self.store.list_events(since_id=self._last_event, limit=1000):
+            self._last_event = batch[-1].id
         for wp in await self.store.list_waypoints():
             self._waypoints[wp.name] = wp
         if self._map is not None:
@@ -273,6 +277,19 @@ class Core:
         log.info("%s: %s --%s--> %s", rt.name, rt.state.status.value, ev.value, new.status.value)
         return await self._save_state(rt.name, new, error=error, data={"event": ev.value})
 
+    async def flush_events(self) -> None:
+        """Push the events recorded since the last flush to ``events`` subscribers.
+
+        The store writes an event row in the same transaction as every state change; reading
+        them back here (by id, so nothing is missed or repeated) keeps that one source of truth.
+        """
+        async with self._events_lock:
+            while batch := await self.store.list_events(since_id=self._last_event, limit=500):
+                self._last_event = batch[-1].id
+                if self.hub.watched("events"):
+                    for ev in batch:
+                        self.hub.publish("events", P.dump(ev))
+
     def robot_statuses(self) -> list[tuple[str, RobotStatus]]:
         return [(n, rt.state.status) for n, rt in sorted(self._rt.items())]
 
@@ -288,7 +305,8 @@ class Core:
         if topic == "waypoints":
             return list(self._waypoints.values())
         if topic == "events":
-            return []
+            await self.flush_events()
+            return await self.store.list_events(since_id=max(0, self._last_event - 100))
         if topic == "map":
             return json.loads(self._map_json) if self._map_json else None
         kind, _, robot = topic.partition(":")
@@ -313,6 +331,12 @@ class Core:
 
     async def handle(self, msg: P.ClientMessage) -> dict[str, Any]:
         """Carry out one instruction; the reply payload, or a ServeurError."""
+        try:
+            return await self._handle(msg)
+        finally:
+            await self.flush_events()
+
+    async def _handle(self, msg: P.ClientMessage) -> dict[str, Any]:
         verb = msg.clientmsg
         if verb == "create":
             return await self._create(msg)
@@ -584,7 +608,8 @@ class Core:
             await self._pub_orders([o for s in task.stops for o in s.orders])
             await self._event(rt, Event.DISPATCH)
             await self._drive(rt, self._stop_dest(task))
-            return True
+        await self.flush_events()
+        return True
 
     # -- link reports (robot_link.LinkListener) ---------------------------------------------
 
@@ -663,6 +688,7 @@ class Core:
             try:
                 async with rt.lock:
                     await self._on_report(rt, kind, args)
+                await self.flush_events()
             except asyncio.CancelledError:
                 raise
             except Exception:

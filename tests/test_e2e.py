@@ -325,3 +325,29 @@ async def test_healthz_and_unknown_paths(one_robot: Restaurant) -> None:
     assert _json.loads(body) == {"status": "ok", "robots": {"r1": "Ready"}}
     status, _ = await asyncio.to_thread(get, "/nope")
     assert status == 404
+
+
+async def test_events_topic_records_every_state_change(one_robot: Restaurant) -> None:
+    c = await staff(one_robot)
+    await c.status("r1", "Ready")
+    snap = await c.subscribe("events")
+    before = {e["id"] for e in snap["data"]["events"]}
+    assert any(e["kind"].startswith("robot.") for e in snap["data"]["events"])
+    [oid] = await new_orders(c, ("Tea", "T2"))
+    await c.ok("control", robot="r1", action="auto")
+    await c.until(
+        lambda: any(
+            e.get("order_id") == oid and e["kind"] == "order.created"
+            for e in c.records.get("events", {}).values()
+        ),
+        what="order.created event",
+    )
+    await c.until(
+        lambda: any(
+            e.get("robot") == "r1" and e["kind"] == "robot.status" and e["id"] not in before
+            for e in c.records.get("events", {}).values()
+        ),
+        what="robot.status event",
+    )
+    ids = sorted(c.records["events"])
+    assert ids == list(range(ids[0], ids[-1] + 1))  # none missed, none repeated
