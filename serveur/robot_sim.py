@@ -1328,7 +1328,7 @@ def _start_poses(
             poses.append((wp.x, wp.y, wp.yaw))
     if len(poses) == n:
         return poses
-    spacing = 0.8
+    spacing = 0.5  # robots are 0.4 m wide
     ref = poses[0][:2] if poses else grid.cell_to_world(grid.height // 2, grid.width // 2)
     xs = np.arange(
         grid.origin[0] + spacing / 2, grid.origin[0] + grid.width * grid.resolution, spacing

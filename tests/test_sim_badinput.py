@@ -11,8 +11,10 @@ import asyncio
 import itertools
 import json
 import math
+import signal
 import socket
 import struct
+import sys
 import time
 from collections.abc import AsyncIterator, Callable
 from typing import Any
@@ -721,3 +723,44 @@ async def test_time_scale_runs_sim_time_faster() -> None:
         assert time.monotonic() - t0 < 3.0 / 20.0 * 4
     finally:
         await shut(sim)
+
+
+async def test_cli_runner_prints_urls_and_stops_cleanly_on_sigint() -> None:
+    code = (
+        "import argparse, asyncio\n"
+        "from serveur.robot_sim import add_sim_arguments, run_sim_from_args\n"
+        "p = argparse.ArgumentParser()\n"
+        "add_sim_arguments(p)\n"
+        "raise SystemExit(asyncio.run(run_sim_from_args(p.parse_args())))\n"
+    )
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-c",
+        code,
+        "--robots",
+        "2",
+        "--port",
+        "0",
+        "--kinematics",
+        "diff",
+        "--time-scale",
+        "5",
+        "--names",
+        "ada,bob",
+        stdout=asyncio.subprocess.PIPE,
+    )
+    try:
+        assert proc.stdout is not None
+        urls = [
+            (await asyncio.wait_for(proc.stdout.readline(), 30)).decode().strip() for _ in range(2)
+        ]
+        assert all(u.startswith("ws://127.0.0.1:") for u in urls) and urls[0] != urls[1]
+        async with connect(urls[1]) as ws:
+            c = Raw(ws)
+            await c.ping()
+        proc.send_signal(signal.SIGINT)
+        assert await asyncio.wait_for(proc.wait(), 30) == 0
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
