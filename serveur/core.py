@@ -35,7 +35,7 @@ from serveur.domain import Order, OrderStatus, Robot, Task, TaskStatus, Waypoint
 from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurError
 from serveur.hub import Hub
 from serveur.robot_link import RobotLink
-from serveur.scheduler import Candidate, Dispatcher, plan_trips
+from serveur.scheduler import Candidate, Dispatcher, cart_order_trips, plan_trips
 from serveur.status import Action, Event, RobotState, RobotStatus, apply, check_allowed
 from serveur.store import Store
 
@@ -59,6 +59,9 @@ class CoreConfig:
     far_tolerance: float = 0.6  # SUCCEEDED this far from the goal is an error, not an arrival
     pose_persist_period: float = 5.0
     robot_radius: float = 0.2
+    #: "serveur": trips by area, stops in shortest-route order (scheduler.plan_trips);
+    #: "baseline": the design report's behaviour, stops in the order of the cart (replay A/B).
+    policy: str = "serveur"
 
 
 @dataclass(frozen=True, slots=True)
@@ -545,7 +548,12 @@ class Core:
         if key is None and len(pending) != len(orders):
             bad = sorted(o.id for o in orders if o.status is not OrderStatus.PENDING)
             raise Conflict(f"orders not pending: {bad}", orders=bad)
-        trips = plan_trips(pending or orders, self._origin(), self.distance, self.config.capacity)
+        if self.config.policy == "baseline":
+            trips = cart_order_trips(pending or orders, self.config.capacity)
+        else:
+            trips = plan_trips(
+                pending or orders, self._origin(), self.distance, self.config.capacity
+            )
         tasks = await self.store.create_tasks(
             trips, key=key, fingerprint=fp, now=self.clock.epoch()
         )
@@ -596,7 +604,10 @@ class Core:
             order = [s.table for s in task.stops]
             from serveur.scheduler import order_stops
 
-            stop_order = order_stops(home, order, self.distance, end=home)
+            if self.config.policy == "baseline":
+                stop_order = order  # the cart's order, as the design report's robot does
+            else:
+                stop_order = order_stops(home, order, self.distance, end=home)
             try:
                 task = await self.store.start_task(
                     task_id, robot, stop_order=stop_order, now=self.clock.epoch()

@@ -24,6 +24,7 @@ import asyncio
 import contextlib
 import itertools
 import logging
+import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -33,15 +34,19 @@ from serveur.domain import Order
 __all__ = [
     "DEFAULT_CAPACITY",
     "Candidate",
+    "Dish",
     "Dispatcher",
     "Distance",
     "Fleet",
+    "cart_order_trips",
     "choose_robot",
+    "fifo_cart",
     "group_by_table",
     "order_stops",
     "plan_trips",
     "route_length",
     "split_trips",
+    "suggest_carts",
 ]
 
 log = logging.getLogger(__name__)
@@ -167,6 +172,113 @@ def plan_trips(
     return [
         [(t, groups[t]) for t in order_stops(origin, trip, distance, end=origin)] for trip in trips
     ]
+
+
+def cart_order_trips(
+    orders: Sequence[Order], capacity: int = DEFAULT_CAPACITY
+) -> list[list[tuple[str, list[int]]]]:
+    """The design report's behaviour: tables in the order staff put their dishes in the cart.
+
+    No reordering and no grouping by area: the first ``capacity`` tables of the cart are the
+    first trip, and so on. Kept for ``CoreConfig(policy="baseline")`` so the improvement of
+    :func:`plan_trips` can be measured against the behaviour it replaces.
+    """
+    if capacity < 1:
+        raise ValueError("capacity must be >= 1")
+    groups: dict[str, list[int]] = {}
+    for o in orders:
+        groups.setdefault(o.table, []).append(o.id)
+    tables = list(groups)
+    return [
+        [(t, groups[t]) for t in tables[i : i + capacity]] for i in range(0, len(tables), capacity)
+    ]
+
+
+# -- the staff's side: which dishes go on the next cart ---------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class Dish:
+    """A dish as staff see it at the pass (``ready_at`` in any consistent time base)."""
+
+    id: int
+    table: str
+    ready_at: float
+
+
+def fifo_cart(dishes: Iterable[Dish], capacity: int = DEFAULT_CAPACITY) -> list[int]:
+    """The baseline staff: dishes first ready first, until the tray holds ``capacity`` tables.
+
+    Strict first-in first-out: filling stops at the first dish whose table would not fit,
+    even if a later dish is for a table already on the tray (staff work down the ticket rail).
+    """
+    cart: list[int] = []
+    tables: set[str] = set()
+    for d in sorted(dishes, key=lambda d: (d.ready_at, d.id)):
+        if d.table not in tables:
+            if len(tables) >= capacity:
+                break
+            tables.add(d.table)
+        cart.append(d.id)
+    return cart
+
+
+def suggest_carts(
+    dishes: Sequence[Dish],
+    free_robots: int,
+    origin: str,
+    distance: Distance,
+    *,
+    now: float,
+    capacity: int = DEFAULT_CAPACITY,
+    coming: Sequence[Dish] = (),
+    hold: float = 0.0,
+) -> list[list[int]]:
+    """Carts for the robots free now: one per robot, each one area of the room.
+
+    Why each rule, for the guests' mean wait (ready at the pass -> collected at the table):
+
+    * **Longest-waiting table first.** Each cart is seeded with the table whose oldest dish
+      has waited longest, so no table starves behind a stream of new, closer ones.
+    * **Area grouping.** The seed's nearest waiting tables (path distance) join it, because a
+      neighbour costs one short hop and one dwell, while a far table drags every later stop.
+    * **Spread over free robots.** With ``k`` robots free and ``m`` tables waiting, each cart
+      takes about ``m / k`` tables (never more than ``capacity``): several short trips in
+      parallel deliver sooner than one long trip while other robots idle at home.
+    * **Hold for a table's next dish.** A table whose next dish (``coming``: the kitchen's
+      tickets being plated) is ready within ``hold`` seconds is left for that dish unless one
+      of its dishes already waited ``hold``: sending half a party's food means a second trip
+      for the rest, which costs the whole fleet a round trip.
+
+    Returns the carts (dish ids, oldest table first); ``[]`` means wait.
+    """
+    if free_robots < 1 or not dishes:
+        return []
+    groups: dict[str, list[Dish]] = {}
+    for d in sorted(dishes, key=lambda d: (d.ready_at, d.id)):
+        groups.setdefault(d.table, []).append(d)
+    soon: dict[str, float] = {}
+    for d in coming:
+        if d.ready_at - now <= hold:
+            soon[d.table] = min(soon.get(d.table, math.inf), d.ready_at)
+    tables = [
+        t
+        for t in sorted(groups, key=lambda t: (groups[t][0].ready_at, groups[t][0].id))
+        if t not in soon or now - groups[t][0].ready_at >= hold
+    ]
+    carts: list[list[int]] = []
+    trips = min(free_robots, len(tables))
+    for k in range(trips):
+        if not tables:
+            break
+        size = min(capacity, -(-len(tables) // (trips - k)))
+        trip = [tables.pop(0)]
+        while tables and len(trip) < size:
+            nxt = min(tables, key=lambda t: (min(distance(s, t) for s in trip), t))
+            trip.append(nxt)
+            tables.remove(nxt)
+        carts.append([d.id for t in trip for d in groups[t]])
+    return carts
 
 
 @dataclass(frozen=True, slots=True)

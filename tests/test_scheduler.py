@@ -10,13 +10,17 @@ import pytest
 from serveur.domain import Order
 from serveur.scheduler import (
     Candidate,
+    Dish,
     Dispatcher,
+    cart_order_trips,
     choose_robot,
+    fifo_cart,
     group_by_table,
     order_stops,
     plan_trips,
     route_length,
     split_trips,
+    suggest_carts,
 )
 
 # Tables on a line and a grid; the pass at the origin.
@@ -123,3 +127,42 @@ async def test_dispatch_gives_each_trip_to_one_robot() -> None:
     fleet.free["r3"] = 9.0
     assert await d.dispatch_once() == 1
     assert fleet.started[-1] == (3, "r3")
+
+
+def test_cart_order_trips_keep_the_cart_order() -> None:
+    orders = [order(1, "T5", 0), order(2, "T1", 9), order(3, "T5", 1), order(4, "T3", 2)]
+    assert cart_order_trips(orders, capacity=2) == [[("T5", [1, 3]), ("T1", [2])], [("T3", [4])]]
+    with pytest.raises(ValueError):
+        cart_order_trips(orders, capacity=0)
+
+
+def test_fifo_cart_stops_at_the_first_table_that_does_not_fit() -> None:
+    dishes = [Dish(1, "T1", 0), Dish(2, "T2", 1), Dish(3, "T3", 2), Dish(4, "T1", 3)]
+    assert fifo_cart(dishes, capacity=2) == [1, 2]  # dish 4 (T1) waits behind T3
+    assert fifo_cart(reversed(dishes), capacity=3) == [1, 2, 3, 4]
+    assert fifo_cart([], capacity=4) == []
+
+
+def test_suggest_carts_spreads_areas_over_free_robots() -> None:
+    d = euclid(POS)
+    dishes = [Dish(i, t, float(i)) for i, t in enumerate(["T1", "T8", "T2", "T7", "T1"])]
+    # Two robots: the longest-waiting table (T1) with its neighbour, the far pair on the other.
+    assert suggest_carts(dishes, 2, "pass", d, now=10.0) == [[0, 4, 2], [1, 3]]
+    # One robot: one tray of at most `capacity` tables, seeded by the oldest.
+    [cart] = suggest_carts(dishes, 1, "pass", d, now=10.0, capacity=2)
+    assert cart == [0, 4, 2]
+    # More robots than tables: one table each, no empty carts.
+    assert len(suggest_carts(dishes, 9, "pass", d, now=10.0)) == 4
+    assert suggest_carts(dishes, 0, "pass", d, now=10.0) == []
+    assert suggest_carts([], 3, "pass", d, now=10.0) == []
+
+
+def test_suggest_carts_holds_for_a_tables_next_dish_but_not_forever() -> None:
+    d = euclid(POS)
+    dishes = [Dish(1, "T3", 100.0)]
+    coming = [Dish(2, "T3", 110.0)]
+    assert suggest_carts(dishes, 1, "pass", d, now=105.0, coming=coming, hold=20.0) == []
+    # Past the hold time the dish goes anyway, and a far-off next dish never holds it.
+    assert suggest_carts(dishes, 1, "pass", d, now=121.0, coming=coming, hold=20.0) == [[1]]
+    late = [Dish(2, "T3", 500.0)]
+    assert suggest_carts(dishes, 1, "pass", d, now=105.0, coming=late, hold=20.0) == [[1]]
