@@ -460,10 +460,21 @@ def open_store(url: str) -> Store:
     """The (unopened) store for ``url``.
 
     ``sqlite:///abs/path.db``, ``sqlite:relative.db`` or a bare path give a
-    :class:`SQLiteStore`; ``mariadb://...`` is reserved for the MariaDB backend.
+    :class:`SQLiteStore`; ``mariadb://user:password@host:port/database`` a
+    :class:`~serveur.store_mariadb.MariaDBStore` (asyncmy must be installed: the ``mariadb``
+    extra).
     """
     if url.startswith(("mariadb://", "mysql://")):
-        raise StoreError("MariaDB backend not available yet", url=url)
+        # mariadb://user[:password]@host[:port]/database; the bare "mariadb://" reads the
+        # whole URL from $SERVEUR_DB, a URL without a password reads $SERVEUR_DB_PASSWORD
+        # (see serveur.mariadb_db.MariaDBConfig.from_url and docs/mariadb.md).
+        try:
+            from serveur.store_mariadb import MariaDBStore
+        except ImportError as exc:
+            raise StoreError(
+                f"the MariaDB backend needs its driver: pip install 'serveur[mariadb]' ({exc})"
+            ) from exc
+        return MariaDBStore.from_url(url)
     if url.startswith("sqlite://"):
         path = url[len("sqlite://") :]
         if not path.startswith("/"):
