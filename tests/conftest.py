@@ -23,6 +23,9 @@ from serveur.app import App, RobotSpec
 from serveur.clock import ScaledClock
 from serveur.core import CoreConfig
 
+# The private MariaDB server (once per session) and a fresh database for a test that asks.
+from tests.mariadb_server import mariadb_server, mariadb_url  # noqa: F401
+
 TIME_SCALE = 10.0
 WAIT = 30.0  # wall seconds: generous for a loaded 2-core CI box; tests end as soon as they can
 
@@ -131,7 +134,7 @@ class Restaurant:
     app: App
     sim: Any
     clock: ScaledClock
-    db: Path
+    db: Path | str  # a SQLite file, or a database URL (mariadb://...)
     specs: list[RobotSpec]
     clients: list[Client]
 
@@ -150,7 +153,7 @@ class Restaurant:
         await self.app.start()
 
 
-def make_app(db: Path, clock: ScaledClock, specs: list[RobotSpec]) -> App:
+def make_app(db: Path | str, clock: ScaledClock, specs: list[RobotSpec]) -> App:
     from serveur.navigation import load_demo
 
     nav_map, waypoints = load_demo()
@@ -162,8 +165,9 @@ def make_app(db: Path, clock: ScaledClock, specs: list[RobotSpec]) -> App:
 
 @contextlib.asynccontextmanager
 async def restaurant(
-    tmp_path: Path, robots: int = 1, time_scale: float = TIME_SCALE
+    tmp_path: Path, robots: int = 1, time_scale: float = TIME_SCALE, db_url: str | None = None
 ) -> AsyncIterator[Restaurant]:
+    """A running restaurant on a SQLite file in ``tmp_path``, or on ``db_url`` if given."""
     from serveur.navigation import demo_map_path
     from serveur.robot_sim import start_simulation
 
@@ -175,7 +179,7 @@ async def restaurant(
         RobotSpec(r.name, url, f"home{i + 1}")
         for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
     ]
-    db = tmp_path / "serveur.db"
+    db = db_url or tmp_path / "serveur.db"
     app = make_app(db, clock, specs)
     await app.start()
     r = Restaurant(app, sim, clock, db, specs, [])

@@ -29,6 +29,7 @@ from serveur.errors import Conflict, InvalidField, NotFound, StoreError
 from serveur.status import RobotMode, RobotStatus
 from serveur.store import SQLiteStore, Store, load_migrations, open_store
 from serveur.store_sqlite import split_sql
+from tests.mariadb_server import query
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -55,11 +56,14 @@ def _sqlite_rows(path: Path) -> Callable[[str], list[dict[str, Any]]]:
     return rows
 
 
-@pytest.fixture(params=["sqlite"])
+@pytest.fixture(params=["sqlite", "mariadb"])
 def backend(request: pytest.FixtureRequest, tmp_path: Path) -> Backend:
     if request.param == "sqlite":
         path = tmp_path / "serveur.db"
         return Backend("sqlite", lambda: SQLiteStore(path), _sqlite_rows(path), path)
+    if request.param == "mariadb":  # a fresh database on the session's private server
+        url: str = request.getfixturevalue("mariadb_url")
+        return Backend("mariadb", lambda: open_store(url), lambda sql: query(url, sql))
     raise AssertionError(request.param)  # pragma: no cover
 
 
@@ -110,11 +114,10 @@ def test_open_store_urls(tmp_path: Path) -> None:
     assert isinstance(rel, SQLiteStore) and rel.path == "data/b.db"
     bare = open_store(str(tmp_path / "c.db"))
     assert isinstance(bare, SQLiteStore) and bare.path == str(tmp_path / "c.db")
-    for url in ("mariadb://u:p@host/db", "postgres://host/db", "sqlite://host/x.db", "sqlite:"):
+    for url in ("mariadb://u:p@host", "postgres://host/db", "sqlite://host/x.db", "sqlite:"):
         with pytest.raises(StoreError):
             open_store(url)
-    with pytest.raises(StoreError, match="MariaDB"):
-        open_store("mariadb://u:p@host/db")
+    assert type(open_store("mariadb://u:p@host/db")).__name__ == "MariaDBStore"
 
 
 def test_migration_files() -> None:
