@@ -89,7 +89,7 @@ _FEEDBACK_TICKS: Final = 2  # 10 Hz while a goal is active
 _SCAN_TICKS: Final = 4  # 5 Hz
 _STATUS_TICKS: Final = 4  # 5 Hz (actionlib's default status_frequency)
 _BATTERY_TICKS: Final = 20  # 1 Hz
-#: Most physics steps taken in one loop pass when the loop fell behind (then sim time slips).
+#: Most physics steps taken in one loop pass when the loop fell behind; beyond, sim time slips.
 _MAX_CATCH_UP: Final = 20
 
 CMD_VEL_TIMEOUT: Final = 0.5  # s sim: a teleop command older than this is stale, the robot stops
@@ -354,8 +354,16 @@ class SimRobot:
         self._seqs[topic] = s + 1
         return s
 
-    def _publish(self, topic: str, build: Callable[[int, float], dict[str, Any]]) -> None:
-        """Build (only if a subscriber takes it now) and hand one frame to every subscriber."""
+    def _publish(
+        self,
+        topic: str,
+        build: Callable[[int, float], dict[str, Any]],
+        stamp: float | None = None,
+    ) -> None:
+        """Build (only if a subscriber takes it now) and hand one frame to every subscriber.
+
+        ``stamp`` defaults to now; ticks pass their own sim time.
+        """
         subs = self._subs.get(topic)
         if not subs:
             return
@@ -363,7 +371,9 @@ class SimRobot:
         wanting = [s for s in subs if s.wants(t)]
         if not wanting:
             return
-        frame = _Frame(rb.op_publish(topic, build(self._next_seq(topic), self._clock.epoch())))
+        if stamp is None:
+            stamp = self._clock.epoch()
+        frame = _Frame(rb.op_publish(topic, build(self._next_seq(topic), stamp)))
         for s in wanting:
             s.push(frame, t)
 
@@ -638,29 +648,36 @@ class SimRobot:
     # -- publishing --------------------------------------------------------------------------
 
     def _advance(self, steps: int) -> None:
-        """Take ``steps`` physics steps, then publish what fell due during them."""
-        k0 = self._ticks
+        """Take ``steps`` physics steps, each followed by what falls due at its tick.
+
+        Publishing per tick (not once per pass) keeps publish rates and stamps tied to sim
+        time when the loop has to catch up several ticks at once (high time scales, load).
+        """
         for _ in range(steps):
             self._step(TICK)
-        self._ticks = k1 = k0 + steps
+            self._ticks = k = self._ticks + 1
+            if self._subs:
+                self._publish_due(k)
 
-        def due(period: int) -> bool:
-            return k1 // period != k0 // period
+    def _publish_due(self, k: int) -> None:
+        stamp = self._tick_stamp()
+        if k % _ODOM_TICKS == 0:
+            self._publish("/odom", self._build_odom, stamp)
+        if k % _AMCL_TICKS == 0:
+            self._publish("/amcl_pose", self._build_amcl, stamp)
+        if k % _FEEDBACK_TICKS == 0 and self._active is not None:
+            self._publish("/move_base/feedback", self._build_feedback, stamp)
+        if k % _SCAN_TICKS == 0:
+            self._publish("/scan", self._build_scan, stamp)
+        if k % _STATUS_TICKS == 0:
+            self._publish("/move_base/status", self._build_status, stamp)
+        if k % _BATTERY_TICKS == 0:
+            self._publish("/battery_state", self._build_battery, stamp)
 
-        if not self._subs:
-            return
-        if due(_ODOM_TICKS):
-            self._publish("/odom", self._build_odom)
-        if due(_AMCL_TICKS):
-            self._publish("/amcl_pose", self._build_amcl)
-            if self._active is not None and due(_FEEDBACK_TICKS):
-                self._publish("/move_base/feedback", self._build_feedback)
-        if due(_SCAN_TICKS):
-            self._publish("/scan", self._build_scan)
-        if due(_STATUS_TICKS):
-            self._publish_status()
-        if due(_BATTERY_TICKS):
-            self._publish("/battery_state", self._build_battery)
+    def _tick_stamp(self) -> float:
+        """ROS stamp (Unix time of the clock) of the last physics step."""
+        clock = self._clock
+        return clock.epoch() - clock.now() + self._t
 
     def _publish_status(self) -> None:
         self._publish("/move_base/status", self._build_status)
@@ -1289,11 +1306,14 @@ class Simulation:
                 await clock.sleep(delay)
             steps = 1
             behind = clock.now() - t
-            if behind >= TICK:  # overloaded: catch up physics, publish once
+            if behind >= TICK:  # overloaded: catch up with several steps in this pass
                 steps += min(int(behind / TICK), _MAX_CATCH_UP - 1)
                 t += (steps - 1) * TICK
-                if clock.now() - t > TICK * _MAX_CATCH_UP:
-                    t = clock.now()  # too far behind: let sim time slip
+                slip = clock.now() - t
+                if slip > TICK * _MAX_CATCH_UP:  # hopelessly behind: let sim time slip
+                    t += slip
+                    for r in self.robots:
+                        r._t += slip
             for r in self.robots:
                 try:
                     r._advance(steps)
