@@ -1,4 +1,4 @@
-"""The websocket endpoint ``/ws`` and plain HTTP (health, later the UI), from one process.
+"""The websocket endpoint ``/ws`` and plain HTTP (health, the web UI), from one process.
 
 Thin on purpose: read a frame, parse it (:mod:`serveur.protocol`), hand it to the core,
 queue the reply. Every failure becomes a structured error reply on the same connection —
@@ -23,6 +23,7 @@ from serveur import protocol as P
 from serveur.core import Core
 from serveur.errors import InvalidField, NotFound, ServeurError
 from serveur.hub import Subscriber
+from serveur.static import default_site
 
 __all__ = ["MAX_FRAME", "Server"]
 
@@ -53,6 +54,7 @@ class Server:
         self.port = port
         self._ws: WsServer | None = None
         self.connections = 0
+        self._site = default_site()  # the web UI's files, read once at start, never per request
 
     async def start(self) -> None:
         self._ws = await serve(
@@ -89,7 +91,7 @@ class Server:
                 {"status": "ok", "robots": {n: st.value for n, st in self.core.robot_statuses()}}
             ).encode()
             return _http(http.HTTPStatus.OK, body, "application/json")
-        return _http(http.HTTPStatus.NOT_FOUND, b"not found\n", "text/plain; charset=utf-8")
+        return self._site.respond(request)  # the web UI (GET/HEAD), 404 for anything else
 
     async def _handler(self, ws: ServerConnection) -> None:
         self.connections += 1
