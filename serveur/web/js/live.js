@@ -1,0 +1,117 @@
+// The page's copy of the server's state, kept from snapshots and updates (docs/protocol.md,
+// "Topics"). State topics are upserts keyed by name or id; streams keep the latest value.
+// Emits "change" {topic, record} after every change (record: the updated record, or null after a
+// snapshot), so views redraw only what they show.
+
+const KEYS = { robots: "name", waypoints: "name", orders: "id", tasks: "id", events: "id" };
+const MAX_EVENTS = 200;
+
+export class Live extends EventTarget {
+  constructor(conn) {
+    super();
+    this.conn = conn;
+    this.robots = new Map();
+    this.waypoints = new Map();
+    this.orders = new Map();
+    this.tasks = new Map();
+    this.events = new Map();
+    this.map = null;
+    this.poses = new Map(); // robot -> {x, y, yaw, stamp}
+    this.scans = new Map(); // robot -> scan
+    this.clock = new ServerClock();
+    conn.addEventListener("snapshot", (e) => this._snapshot(e.detail.data));
+    conn.addEventListener("update", (e) => this._update(e.detail.topic, e.detail.data));
+  }
+
+  _snapshot(data) {
+    for (const [topic, snap] of Object.entries(data)) {
+      if (topic in KEYS) {
+        const table = this[topic];
+        table.clear(); // a snapshot replaces what we had: it is newer than any update before it
+        for (const rec of snap) this._put(topic, rec);
+      } else {
+        this._stream(topic, snap);
+      }
+      this._changed(topic);
+    }
+  }
+
+  _update(topic, data) {
+    if (topic in KEYS) this._put(topic, data);
+    else this._stream(topic, data);
+    this._changed(topic, data);
+  }
+
+  _put(topic, rec) {
+    this[topic].set(rec[KEYS[topic]], rec);
+    if (topic === "events" && this.events.size > MAX_EVENTS) {
+      this.events.delete(this.events.keys().next().value);
+    }
+    this.clock.saw(rec.updated_at ?? rec.ts ?? rec.ready_at);
+  }
+
+  _stream(topic, data) {
+    if (topic === "map") {
+      this.map = data;
+      return;
+    }
+    const [kind, robot] = splitTopic(topic);
+    const table = kind === "pose" ? this.poses : this.scans;
+    if (data === null) table.delete(robot);
+    else {
+      table.set(robot, data);
+      this.clock.saw(data.stamp);
+    }
+  }
+
+  _changed(topic, record = null) {
+    this.dispatchEvent(new CustomEvent("change", { detail: { topic, record } }));
+  }
+
+  /** Where the robot is: its pose stream if subscribed, else the robot record. */
+  pose(name) {
+    const p = this.poses.get(name);
+    if (p) return p;
+    const r = this.robots.get(name);
+    return r && r.x !== null && r.x !== undefined ? { x: r.x, y: r.y, yaw: r.yaw } : null;
+  }
+
+  /** The table a robot is heading to or waiting at, from its current task, or null. */
+  destination(name) {
+    const r = this.robots.get(name);
+    if (!r || r.current_task === null) return null;
+    const task = this.tasks.get(r.current_task);
+    const stop = task && task.stops[task.current_stop];
+    return stop ? stop.table : null;
+  }
+}
+
+export function splitTopic(topic) {
+  const i = topic.indexOf(":");
+  return i < 0 ? [topic, ""] : [topic.slice(0, i), topic.slice(i + 1)];
+}
+
+/**
+ * The server's clock, estimated from the timestamps it sends. The protocol's times are on the
+ * server's clock (which may run faster than real time in a demo), so "waiting for 3 min" must
+ * be measured against it, not against the tablet's clock.
+ */
+export class ServerClock {
+  constructor() {
+    this._server = null;
+    this._local = 0;
+  }
+
+  saw(ts) {
+    if (typeof ts !== "number" || !Number.isFinite(ts)) return;
+    if (this._server === null || ts > this._server) {
+      this._server = ts;
+      this._local = performance.now();
+    }
+  }
+
+  now() {
+    if (this._server === null) return Date.now() / 1000;
+    return this._server + (performance.now() - this._local) / 1000;
+  }
+}

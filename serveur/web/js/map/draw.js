@@ -1,0 +1,168 @@
+// Drawing the map's layers. Every function takes the view (for world <-> screen) and a 2D
+// context already set to CSS pixels; positions are in metres in the map frame, y up.
+
+import { statusColour } from "../status.js";
+
+const WAYPOINT_COLOURS = { table: "#8b5a2b", home: "#2f6fdb", pass: "#138a5b", other: "#666" };
+const ROBOT_RADIUS_M = 0.25;
+
+/** The occupancy grid, drawn in world units (see grid.js for why no row flip is needed). */
+export function drawGrid(ctx, view, map, image) {
+  const { resolution, origin, width, height } = map;
+  ctx.save();
+  // metres -> CSS pixels with y up: the negative y scale turns the bottom-up rows right way up.
+  ctx.transform(view.scale, 0, 0, -view.scale, view.ox, view.oy);
+  ctx.translate(origin[0], origin[1]);
+  ctx.rotate(origin[2] || 0);
+  ctx.imageSmoothingEnabled = false;
+  ctx.drawImage(image, 0, 0, width * resolution, height * resolution);
+  ctx.restore();
+}
+
+export function drawWaypoints(ctx, view, waypoints) {
+  ctx.save();
+  ctx.font = "12px system-ui, sans-serif";
+  ctx.textBaseline = "middle";
+  for (const w of waypoints) {
+    const [x, y] = view.toScreen(w.x, w.y);
+    const r = 6;
+    ctx.beginPath();
+    ctx.moveTo(x, y - r);
+    ctx.lineTo(x + r, y);
+    ctx.lineTo(x, y + r);
+    ctx.lineTo(x - r, y);
+    ctx.closePath();
+    ctx.fillStyle = WAYPOINT_COLOURS[w.kind] || WAYPOINT_COLOURS.other;
+    ctx.fill();
+    ctx.strokeStyle = "#fff";
+    ctx.lineWidth = 1.5;
+    ctx.stroke();
+    labelAt(ctx, w.name, x + r + 3, y, "#222");
+  }
+  ctx.restore();
+}
+
+function labelAt(ctx, text, x, y, colour) {
+  ctx.lineWidth = 3;
+  ctx.strokeStyle = "rgba(255,255,255,0.85)";
+  ctx.strokeText(text, x, y);
+  ctx.fillStyle = colour;
+  ctx.fillText(text, x, y);
+}
+
+/**
+ * The laser scan around a robot. Beam i points at yaw + angle_min + i * angle_increment in the
+ * map frame (docs/protocol.md): the scan's own pose is used, so the points stay on the walls
+ * however the robot turns — the report's UI forgot the yaw and drew them rotated.
+ */
+export function drawScan(ctx, view, scan) {
+  const { x, y, yaw, angle_min: a0, angle_increment: da, range_max: rmax, ranges } = scan;
+  const hits = [];
+  const outline = [];
+  for (let i = 0; i < ranges.length; i++) {
+    const r = ranges[i];
+    const hit = r !== null && Number.isFinite(r);
+    const a = yaw + a0 + i * da;
+    const d = hit ? r : rmax; // no hit: the beam saw free space up to range_max
+    const p = view.toScreen(x + d * Math.cos(a), y + d * Math.sin(a));
+    outline.push(p);
+    if (hit) hits.push(p);
+  }
+  ctx.save();
+  // What the laser sees, lightly; then each return as a dot.
+  if (outline.length > 2) {
+    ctx.beginPath();
+    outline.forEach(([sx, sy], i) => (i ? ctx.lineTo(sx, sy) : ctx.moveTo(sx, sy)));
+    ctx.closePath();
+    ctx.fillStyle = "rgba(225, 29, 72, 0.07)";
+    ctx.fill();
+  }
+  ctx.fillStyle = "#e11d48";
+  const size = Math.max(3, Math.min(5, view.scale * 0.06));
+  for (const [sx, sy] of hits) ctx.fillRect(sx - size / 2, sy - size / 2, size, size);
+  ctx.restore();
+}
+
+/** A dashed line from the robot to where it is going, and a flag there. */
+export function drawGoal(ctx, view, from, goal, colour) {
+  const [x0, y0] = view.toScreen(from.x, from.y);
+  const [x1, y1] = view.toScreen(goal.x, goal.y);
+  ctx.save();
+  ctx.strokeStyle = colour;
+  ctx.lineWidth = 2;
+  ctx.setLineDash([6, 5]);
+  ctx.beginPath();
+  ctx.moveTo(x0, y0);
+  ctx.lineTo(x1, y1);
+  ctx.stroke();
+  ctx.setLineDash([]);
+  ctx.beginPath();
+  ctx.arc(x1, y1, 9, 0, 2 * Math.PI);
+  ctx.stroke();
+  if (goal.yaw !== undefined && goal.yaw !== null) arrow(ctx, x1, y1, goal.yaw, 18, colour);
+  if (goal.label) {
+    ctx.font = "bold 12px system-ui, sans-serif";
+    ctx.textBaseline = "bottom";
+    labelAt(ctx, goal.label, x1 + 10, y1 - 8, colour);
+  }
+  ctx.restore();
+}
+
+/** An arrow from (x, y) in screen pixels, pointing at map-frame angle `yaw`. */
+export function arrow(ctx, x, y, yaw, length, colour) {
+  const dx = Math.cos(yaw) * length;
+  const dy = -Math.sin(yaw) * length; // screen y grows downward
+  ctx.save();
+  ctx.strokeStyle = colour;
+  ctx.fillStyle = colour;
+  ctx.lineWidth = 3;
+  ctx.beginPath();
+  ctx.moveTo(x, y);
+  ctx.lineTo(x + dx, y + dy);
+  ctx.stroke();
+  const a = Math.atan2(dy, dx);
+  ctx.beginPath();
+  ctx.moveTo(x + dx, y + dy);
+  ctx.lineTo(x + dx - 10 * Math.cos(a - 0.45), y + dy - 10 * Math.sin(a - 0.45));
+  ctx.lineTo(x + dx - 10 * Math.cos(a + 0.45), y + dy - 10 * Math.sin(a + 0.45));
+  ctx.closePath();
+  ctx.fill();
+  ctx.restore();
+}
+
+export function drawRobot(ctx, view, name, pose, status, selected) {
+  const [x, y] = view.toScreen(pose.x, pose.y);
+  const r = Math.max(8, ROBOT_RADIUS_M * view.scale);
+  const colour = statusColour(status);
+  ctx.save();
+  if (selected) {
+    ctx.beginPath();
+    ctx.arc(x, y, r + 5, 0, 2 * Math.PI);
+    ctx.strokeStyle = "#ffb000";
+    ctx.lineWidth = 3;
+    ctx.stroke();
+  }
+  ctx.beginPath();
+  ctx.arc(x, y, r, 0, 2 * Math.PI);
+  ctx.fillStyle = colour;
+  ctx.fill();
+  ctx.strokeStyle = "#fff";
+  ctx.lineWidth = 2;
+  ctx.stroke();
+  // Heading: a white wedge from the centre to the rim.
+  const dx = Math.cos(pose.yaw);
+  const dy = -Math.sin(pose.yaw);
+  ctx.beginPath();
+  ctx.moveTo(x + dx * r, y + dy * r);
+  ctx.lineTo(x - dy * r * 0.45, y + dx * r * 0.45);
+  ctx.lineTo(x + dy * r * 0.45, y - dx * r * 0.45);
+  ctx.closePath();
+  ctx.fillStyle = "#fff";
+  ctx.fill();
+  // Only the name: robots park side by side, and the status is the colour (and in the list).
+  ctx.font = "bold 13px system-ui, sans-serif";
+  ctx.textBaseline = "top";
+  ctx.textAlign = "center";
+  labelAt(ctx, name, x, y + r + 3, colour);
+  ctx.restore();
+}

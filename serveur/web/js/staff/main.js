@@ -1,0 +1,92 @@
+// The staff console: wires the connection, the live state and the console's panels.
+
+import { Connection } from "../ws.js";
+import { Live } from "../live.js";
+import { watchConnection } from "../ui.js";
+import { MapView } from "../map/view.js";
+import { RobotsPanel } from "./robots.js";
+import { MapTools } from "./maptools.js";
+import { Teleop } from "./teleop.js";
+import { WaypointsPanel } from "./waypoints.js";
+import { IssuePanel } from "./issue.js";
+import { NewOrderPanel } from "./neworder.js";
+
+const conn = new Connection();
+const live = new Live(conn);
+watchConnection(conn);
+
+// Which robot the map's scan, the tools, teleop and waypoints act on.
+const selection = {
+  name: null,
+  listeners: [],
+  set(name) {
+    if (name === this.name) return;
+    const old = this.name;
+    this.name = name;
+    if (old) conn.unsubscribe([`scan:${old}`]);
+    if (name) conn.subscribe([`scan:${name}`]);
+    this.listeners.forEach((f) => f(name));
+  },
+  onChange(f) {
+    this.listeners.push(f);
+  },
+};
+
+const goals = new Map(); // robot -> the last goal this console sent, drawn until it is reached
+
+const view = new MapView(document.getElementById("map"), live, {
+  selected: () => selection.name,
+  goals: () => goals,
+  onSelect: (name) => selection.set(name),
+  onPose: (tool, pose) => tools.posePicked(tool, pose),
+});
+const tools = new MapTools(conn, live, view, selection, goals);
+new RobotsPanel(document.getElementById("robots"), conn, live, selection);
+new Teleop(document.getElementById("teleop"), conn, live, selection);
+new WaypointsPanel(document.getElementById("waypoints"), conn, live, selection);
+new IssuePanel(document.getElementById("panel-issue"), conn, live);
+new NewOrderPanel(document.getElementById("panel-order"), conn, live);
+
+live.addEventListener("change", (e) => {
+  const topic = e.detail.topic;
+  if (topic === "robots") {
+    // Every robot's pose is drawn live: follow the pose stream of each robot we learn of.
+    conn.subscribe([...live.robots.keys()].map((n) => `pose:${n}`));
+    if (!selection.name && live.robots.size) selection.set([...live.robots.keys()][0]);
+  }
+  view.requestDraw();
+});
+
+document.getElementById("selected-note").textContent = "Select a robot in the list or on the map.";
+selection.onChange((name) => {
+  document.getElementById("selected-title").textContent = name ? `Selected robot: ${name}` : "Selected robot";
+  document.getElementById("selected-note").hidden = Boolean(name);
+  view.requestDraw();
+});
+
+setupTabs();
+conn.subscribe(["robots", "orders", "tasks", "waypoints", "map"]);
+conn.start();
+
+function setupTabs() {
+  const tabs = [...document.querySelectorAll('[role="tab"]')];
+  const show = (tab) => {
+    for (const t of tabs) {
+      const on = t === tab;
+      t.setAttribute("aria-selected", String(on));
+      t.tabIndex = on ? 0 : -1;
+      document.getElementById(t.getAttribute("aria-controls")).hidden = !on;
+    }
+    if (tab.id === "tab-map") view.requestDraw();
+  };
+  tabs.forEach((t) => t.addEventListener("click", () => show(t)));
+  // Arrow keys move between tabs (the WAI-ARIA tabs pattern).
+  document.querySelector('[role="tablist"]').addEventListener("keydown", (e) => {
+    const i = tabs.indexOf(document.activeElement);
+    if (i < 0 || (e.key !== "ArrowRight" && e.key !== "ArrowLeft")) return;
+    const next = tabs[(i + (e.key === "ArrowRight" ? 1 : tabs.length - 1)) % tabs.length];
+    next.focus();
+    show(next);
+  });
+  show(tabs[0]);
+}

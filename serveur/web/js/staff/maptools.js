@@ -1,0 +1,94 @@
+// The map toolbar: Calibrate (initialpose) and Move here (goal) as one-shot press-and-drag
+// tools like RViz's 2D Pose Estimate / 2D Nav Goal, and zoom buttons.
+
+import { act, toast } from "../ui.js";
+import { allowed } from "../status.js";
+
+const TOOLS = {
+  initialpose: {
+    button: "tool-calibrate",
+    hint: "Press where the robot really is, drag toward where it faces, release.",
+  },
+  goal: { button: "tool-goal", hint: "Press where the robot should go, drag toward its heading, release." },
+};
+const REACHED_M = 0.3;
+
+export class MapTools {
+  constructor(conn, live, view, selection, goals) {
+    this.conn = conn;
+    this.live = live;
+    this.view = view;
+    this.selection = selection;
+    this.goals = goals;
+    this.hint = document.getElementById("tool-hint");
+    for (const [tool, { button }] of Object.entries(TOOLS)) {
+      document.getElementById(button).addEventListener("click", () => {
+        this._setTool(this.view.tool === tool ? "pan" : tool);
+      });
+    }
+    document.getElementById("zoom-in").addEventListener("click", () => view.zoomBy(1.25));
+    document.getElementById("zoom-out").addEventListener("click", () => view.zoomBy(0.8));
+    document.getElementById("zoom-fit").addEventListener("click", () => view.fit());
+    live.addEventListener("change", (e) => {
+      if (e.detail.topic === "robots") this._refresh();
+      if (e.detail.topic.startsWith("pose:") || e.detail.topic === "robots") this._forgetReachedGoals();
+    });
+    selection.onChange(() => {
+      this._setTool("pan");
+      this._refresh();
+    });
+    this._refresh();
+  }
+
+  _setTool(tool) {
+    this.view.setTool(tool);
+    for (const [name, { button, hint }] of Object.entries(TOOLS)) {
+      document.getElementById(button).setAttribute("aria-pressed", String(name === tool));
+      if (name === tool) this.hint.textContent = `${this.selection.name}: ${hint}`;
+    }
+    if (tool === "pan") this.hint.textContent = "";
+  }
+
+  _refresh() {
+    const robot = this.live.robots.get(this.selection.name);
+    for (const [tool, { button }] of Object.entries(TOOLS)) {
+      const ok = Boolean(robot && allowed(robot.status, tool));
+      const b = document.getElementById(button);
+      b.disabled = !ok;
+      b.title = ok ? TOOLS[tool].hint : "Take control of the selected robot first (it must be Manual).";
+      if (!ok && this.view.tool === tool) this._setTool("pan");
+    }
+  }
+
+  async posePicked(tool, pose) {
+    const name = this.selection.name;
+    this._setTool("pan"); // one-shot, as in RViz: the next drag pans again
+    if (!name) return;
+    let yaw = pose.yaw;
+    if (yaw === null) {
+      // A tap without a drag keeps the robot's current heading.
+      const now = this.live.pose(name);
+      yaw = now ? now.yaw : 0;
+    }
+    const msg = { clientmsg: "control", robot: name, action: tool, x: pose.x, y: pose.y, yaw };
+    const reply = await act(null, () => this.conn.request(msg));
+    if (!reply) return;
+    const where = `(${pose.x.toFixed(2)}, ${pose.y.toFixed(2)}) heading ${Math.round((yaw * 180) / Math.PI)}°`;
+    if (tool === "goal") {
+      this.goals.set(name, { x: pose.x, y: pose.y, yaw, label: "goal" });
+      toast(`${name}: moving to ${where}`);
+    } else {
+      toast(`${name}: calibrated at ${where}`);
+    }
+    this.view.requestDraw();
+  }
+
+  _forgetReachedGoals() {
+    for (const [name, goal] of this.goals) {
+      const robot = this.live.robots.get(name);
+      const p = this.live.pose(name);
+      const reached = p && Math.hypot(p.x - goal.x, p.y - goal.y) < REACHED_M;
+      if (!robot || robot.status !== "Manual" || reached) this.goals.delete(name);
+    }
+  }
+}

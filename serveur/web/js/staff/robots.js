@@ -1,0 +1,118 @@
+// The robots list: status, battery, current trip, and the instructions the robot's status
+// allows (status.js). A refusal from the server (the status changed meanwhile) is shown.
+
+import { act, confirmDialog, el } from "../ui.js";
+import { allowed, statusColour } from "../status.js";
+
+// [action, label, request]; `ready` reads "Release" (hand back from Manual or leave Auto).
+const ACTIONS = [
+  ["auto", "Auto", (r) => ({ clientmsg: "control", robot: r, action: "auto" })],
+  ["manual", "Take control", (r) => ({ clientmsg: "control", robot: r, action: "manual" })],
+  ["ready", "Release", (r) => ({ clientmsg: "ready", robot: r })],
+  ["stop", "Stop", (r) => ({ clientmsg: "stop", robot: r })],
+  ["continue", "Continue", (r) => ({ clientmsg: "continue", robot: r })],
+  ["next", "Food collected", (r) => ({ clientmsg: "next", robot: r })],
+  ["cancel", "Cancel trip", (r) => ({ clientmsg: "cancel", robot: r })],
+];
+
+export class RobotsPanel {
+  constructor(list, conn, live, selection) {
+    this.list = list;
+    this.conn = conn;
+    this.live = live;
+    this.selection = selection;
+    this.rows = new Map(); // name -> {li, signature}
+    live.addEventListener("change", (e) => {
+      if (["robots", "tasks", "waypoints"].includes(e.detail.topic)) this.render();
+    });
+    selection.onChange(() => this.render());
+  }
+
+  render() {
+    const names = [...this.live.robots.keys()].sort();
+    for (const [name, row] of this.rows) {
+      if (!this.live.robots.has(name)) {
+        row.li.remove();
+        this.rows.delete(name);
+      }
+    }
+    for (const name of names) {
+      const robot = this.live.robots.get(name);
+      const trip = this._trip(robot);
+      const selected = this.selection.name === name;
+      // Rebuild a row only when what it shows changed, so a button is not replaced under a finger.
+      const signature = JSON.stringify([robot.status, robot.mode, battery(robot), trip, selected, robot.last_error]);
+      let row = this.rows.get(name);
+      if (!row) {
+        row = { li: el("li", { class: "robot" }), signature: "" };
+        this.rows.set(name, row);
+      }
+      if (row.signature !== signature) {
+        row.signature = signature;
+        row.li.replaceChildren(...this._content(robot, trip, selected).filter(Boolean));
+        row.li.classList.toggle("selected", selected);
+        row.li.dataset.status = robot.status;
+      }
+      this.list.append(row.li); // keeps sorted order; a no-op move when already in place
+    }
+  }
+
+  _trip(robot) {
+    if (robot.current_task === null) return "no trip";
+    const task = this.live.tasks.get(robot.current_task);
+    if (!task) return `trip ${robot.current_task}`;
+    const tables = task.stops.map((s) => s.table).join(", ");
+    const here = task.stops[task.current_stop];
+    return `trip ${task.id}: ${tables}${here ? ` (now ${here.table})` : ""}`;
+  }
+
+  _content(robot, trip, selected) {
+    const name = robot.name;
+    const buttons = ACTIONS.filter(([action]) => allowed(robot.status, action)).map(([action, label, make]) =>
+      el("button", {
+        class: action === "stop" || action === "cancel" ? "danger" : "",
+        "aria-label": `${label} ${name}`,
+        onclick: (e) => this._do(e.currentTarget, action, name, make(name)),
+        text: label,
+      }),
+    );
+    return [
+      el(
+        "button",
+        {
+          class: "robot-name",
+          "aria-pressed": String(selected),
+          "aria-label": `Select ${name}`,
+          onclick: () => this.selection.set(name),
+        },
+        name,
+      ),
+      el(
+        "span",
+        { class: "status-badge", "data-status": robot.status },
+        el("span", { class: "dot", "aria-hidden": "true", style: { background: statusColour(robot.status) } }),
+        robot.status,
+      ),
+      el("span", { class: "battery" }, `battery ${battery(robot)}`),
+      el("span", { class: "trip" }, trip),
+      robot.last_error ? el("span", { class: "last-error" }, robot.last_error) : null,
+      el("div", { class: "actions", role: "group", "aria-label": `Actions for ${name}` }, buttons),
+    ];
+  }
+
+  async _do(button, action, name, msg) {
+    if (action === "cancel") {
+      const yes = await confirmDialog(`Cancel ${name}'s trip?`, {
+        yes: "Yes, cancel the trip",
+        no: "No, keep it",
+        detail: "The robot goes home; the dishes not yet served go back to the pending list.",
+      });
+      if (!yes) return;
+    }
+    await act(button, () => this.conn.request(msg));
+  }
+}
+
+function battery(robot) {
+  return robot.battery === null || robot.battery === undefined ? "—" : `${Math.round(robot.battery * 100)} %`;
+}

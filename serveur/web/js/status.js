@@ -1,0 +1,48 @@
+// The robot status machine as the UI needs it: which instructions each status accepts
+// (mirrors the allowed-actions table of docs/protocol.md) and how each status looks.
+// The server still has the last word: a refused instruction comes back as an error and is shown.
+
+const T = true;
+const _ = false;
+const ACTIONS = [
+  "auto", "manual", "teleop", "initialpose", "goal", "goto",
+  "ready", "next", "stop", "continue", "cancel", "save_waypoint",
+];
+// prettier-ignore
+const TABLE = {
+  //          auto man tele init goal goto ready next stop cont canc save
+  Offline:    [_, _, _, _, _, _, _, _, _, _, _, _],
+  Ready:      [T, T, _, _, _, _, _, _, _, _, _, T],
+  Awaiting:   [_, _, _, _, _, _, T, _, _, _, _, T],
+  Delivering: [_, _, _, _, _, _, _, _, T, _, _, T],
+  Delivered:  [_, _, _, _, _, _, _, T, _, _, _, T],
+  Stopped:    [_, _, _, _, _, _, _, _, _, T, T, T],
+  Transit:    [_, _, _, _, _, _, _, _, T, _, _, T],
+  Manual:     [_, _, T, T, T, T, T, _, _, _, _, T],
+  Error:      [_, T, _, _, _, _, _, _, _, T, T, T],
+};
+
+export const STATUSES = Object.keys(TABLE);
+
+export function allowed(status, action) {
+  const row = TABLE[status];
+  const i = ACTIONS.indexOf(action);
+  return Boolean(row && i >= 0 && row[i]);
+}
+
+// Colours are paired with the status word everywhere, so colour is never the only cue.
+export const STATUS_COLOURS = {
+  Offline: "#8a8f98",
+  Ready: "#2f6fdb",
+  Awaiting: "#138a5b",
+  Delivering: "#d9822b",
+  Delivered: "#8e44ad",
+  Stopped: "#c0392b",
+  Transit: "#1b9aaa",
+  Manual: "#b8860b",
+  Error: "#e0115f",
+};
+
+export function statusColour(status) {
+  return STATUS_COLOURS[status] || "#555";
+}

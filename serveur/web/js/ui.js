@@ -1,0 +1,156 @@
+// Small DOM helpers shared by every page: element building, toasts for errors and results,
+// the connection banner, a confirmation dialog, and `act` to run a button's request.
+
+/** el("button", {class: "big", onclick: f, "aria-label": "Stop r1"}, "Stop") */
+export function el(tag, attrs = {}, ...children) {
+  const node = document.createElement(tag);
+  for (const [key, value] of Object.entries(attrs)) {
+    if (value === undefined || value === null || value === false) continue;
+    if (key.startsWith("on")) node.addEventListener(key.slice(2), value);
+    else if (key === "class") node.className = value;
+    else if (key === "text") node.textContent = value;
+    // CSSOM, not a style attribute: the Content-Security-Policy forbids inline style attributes.
+    else if (key === "style") Object.assign(node.style, value);
+    else if (value === true) node.setAttribute(key, "");
+    else node.setAttribute(key, String(value));
+  }
+  for (const child of children.flat()) {
+    if (child === null || child === undefined || child === false) continue;
+    node.append(child instanceof Node ? child : document.createTextNode(String(child)));
+  }
+  return node;
+}
+
+function toastRegion() {
+  let region = document.getElementById("toasts");
+  if (!region) {
+    region = el("div", { id: "toasts", class: "toasts" });
+    document.body.append(region);
+  }
+  return region;
+}
+
+const recent = new Map(); // message -> time shown, so a held joystick cannot flood the screen
+
+/** Show a message; errors stay longer and are announced at once (role=alert). */
+export function toast(message, { kind = "info", ms } = {}) {
+  const now = performance.now();
+  if (recent.has(message) && now - recent.get(message) < 3000) return;
+  recent.set(message, now);
+  const error = kind === "error";
+  const close = el("button", { class: "toast-close", "aria-label": "Dismiss", text: "×" });
+  const node = el(
+    "div",
+    { class: `toast toast-${kind}`, role: error ? "alert" : "status" },
+    el("span", { class: "toast-text" }, message),
+    close,
+  );
+  close.addEventListener("click", () => node.remove());
+  toastRegion().append(node);
+  setTimeout(() => node.remove(), ms ?? (error ? 12000 : 5000));
+}
+
+/** A ServerError (or any error) as words for the person in front of the screen. */
+export function describeError(err) {
+  if (err && err.code) return `${err.message} (${err.code})`;
+  return String((err && err.message) || err);
+}
+
+export function showError(err) {
+  toast(describeError(err), { kind: "error" });
+}
+
+/**
+ * Run a request for a button: disable the button meanwhile, show the server's refusal if any.
+ * Resolves with the reply, or null after showing the error — never throws, never hides.
+ */
+export async function act(button, makeRequest) {
+  if (button) button.disabled = true;
+  try {
+    return await makeRequest();
+  } catch (err) {
+    showError(err);
+    return null;
+  } finally {
+    if (button && button.isConnected) button.disabled = false;
+  }
+}
+
+/** Ask before an action that cannot be undone; resolves true only on the explicit "yes". */
+export function confirmDialog(question, { yes = "Yes", no = "No", detail = "" } = {}) {
+  return new Promise((resolve) => {
+    const titleId = `dlg-${Math.random().toString(36).slice(2)}`;
+    const yesBtn = el("button", { class: "danger", text: yes });
+    const noBtn = el("button", { class: "secondary", text: no });
+    const dialog = el(
+      "dialog",
+      { class: "confirm", "aria-labelledby": titleId },
+      el("h2", { id: titleId }, question),
+      detail ? el("p", {}, detail) : null,
+      el("div", { class: "dialog-buttons" }, noBtn, yesBtn),
+    );
+    const finish = (answer) => {
+      dialog.close();
+      dialog.remove();
+      resolve(answer);
+    };
+    yesBtn.addEventListener("click", () => finish(true));
+    noBtn.addEventListener("click", () => finish(false));
+    dialog.addEventListener("cancel", (e) => {
+      e.preventDefault(); // Escape means "no", through the same path
+      finish(false);
+    });
+    document.body.append(dialog);
+    dialog.showModal();
+    noBtn.focus(); // the safe answer is the default
+  });
+}
+
+/** The banner that says the page is not live, and the problems no button is waiting for. */
+export function watchConnection(conn) {
+  const banner = el("div", { class: "banner", role: "status", "aria-live": "polite", hidden: true });
+  document.body.prepend(banner);
+  let timer = null;
+  conn.addEventListener("state", (e) => {
+    const { state, retryIn } = e.detail;
+    document.body.dataset.connection = state;
+    clearInterval(timer);
+    if (state === "online") {
+      banner.hidden = true;
+      banner.textContent = "";
+      return;
+    }
+    banner.hidden = false;
+    if (state === "connecting") {
+      banner.textContent = "Connecting to the server…";
+      return;
+    }
+    const until = performance.now() + retryIn;
+    const show = () => {
+      const s = Math.max(0, Math.ceil((until - performance.now()) / 1000));
+      banner.textContent = `Connection to the server lost: what you see may be out of date. Reconnecting${s ? ` in ${s} s` : ""}…`;
+    };
+    show();
+    timer = setInterval(show, 500);
+  });
+  conn.addEventListener("problem", (e) => showError(e.detail.error));
+}
+
+export function formatDuration(seconds) {
+  const s = Math.max(0, Math.floor(seconds));
+  if (s < 60) return `${s} s`;
+  const m = Math.floor(s / 60);
+  if (m < 60) return `${m} min ${String(s % 60).padStart(2, "0")} s`;
+  return `${Math.floor(m / 60)} h ${String(m % 60).padStart(2, "0")} min`;
+}
+
+/** A client-made key for idempotent creates. crypto.randomUUID needs https; this does not. */
+export function newKey(prefix) {
+  const bytes = crypto.getRandomValues(new Uint8Array(12));
+  return `${prefix}-${Array.from(bytes, (b) => b.toString(16).padStart(2, "0")).join("")}`;
+}
+
+/** Natural order, so T2 comes before T10. */
+export function byName(a, b) {
+  return a.localeCompare(b, undefined, { numeric: true });
+}

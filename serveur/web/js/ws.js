@@ -1,0 +1,201 @@
+// The page's one websocket to serveur (docs/protocol.md): requests matched to replies by id,
+// topic snapshots and updates checked by seq, and reconnection with backoff.
+//
+// Events (an EventTarget): "state" {state: "connecting"|"online"|"offline", retryIn},
+// "snapshot" {data} (a fresh {topic: snapshot} that replaces what the page has),
+// "update" {topic, data}, "problem" {error} (something failed that no caller is awaiting).
+
+const BACKOFF_MIN_MS = 250;
+const BACKOFF_MAX_MS = 5000;
+const REPLY_TIMEOUT_MS = 15000;
+
+/** A refused or failed request: `code` is the protocol's error code (or a client-side one). */
+export class ServerError extends Error {
+  constructor(code, message, details = null) {
+    super(message);
+    this.name = "ServerError";
+    this.code = code;
+    this.details = details;
+  }
+}
+
+export function defaultUrl(loc = window.location) {
+  const scheme = loc.protocol === "https:" ? "wss:" : "ws:";
+  return `${scheme}//${loc.host}/ws`;
+}
+
+export class Connection extends EventTarget {
+  constructor(url = defaultUrl()) {
+    super();
+    this.url = url;
+    this.state = "connecting";
+    this.topics = new Set();
+    this._ws = null;
+    this._nextId = 1;
+    this._pending = new Map(); // id -> {msg, resolve, reject, resend, sent, timer}
+    this._lastSeq = 0;
+    this._attempt = 0;
+    this._retryTimer = null;
+  }
+
+  start() {
+    this._open();
+    return this;
+  }
+
+  /** Subscribe to more topics; the reply's snapshot is emitted as a "snapshot" event. */
+  subscribe(topics) {
+    const fresh = topics.filter((t) => !this.topics.has(t));
+    fresh.forEach((t) => this.topics.add(t));
+    if (fresh.length && this.state === "online") this._sendData(fresh);
+  }
+
+  unsubscribe(topics) {
+    const gone = topics.filter((t) => this.topics.delete(t));
+    if (gone.length && this.state === "online") {
+      this.request({ clientmsg: "data", topics: gone, unsubscribe: true }).catch((e) => this._problem(e));
+    }
+  }
+
+  /**
+   * Send one request; resolves with the `ok` reply, rejects with a ServerError.
+   * `resend: true` is for requests that are safe to send twice (reads, keyed creates): they
+   * wait for the connection and are sent again if it drops before the reply. Anything else
+   * fails at once when offline, because the person must know it did not happen.
+   */
+  request(msg, { resend = false, timeout = REPLY_TIMEOUT_MS } = {}) {
+    return new Promise((resolve, reject) => {
+      if (this.state !== "online" && !resend) {
+        reject(new ServerError("offline", "Not connected to the server: nothing was sent."));
+        return;
+      }
+      const id = this._nextId++;
+      const entry = { msg: { ...msg, id }, resolve, reject, resend, sent: false, timer: null };
+      entry.timer = setTimeout(() => {
+        this._pending.delete(id);
+        reject(new ServerError("timeout", "The server did not answer in time."));
+      }, timeout);
+      this._pending.set(id, entry);
+      if (this.state === "online") this._send(entry);
+    });
+  }
+
+  _send(entry) {
+    entry.sent = true;
+    this._ws.send(JSON.stringify(entry.msg));
+  }
+
+  _sendData(topics) {
+    this.request({ clientmsg: "data", topics: [...topics] }, { resend: true })
+      .then((reply) => this._emit("snapshot", { data: reply.data }))
+      .catch((e) => {
+        this._problem(e);
+        // One unknown robot's stream must not block every other topic: drop it and retry.
+        const robot = e.code === "not_found" && e.details && e.details.robot;
+        if (!robot) return;
+        const rest = [...topics].filter((t) => t !== `pose:${robot}` && t !== `scan:${robot}`);
+        this.topics.delete(`pose:${robot}`);
+        this.topics.delete(`scan:${robot}`);
+        if (rest.length && rest.length < [...topics].length) this._sendData(rest);
+      });
+  }
+
+  _open() {
+    this._setState("connecting");
+    let ws;
+    try {
+      ws = new WebSocket(this.url);
+    } catch (e) {
+      this._problem(new ServerError("offline", `Cannot open ${this.url}: ${e.message}`));
+      this._scheduleRetry();
+      return;
+    }
+    this._ws = ws;
+    ws.onopen = () => {
+      this._attempt = 0;
+      this._lastSeq = 0; // seq counts per connection
+      this._setState("online");
+      if (this.topics.size) this._sendData(this.topics);
+      for (const entry of this._pending.values()) if (!entry.sent) this._send(entry);
+    };
+    ws.onmessage = (ev) => this._receive(ev.data);
+    ws.onclose = () => {
+      if (this._ws !== ws) return;
+      this._ws = null;
+      this._dropInFlight();
+      this._scheduleRetry();
+    };
+    // A failed connection also fires "close", which does the retry; nothing to add here.
+    ws.onerror = () => {};
+  }
+
+  _dropInFlight() {
+    for (const [id, entry] of this._pending) {
+      if (!entry.sent) continue;
+      if (entry.resend) {
+        entry.sent = false; // sent again as soon as we are back
+      } else {
+        clearTimeout(entry.timer);
+        this._pending.delete(id);
+        entry.reject(
+          new ServerError(
+            "connection_lost",
+            "The connection dropped before the server answered: check whether it was done.",
+          ),
+        );
+      }
+    }
+  }
+
+  _scheduleRetry() {
+    const base = Math.min(BACKOFF_MAX_MS, BACKOFF_MIN_MS * 2 ** this._attempt);
+    const delay = Math.round(base * (0.75 + Math.random() * 0.5)); // jitter: tablets don't stampede
+    this._attempt += 1;
+    this._setState("offline", delay);
+    clearTimeout(this._retryTimer);
+    this._retryTimer = setTimeout(() => this._open(), delay);
+  }
+
+  _receive(text) {
+    let msg;
+    try {
+      msg = JSON.parse(text);
+    } catch (e) {
+      this._problem(new ServerError("bad_json", `Unreadable message from the server: ${e.message}`));
+      return;
+    }
+    if (msg.servermsg === "update") {
+      // seq is 1 for a connection's first update, so even a drop of the very first ones shows.
+      const gap = msg.seq !== this._lastSeq + 1;
+      this._lastSeq = msg.seq;
+      this._emit("update", { topic: msg.topic, data: msg.data });
+      // Updates were dropped for us: a fresh snapshot of everything replaces what we have.
+      if (gap && this.topics.size) this._sendData(this.topics);
+      return;
+    }
+    const entry = this._pending.get(msg.id);
+    if (!entry) {
+      if (msg.servermsg === "error") {
+        this._problem(new ServerError(msg.code, msg.message, msg.details));
+      }
+      return;
+    }
+    this._pending.delete(msg.id);
+    clearTimeout(entry.timer);
+    if (msg.servermsg === "ok") entry.resolve(msg);
+    else entry.reject(new ServerError(msg.code, msg.message, msg.details));
+  }
+
+  _setState(state, retryIn = 0) {
+    this.state = state;
+    this._emit("state", { state, retryIn });
+  }
+
+  _problem(error) {
+    this._emit("problem", { error });
+  }
+
+  _emit(type, detail) {
+    this.dispatchEvent(new CustomEvent(type, { detail }));
+  }
+}
