@@ -110,6 +110,8 @@ MAX_QUEUE: Final = 100  # cap on a client's queue_length (memory bound)
 CONTROL_QUEUE: Final = 256  # replies (status, service_response) kept for a client that lags
 SEND_BUFFER: Final = 64 * 1024  # SO_SNDBUF of client sockets (the kernel doubles it)
 MAX_FRAGMENTED: Final = 8  # messages being reassembled from fragments at once, per client
+MAX_CALLS: Final = 64  # service calls in progress at once, per client
+MAX_SUB_IDS: Final = 64  # subscribe ids merged into one subscription
 
 #: Topics the robot subscribes to (clients may publish here; anything else is refused).
 ROBOT_SUBSCRIBES: Final = frozenset(
@@ -945,7 +947,11 @@ class _Client:
                 self.status("warning", f"{topic} is not advertised by this client", oid)
             self.advertised.discard(topic)
         elif op == "call_service":
-            _req_str(msg, "service")
+            service = _req_str(msg, "service")
+            if len(self.tasks) >= MAX_CALLS:
+                why = f"more than {MAX_CALLS} service calls in progress"
+                self.reply(rb.op_service_response(service, oid, why, result=False))
+                raise RosbridgeError(why)
             task = asyncio.ensure_future(self._call_service(msg, oid))
             self.tasks.add(task)
             task.add_done_callback(self.tasks.discard)
@@ -1006,6 +1012,8 @@ class _Client:
         new = sub is None
         if sub is None:
             sub = self.subs[topic] = _Sub(self, topic)
+        if oid not in sub.params and len(sub.params) >= MAX_SUB_IDS:
+            raise RosbridgeError(f"more than {MAX_SUB_IDS} subscriptions to {topic}")
         sub.params.pop(oid, None)  # re-subscribing with an id makes it the latest
         sub.params[oid] = _SubParams(throttle, qlen, compression == "cbor")
         sub.recompute()
@@ -1067,6 +1075,7 @@ class _Client:
         provider = self.endpoint.services[service]
         fid = f"service_request:{service}:{next(_seq)}"
         fut: asyncio.Future[tuple[Any, bool]] = asyncio.get_running_loop().create_future()
+        fut.add_done_callback(_consume_exception)  # the caller may be gone when it fails
         provider.calls[fid] = fut
         provider.reply({"op": "call_service", "service": service, "args": args or {}, "id": fid})
         limit = float(limit_s) if isinstance(limit_s, int | float) and limit_s > 0 else 10.0

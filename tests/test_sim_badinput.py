@@ -764,3 +764,23 @@ async def test_cli_runner_prints_urls_and_stops_cleanly_on_sigint() -> None:
         if proc.returncode is None:
             proc.kill()
             await proc.wait()
+
+
+async def test_per_client_bookkeeping_is_capped(sim: Simulation) -> None:
+    c = await open_raw(sim)
+    for i in range(64):
+        await c.send(rb.op_subscribe("/odom", id=f"s{i}"))
+    await c.send(rb.op_subscribe("/odom", id="one-too-many"))
+    status = await c.wait_for(lambda m: m["op"] == "status")
+    assert status["id"] == "one-too-many"
+    # Calls to a provider that never answers pile up to the cap, then are refused at once.
+    await c.send({"op": "advertise_service", "service": "/hang", "type": "std_srvs/Trigger"})
+    for i in range(64):
+        await c.send(rb.op_call_service("/hang", id=f"c{i}"))
+    await c.send(rb.op_call_service("/hang", id="c-too-many"))
+    resp = await c.wait_for(lambda m: m["op"] == "service_response")
+    assert resp["id"] == "c-too-many" and resp["result"] is False  # a client's call never hangs
+    status = await c.wait_for(lambda m: m["op"] == "status")
+    assert status["id"] == "c-too-many" and "in progress" in status["msg"]
+    await c.send(rb.op_subscribe("/amcl_pose"))
+    await c.topic("/amcl_pose")
