@@ -109,6 +109,13 @@ async def _demo(ns: argparse.Namespace) -> int:
         for spec in specs:
             print(f"  robot {spec.name}: {spec.url} (home {spec.home})")
         print(f"  clients connect to {app.url}")
+        web = app.url.replace("ws://", "http://", 1).removesuffix("/ws")
+        print(f"  staff console: {web}/")
+        for spec in specs:
+            print(f"  robot screen {spec.name}: {web}/robot/{spec.name}")
+        tables = [w.name for w in waypoints.values() if w.kind == "table"]
+        first = min(tables, key=lambda n: (len(n), n)) if tables else "T1"
+        print(f"  table screen: {web}/table/{first} (any table's name)")
         print(f"  database: {db}")
         print("  Ctrl-C stops everything.", flush=True)
         await _wait_for_signal()
@@ -165,6 +172,13 @@ def _parser() -> argparse.ArgumentParser:
 
     add_sim_arguments(sim)
     sim.set_defaults(func=run_sim_from_args, is_async=True)
+
+    from serveur.orders import add_orders_parser
+
+    add_orders_parser(sub)
+    from serveur.replay import add_replay_parser
+
+    add_replay_parser(sub)
 
     schema = sub.add_parser("schema", help="print the JSON Schema of every message")
     schema.set_defaults(func=_schema, is_async=False)

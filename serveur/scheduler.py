@@ -226,7 +226,6 @@ def fifo_cart(dishes: Iterable[Dish], capacity: int = DEFAULT_CAPACITY) -> list[
 def suggest_carts(
     dishes: Sequence[Dish],
     free_robots: int,
-    origin: str,
     distance: Distance,
     *,
     now: float,
@@ -245,10 +244,12 @@ def suggest_carts(
     * **Spread over free robots.** With ``k`` robots free and ``m`` tables waiting, each cart
       takes about ``m / k`` tables (never more than ``capacity``): several short trips in
       parallel deliver sooner than one long trip while other robots idle at home.
-    * **Hold for a table's next dish.** A table whose next dish (``coming``: the kitchen's
-      tickets being plated) is ready within ``hold`` seconds is left for that dish unless one
-      of its dishes already waited ``hold``: sending half a party's food means a second trip
-      for the rest, which costs the whole fleet a round trip.
+    * **Hold for a table's next dish when robots are short.** A table whose next dish
+      (``coming``: the kitchen's tickets being plated) is ready within ``hold`` seconds is
+      left for that dish, unless one of its dishes already waited ``hold``: half a party's
+      food now means a second trip for the rest, a whole round trip of a robot that other
+      tables need. When more robots are free than tables are waiting or about to, there is
+      no one to take the robot from, and everything goes at once.
 
     Returns the carts (dish ids, oldest table first); ``[]`` means wait.
     """
@@ -261,6 +262,8 @@ def suggest_carts(
     for d in coming:
         if d.ready_at - now <= hold:
             soon[d.table] = min(soon.get(d.table, math.inf), d.ready_at)
+    if free_robots > len(groups.keys() | soon.keys()):
+        soon.clear()  # robots to spare: holding a table would only make it wait
     tables = [
         t
         for t in sorted(groups, key=lambda t: (groups[t][0].ready_at, groups[t][0].id))

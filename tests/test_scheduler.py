@@ -147,22 +147,24 @@ def test_suggest_carts_spreads_areas_over_free_robots() -> None:
     d = euclid(POS)
     dishes = [Dish(i, t, float(i)) for i, t in enumerate(["T1", "T8", "T2", "T7", "T1"])]
     # Two robots: the longest-waiting table (T1) with its neighbour, the far pair on the other.
-    assert suggest_carts(dishes, 2, "pass", d, now=10.0) == [[0, 4, 2], [1, 3]]
+    assert suggest_carts(dishes, 2, d, now=10.0) == [[0, 4, 2], [1, 3]]
     # One robot: one tray of at most `capacity` tables, seeded by the oldest.
-    [cart] = suggest_carts(dishes, 1, "pass", d, now=10.0, capacity=2)
+    [cart] = suggest_carts(dishes, 1, d, now=10.0, capacity=2)
     assert cart == [0, 4, 2]
     # More robots than tables: one table each, no empty carts.
-    assert len(suggest_carts(dishes, 9, "pass", d, now=10.0)) == 4
-    assert suggest_carts(dishes, 0, "pass", d, now=10.0) == []
-    assert suggest_carts([], 3, "pass", d, now=10.0) == []
+    assert len(suggest_carts(dishes, 9, d, now=10.0)) == 4
+    assert suggest_carts(dishes, 0, d, now=10.0) == []
+    assert suggest_carts([], 3, d, now=10.0) == []
 
 
 def test_suggest_carts_holds_for_a_tables_next_dish_but_not_forever() -> None:
     d = euclid(POS)
     dishes = [Dish(1, "T3", 100.0)]
     coming = [Dish(2, "T3", 110.0)]
-    assert suggest_carts(dishes, 1, "pass", d, now=105.0, coming=coming, hold=20.0) == []
+    assert suggest_carts(dishes, 1, d, now=105.0, coming=coming, hold=20.0) == []
     # Past the hold time the dish goes anyway, and a far-off next dish never holds it.
-    assert suggest_carts(dishes, 1, "pass", d, now=121.0, coming=coming, hold=20.0) == [[1]]
+    assert suggest_carts(dishes, 1, d, now=121.0, coming=coming, hold=20.0) == [[1]]
     late = [Dish(2, "T3", 500.0)]
-    assert suggest_carts(dishes, 1, "pass", d, now=105.0, coming=late, hold=20.0) == [[1]]
+    assert suggest_carts(dishes, 1, d, now=105.0, coming=late, hold=20.0) == [[1]]
+    # With a robot to spare nothing is held.
+    assert suggest_carts(dishes, 2, d, now=105.0, coming=coming, hold=20.0) == [[1]]

@@ -1,0 +1,843 @@
+"""Replay an order log through the real server and simulated robots, in accelerated time.
+
+"How many robots do I need, and how long do guests wait?" is answered by running the service:
+the real :class:`~serveur.app.App` (store, core, dispatcher, websocket endpoint) and N robots
+of :mod:`serveur.robot_sim` speaking rosbridge over real loopback sockets, all in one process
+on one :class:`~serveur.clock.ScaledClock`, so a 4-hour dinner takes minutes and every
+server timeout scales with it. The replay itself is only a client of the websocket protocol:
+
+* **the kitchen** creates each dish (``create order``) at its ``ready_at``;
+* **the staff** confirm a cart (``create task``) when robots are free — the ``baseline`` staff
+  fill it first-in first-out up to the tray's tables (the design report); the ``serveur`` staff
+  follow :func:`serveur.scheduler.suggest_carts` (areas, longest wait first, spread over the
+  free robots, a short hold for a table's next dish seen on the kitchen display);
+* **the guests** press "Food collected" (``next``) a seeded dwell time after the robot stops.
+
+The server runs with ``CoreConfig(policy=...)``: ``baseline`` visits tables in cart order,
+``serveur`` plans trips by area and stops by shortest route. Waits (ready -> collected) come
+from the server's own records afterwards, so they are what the restaurant's database says.
+
+Determinism. The simulated world is seeded (robots: ``seed + i``; dwell per dish from
+``(seed, line)``, independent of which trip the dish rides), staff act on protocol updates,
+never on wall-clock polling, and physics steps are fixed 50 ms of simulated time. What cannot
+be removed is scheduling jitter: a goal reaches a robot a few ms of *wall* time after it was
+sent, which is ``time_scale`` times more simulated time, and moves a start by a physics tick;
+on a busy service such a tick can flip which robot frees first and cascade. The summary
+therefore reports times in whole seconds and distances in metres, and ``report.json`` keeps
+the raw figures. See docs/performance.md for the measured spread across repeated runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import itertools
+import json
+import logging
+import math
+import random
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import websockets
+from websockets.asyncio.client import ClientConnection, connect
+
+from serveur.orders import LogOrder, OrderLogError, read_orders
+
+__all__ = [
+    "POLICIES",
+    "PolicyResult",
+    "ReplayError",
+    "ReplayOptions",
+    "add_replay_parser",
+    "dish_dwell",
+    "percentile",
+    "replay",
+    "replay_policy",
+    "stop_dwell",
+    "summary_text",
+]
+
+log = logging.getLogger(__name__)
+
+POLICIES = ("baseline", "serveur")
+_WAIT = 60.0  # wall seconds any single protocol round trip may take before the replay gives up
+
+
+class ReplayError(RuntimeError):
+    """The replay could not run (server refused an instruction, robots never came up...)."""
+
+
+@dataclass(frozen=True)
+class ReplayOptions:
+    """How to replay. Times are simulated seconds unless said otherwise."""
+
+    robots: int = 3
+    time_scale: float = 30.0
+    map_path: str | None = None  # ROS map YAML; waypoints from <stem>_waypoints.json beside it
+    seed: int = 0
+    capacity: int = 4
+    kinematics: str = "omni"
+    hold: float = 25.0  # serveur staff: wait this long at most for a table's next dish
+    lookahead: float = 60.0  # the kitchen display shows dishes this far ahead of ready
+    overtime: float = 3600.0  # give up this long after the last dish was ready
+    progress: bool = True
+
+
+def dish_dwell(seed: int, line: int) -> float:
+    """Seconds a guest takes to notice the robot and lift this dish (seeded per log line).
+
+    Keyed by the dish, not by the trip, so both policies face the same guests.
+    Mostly 6-20 s, a long tail to ~40 s (a guest on the phone).
+    """
+    rng = random.Random(seed * 1_000_003 + line)
+    return round(min(40.0, 6.0 + rng.expovariate(1 / 8.0)), 1)
+
+
+def stop_dwell(seed: int, lines: Sequence[int]) -> float:
+    """A stop's dwell: the slowest guest at the table, plus 2 s per extra plate to lift."""
+    if not lines:
+        return 0.0
+    return max(dish_dwell(seed, n) for n in lines) + 2.0 * (len(lines) - 1)
+
+
+def percentile(values: Sequence[float], q: float) -> float:
+    """Nearest-rank percentile (no interpolation: the value one order actually had)."""
+    if not values:
+        return math.nan
+    s = sorted(values)
+    return s[max(0, math.ceil(q / 100.0 * len(s)) - 1)]
+
+
+@dataclass
+class PolicyResult:
+    """Everything one replay measured (service times in seconds from opening)."""
+
+    policy: str
+    orders: list[dict[str, Any]] = field(default_factory=list)
+    trips: list[dict[str, Any]] = field(default_factory=list)
+    robots: list[dict[str, Any]] = field(default_factory=list)
+    paths: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
+    undelivered: int = 0
+    nav_errors: int = 0
+    recoveries: int = 0
+    sim_seconds: float = 0.0
+    wall_seconds: float = 0.0
+
+    def waits(self) -> list[float]:
+        return [o["wait"] for o in self.orders if o["wait"] is not None]
+
+    def stats(self) -> dict[str, Any]:
+        """The figures the summary prints (raw floats; the text rounds them)."""
+        waits = self.waits()
+        bounds = [o["lower_bound"] for o in self.orders]
+        trips = [t for t in self.trips if t["status"] == "done"]
+        mean_wait = sum(waits) / len(waits) if waits else math.nan
+        mean_lb = sum(bounds) / len(bounds) if bounds else math.nan
+        return {
+            "orders": len(self.orders),
+            "delivered": len(waits),
+            "undelivered": self.undelivered,
+            "wait_mean": mean_wait,
+            "wait_p50": percentile(waits, 50),
+            "wait_p95": percentile(waits, 95),
+            "wait_max": max(waits) if waits else math.nan,
+            "lower_bound_mean": mean_lb,
+            "gap_to_lower_bound": mean_wait / mean_lb if mean_lb else math.nan,
+            "trips": len(trips),
+            "dishes_per_trip": sum(t["dishes"] for t in trips) / len(trips) if trips else 0.0,
+            "tables_per_trip": sum(t["tables"] for t in trips) / len(trips) if trips else 0.0,
+            "nav_errors": self.nav_errors,
+            "recoveries": self.recoveries,
+        }
+
+
+# -- a small protocol client -------------------------------------------------------------------
+
+
+class _Client:
+    """The replay's one websocket connection: request/reply by id, updates to a callback."""
+
+    def __init__(self, ws: ClientConnection, on_update: Callable[[str, Any], None]) -> None:
+        self.ws = ws
+        self._ids = itertools.count(1)
+        self._pending: dict[int, asyncio.Future[dict[str, Any]]] = {}
+        self._on_update = on_update
+        self._reader = asyncio.create_task(self._read())
+
+    async def _read(self) -> None:
+        with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+            async for frame in self.ws:
+                msg = json.loads(frame)
+                if msg["servermsg"] == "update":
+                    self._on_update(msg["topic"], msg["data"])
+                else:
+                    fut = self._pending.pop(msg.get("id"), None)
+                    if fut is not None and not fut.done():
+                        fut.set_result(msg)
+
+    async def call(self, verb: str, **fields: Any) -> dict[str, Any]:
+        rid = next(self._ids)
+        fut: asyncio.Future[dict[str, Any]] = asyncio.get_running_loop().create_future()
+        self._pending[rid] = fut
+        await self.ws.send(json.dumps({"clientmsg": verb, "id": rid, **fields}))
+        reply = await asyncio.wait_for(fut, _WAIT)
+        if reply["servermsg"] != "ok":
+            raise ReplayError(f"{verb} {fields}: {reply.get('code')}: {reply.get('message')}")
+        return reply
+
+    async def close(self) -> None:
+        await self.ws.close()
+        self._reader.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await self._reader
+
+
+# -- one service -------------------------------------------------------------------------------
+
+
+def _load_world(map_path: str | None) -> tuple[Any, dict[str, Any], Path]:
+    from serveur.navigation import demo_map_path, load_demo, load_map, load_waypoints
+
+    if map_path is None:
+        grid, wps = load_demo()
+        return grid, wps, demo_map_path()
+    p = Path(map_path)
+    stem = p.with_suffix("")
+    for cand in (stem.with_name(stem.name + "_waypoints.json"), p.with_name("waypoints.json")):
+        if cand.is_file():
+            return load_map(p), load_waypoints(cand), p
+    raise ReplayError(f"no waypoints for {p}: expected {stem.name}_waypoints.json beside it")
+
+
+class _Service:
+    """One replayed service: the kitchen, the staff and the guests around one running App."""
+
+    def __init__(
+        self, orders: Sequence[LogOrder], opts: ReplayOptions, policy: str, clock: Any
+    ) -> None:
+        self.log = list(orders)
+        self.opts = opts
+        self.policy = policy
+        self.clock = clock
+        self.client: _Client | None = None
+        self.distance: Callable[[str, str], float] = lambda a, b: 0.0
+        self.t0 = 0.0
+        self.line_of: dict[int, int] = {}  # server order id -> log line (dwell key)
+        self.pending: dict[int, Any] = {}  # server order id -> scheduler.Dish, not yet carted
+        self.created = 0
+        self.delivered: set[int] = set()
+        self.robots: dict[str, dict[str, Any]] = {}
+        self.tasks: dict[int, dict[str, Any]] = {}
+        self.busy: dict[str, float] = {}
+        self.busy_since: dict[str, float] = {}
+        self.served: set[tuple[int, int]] = set()
+        self.nav_errors = 0
+        self.recoveries = 0
+        self.retries: dict[str, int] = {}
+        self.carted: set[int] = set()
+        self.wake = asyncio.Event()
+        self.changed = asyncio.Event()
+        self.finished = asyncio.Event()
+        self.jobs: set[asyncio.Task[None]] = set()
+        self.failure: BaseException | None = None
+
+    def now(self) -> float:
+        return float(self.clock.now()) - self.t0
+
+    def _spawn(self, coro: Any) -> None:
+        task = asyncio.create_task(coro)
+        self.jobs.add(task)
+        task.add_done_callback(self._job_done)
+
+    def _job_done(self, task: asyncio.Task[None]) -> None:
+        self.jobs.discard(task)
+        if not task.cancelled() and task.exception() is not None and self.failure is None:
+            self.failure = task.exception()
+            self.finished.set()
+
+    # updates from the server -------------------------------------------------------------
+
+    def on_update(self, topic: str, data: Any) -> None:
+        if topic == "tasks":
+            self.tasks[data["id"]] = data
+        elif topic == "orders":
+            self._on_order(data)
+        elif topic == "robots":
+            self._on_robot(data)
+        self.changed.set()
+
+    def _on_robot(self, robot: dict[str, Any]) -> None:
+        name = robot["name"]
+        old = self.robots.get(name, {}).get("status")
+        self.robots[name] = robot
+        status = robot["status"]
+        if status == old:
+            return
+        self.wake.set()  # a robot freed or taken: the staff look at the pass again
+        if self.t0:
+            if old == "Awaiting":
+                self.busy_since[name] = self.now()
+            elif status == "Awaiting" and name in self.busy_since:
+                self.busy[name] = self.busy.get(name, 0.0) + self.now() - self.busy_since.pop(name)
+        if status == "Delivered":
+            task = self.tasks.get(robot["current_task"] or -1)
+            if task is not None and task["current_stop"] < len(task["stops"]):
+                stop = task["stops"][task["current_stop"]]
+                key = (task["id"], stop["seq"])
+                if key not in self.served:
+                    self.served.add(key)
+                    self._spawn(self._guests(name, stop["orders"]))
+        elif status == "Error":
+            self.nav_errors += 1
+            self._spawn(self._retry(name))
+
+    def _on_order(self, order: dict[str, Any]) -> None:
+        """A dish back to ``pending`` after its trip was cancelled goes on a new cart."""
+        from serveur.scheduler import Dish
+
+        oid = order["id"]
+        if order["status"] == "pending" and oid in self.carted and oid in self.line_of:
+            self.carted.discard(oid)
+            line = self.line_of[oid]
+            ready = next(o.ready_at for o in self.log if o.line == line)
+            self.pending[oid] = Dish(oid, order["table"], ready)
+
+    def _status_is(self, robot: str, status: str) -> bool:
+        return bool(self.robots.get(robot, {}).get("status") == status)
+
+    async def _until(self, cond: Callable[[], bool], what: str, wall: float = _WAIT) -> None:
+        async def wait() -> None:
+            while not cond():
+                self.changed.clear()
+                await self.changed.wait()
+
+        try:
+            await asyncio.wait_for(wait(), wall)
+        except TimeoutError:
+            raise ReplayError(f"timed out waiting for {what}") from None
+
+    # the actors --------------------------------------------------------------------------
+
+    async def _guests(self, robot: str, order_ids: list[int]) -> None:
+        """Guests at the table take their dishes, then press "Food collected"."""
+        assert self.client is not None
+        await self.clock.sleep(stop_dwell(self.opts.seed, [self.line_of[i] for i in order_ids]))
+        await self.client.call("next", robot=robot)
+        self.delivered.update(order_ids)
+        if len(self.delivered) == len(self.log):
+            self.finished.set()
+
+    async def _retry(self, robot: str) -> None:
+        """Staff walk over to a robot that gave up a move (10 s later) and sort it out.
+
+        With dishes aboard they press Continue, twice at most; a robot that still fails, or
+        was only going home, is taken in manual control, backed off whatever it bumped with
+        the joystick and put back in automatic mode (it then drives home). Taking manual
+        control cancels a trip: its dishes are pending again and go on a new cart.
+        """
+        c = self.client
+        assert c is not None
+        await self.clock.sleep(10.0)
+        r = self.robots[robot]
+        if r["status"] != "Error":
+            return
+        tries = self.retries.get(robot, 0)
+        if r["current_task"] is not None and tries < 2:
+            self.retries[robot] = tries + 1
+            await c.call("continue", robot=robot)
+            return
+        self.retries[robot] = 0
+        self.recoveries += 1
+        await c.call("control", robot=robot, action="manual")
+        for _ in range(5):
+            await c.call("control", robot=robot, action="teleop", vx=-0.25, vy=0.0, wz=0.0)
+            await self.clock.sleep(0.3)
+        await c.call("control", robot=robot, action="teleop", vx=0.0, vy=0.0, wz=0.0)
+        await c.call("ready", robot=robot)
+        await c.call("control", robot=robot, action="auto")
+
+    async def _create_due(self, t: float) -> None:
+        """The kitchen: every dish of the log ready by ``t`` appears at the pass, in order."""
+        from serveur.scheduler import Dish
+
+        assert self.client is not None
+        while self.created < len(self.log) and self.log[self.created].ready_at <= t:
+            o = self.log[self.created]
+            reply = await self.client.call(
+                "create", type="order", dish=o.dish, table=o.table, key=f"log-{o.line}"
+            )
+            oid = reply["order"]["id"]
+            self.line_of[oid] = o.line
+            self.pending[oid] = Dish(oid, o.table, o.ready_at)
+            self.created += 1
+
+    def _free_robots(self) -> int:
+        idle = sum(
+            1
+            for r in self.robots.values()
+            if r["status"] == "Awaiting" and r["current_task"] is None
+        )
+        return idle - sum(1 for t in self.tasks.values() if t["status"] == "queued")
+
+    def _carts(self, now: float) -> list[list[int]]:
+        from serveur.scheduler import Dish, fifo_cart, suggest_carts
+
+        free = self._free_robots()
+        if free < 1 or not self.pending:
+            return []
+        dishes = list(self.pending.values())
+        if self.policy == "baseline":
+            carts: list[list[int]] = []
+            for _ in range(free):
+                cart = fifo_cart(dishes, self.opts.capacity)
+                if not cart:
+                    break
+                carts.append(cart)
+                dishes = [d for d in dishes if d.id not in set(cart)]
+            return carts
+        horizon = now + self.opts.lookahead
+        coming = [
+            Dish(-1 - i, o.table, o.ready_at)
+            for i, o in enumerate(self.log[self.created :])
+            if o.ready_at <= horizon
+        ]
+        return suggest_carts(
+            dishes,
+            free,
+            self.distance,
+            now=now,
+            capacity=self.opts.capacity,
+            coming=coming,
+            hold=self.opts.hold,
+        )
+
+    async def _staff(self) -> None:
+        """The pass, in simulated-time order: dishes appear, then staff decide on carts.
+
+        One loop does both so that what is on the pass at a decision is a function of the
+        decision's simulated time (every dish of the log ready by then), not of how the
+        kitchen's and the staff's requests happened to interleave on the event loop. Staff
+        look again at each dish's ready time, whenever a robot changes status, and every
+        5 s (a held table's hold running out).
+        """
+        assert self.client is not None
+        while not self.finished.is_set():
+            nxt = self.log[self.created].ready_at if self.created < len(self.log) else math.inf
+            delay = min(nxt - self.now(), 5.0)
+            self.wake.clear()
+            if delay > 0:
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(self.wake.wait(), self.clock.wall(delay))
+            t = self.now()
+            if nxt <= t:
+                await self._create_due(t)
+                t = max(nxt, self.log[self.created - 1].ready_at)
+            for cart in self._carts(t):
+                for oid in cart:
+                    del self.pending[oid]
+                    self.carted.add(oid)
+                reply = await self.client.call("create", type="task", orders=cart)
+                for task in reply["tasks"]:
+                    self.tasks.setdefault(task["id"], task)
+
+    async def _sample(self, sim: Any, paths: dict[str, list[tuple[float, float]]]) -> None:
+        """Robot positions (true poses from the simulator) every 0.25 s of service."""
+        while True:
+            for r in sim.robots:
+                x, y, _ = r.pose
+                pts = paths.setdefault(r.name, [])
+                if not pts or math.hypot(x - pts[-1][0], y - pts[-1][1]) >= 0.05:
+                    pts.append((round(x, 3), round(y, 3)))
+            await self.clock.sleep(0.25)
+
+    async def _progress(self, label: str) -> None:
+        """A progress bar on stderr (a line per 10 % when stderr is not a terminal)."""
+        end = self.log[-1].ready_at if self.log else 1.0
+        tty = sys.stderr.isatty()
+        shown = -1
+        while True:
+            t = max(0.0, self.now())
+            frac = min(1.0, len(self.delivered) / max(1, len(self.log)))
+            bar = "#" * int(frac * 30)
+            h, m = divmod(int(t) // 60, 60)
+            eh, em = divmod(int(end) // 60, 60)
+            busy = sum(1 for r in self.robots.values() if r["status"] != "Awaiting")
+            line = (
+                f"{label:<9} [{bar:<30}] {len(self.delivered)}/{len(self.log)} delivered"
+                f"  service {h:d}:{m:02d}/{eh:d}:{em:02d}  robots busy {busy}/{len(self.robots)}"
+            )
+            if tty:
+                sys.stderr.write("\r" + line + " ")
+            elif int(frac * 10) > shown:
+                shown = int(frac * 10)
+                sys.stderr.write(line + "\n")
+            sys.stderr.flush()
+            await asyncio.sleep(0.5)
+
+    # the whole run -----------------------------------------------------------------------
+
+    async def run(self, workdir: Path) -> PolicyResult:
+        from serveur.app import App, RobotSpec
+        from serveur.core import CoreConfig
+        from serveur.robot_sim import start_simulation
+
+        opts = self.opts
+        nav_map, waypoints, map_path = _load_world(opts.map_path)
+        homes = sorted((w for w in waypoints.values() if w.kind == "home"), key=lambda w: w.name)
+        if opts.robots > len(homes):
+            raise ReplayError(f"the map has {len(homes)} home spots; --robots {opts.robots}")
+        wall0 = time.perf_counter()
+        sim = await start_simulation(
+            opts.robots,
+            port=0,
+            map_path=map_path,
+            kinematics=opts.kinematics,
+            clock=self.clock,
+            seed=opts.seed,
+        )
+        specs = [
+            RobotSpec(r.name, url, homes[i].name, opts.kinematics)
+            for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
+        ]
+        # Link timeouts are simulated seconds: at high time scales a 20 ms pause of the event
+        # loop is many simulated seconds, so they are kept at >= 0.5 s of wall time. Nothing
+        # here fails on purpose, so they only need to never fire spuriously.
+        scale = opts.time_scale
+        cfg = CoreConfig(
+            capacity=opts.capacity,
+            policy=self.policy,
+            heartbeat=max(1.0, 0.5 * scale),
+            ack_timeout=max(2.0, 0.5 * scale),
+            pose_persist_period=max(5.0, 0.5 * scale),
+        )
+        app = App(
+            workdir / f"{self.policy}.db",
+            port=0,
+            clock=self.clock,
+            nav_map=nav_map,
+            waypoints=waypoints,
+            robots=specs,
+            config=cfg,
+        )
+        result = PolicyResult(self.policy)
+        bg: list[asyncio.Task[None]] = []
+        try:
+            await app.start()
+            core = app.core
+            assert core is not None
+            self.distance = core.distance
+            ws = await connect(app.url, max_size=2**24)
+            self.client = client = _Client(ws, self.on_update)
+            snap = await client.call("data", topics=["robots", "tasks", "orders"])
+            for r in snap["data"]["robots"]:
+                self._on_robot(r)
+            names = [s.name for s in specs]
+            for name in names:
+                await self._until(partial(self._status_is, name, "Ready"), f"{name} Ready")
+                await client.call("control", robot=name, action="auto")
+            await self._until(
+                lambda: all(self.robots[n]["status"] == "Awaiting" for n in names), "auto"
+            )
+            self.t0 = float(self.clock.now())
+            epoch0 = float(self.clock.epoch())
+            bg.append(asyncio.create_task(self._sample(sim, result.paths)))
+            if opts.progress:
+                bg.append(asyncio.create_task(self._progress(self.policy)))
+            self._spawn(self._staff())
+            limit = (self.log[-1].ready_at if self.log else 0.0) + opts.overtime
+            await asyncio.wait_for(self.finished.wait(), self.clock.wall(limit) + _WAIT)
+            if self.failure is not None:
+                raise ReplayError(f"the replay failed: {self.failure!r}") from self.failure
+            with contextlib.suppress(ReplayError):  # robots drive home: their busy time ends
+                await self._until(
+                    lambda: all(self.robots[n]["status"] == "Awaiting" for n in names),
+                    "robots home",
+                    self.clock.wall(300.0) + 5.0,
+                )
+            result.sim_seconds = self.now()
+            await self._collect(app, result, epoch0, waypoints)
+        except TimeoutError:
+            log.warning("%s: service not finished in time", self.policy)
+            result.sim_seconds = self.now()
+            await self._collect(app, result, self.clock.epoch() - self.now(), waypoints)
+        finally:
+            if opts.progress and sys.stderr.isatty():
+                sys.stderr.write("\n")
+            for t in [*bg, *self.jobs]:
+                t.cancel()
+            for t in [*bg, *self.jobs]:
+                with contextlib.suppress(BaseException):
+                    await t
+            if self.client is not None:
+                await self.client.close()
+            await app.close()
+            await sim.close()
+        result.wall_seconds = time.perf_counter() - wall0
+        result.nav_errors = self.nav_errors
+        result.recoveries = self.recoveries
+        return result
+
+    async def _collect(
+        self, app: Any, result: PolicyResult, epoch0: float, waypoints: dict[str, Any]
+    ) -> None:
+        """Read the service back from the server's database: its stamps are the truth."""
+        from serveur.kinematics import Limits
+
+        vmax = Limits().max_speed
+        homes = [r["home"] for r in self.robots.values() if r.get("home")]
+        store = app.store
+        by_line = {o.line: o for o in self.log}
+        robot_of: dict[int, str | None] = {}
+        for t in await store.list_tasks():
+            stops = t.stops
+            robot_of[t.id] = t.robot
+            result.trips.append(
+                {
+                    "id": t.id,
+                    "robot": t.robot,
+                    "status": t.status.value,
+                    "tables": len(stops),
+                    "dishes": sum(len(s.orders) for s in stops),
+                    "stops": [s.table for s in stops],
+                    "started": None if t.started_at is None else t.started_at - epoch0,
+                    "finished": None if t.finished_at is None else t.finished_at - epoch0,
+                }
+            )
+        lines = {oid: line for oid, line in self.line_of.items()}
+        for o in await store.list_orders():
+            line = lines.get(o.id)
+            if line is None:
+                continue
+            lo = by_line[line]
+            travel = min(self.distance(h, o.table) for h in homes) / vmax if homes else 0.0
+            wait = None if o.delivered_at is None else o.delivered_at - o.ready_at
+            result.orders.append(
+                {
+                    "line": line,
+                    "table": o.table,
+                    "dish": o.dish,
+                    "ready_at": lo.ready_at,
+                    "created": o.ready_at - epoch0,
+                    "collected": None if o.delivered_at is None else o.delivered_at - epoch0,
+                    "wait": wait,
+                    "lower_bound": travel + dish_dwell(self.opts.seed, line),
+                    "robot": robot_of.get(o.task_id or -1),
+                    "task": o.task_id,
+                }
+            )
+        result.orders.sort(key=lambda d: d["line"])
+        result.undelivered = len(self.log) - sum(1 for o in result.orders if o["wait"] is not None)
+        for name in sorted(self.robots):
+            pts = result.paths.get(name, [])
+            dist = sum(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in itertools.pairwise(pts))
+            busy = self.busy.get(name, 0.0)
+            if name in self.busy_since:
+                busy += self.now() - self.busy_since[name]
+            trips = sum(1 for t in result.trips if t["robot"] == name and t["status"] == "done")
+            result.robots.append({"name": name, "distance": dist, "busy": busy, "trips": trips})
+
+
+async def replay_policy(
+    orders: Sequence[LogOrder], opts: ReplayOptions, policy: str, workdir: Path
+) -> PolicyResult:
+    """Replay ``orders`` once with ``policy`` (a fresh server, database and fleet)."""
+    from serveur.clock import ScaledClock
+
+    if policy not in POLICIES:
+        raise ValueError(f"policy must be one of {POLICIES}")
+    if not orders:
+        raise ReplayError("the order log is empty")
+    clock = ScaledClock(opts.time_scale)
+    return await _Service(orders, opts, policy, clock).run(workdir)
+
+
+async def replay(
+    orders: Sequence[LogOrder], opts: ReplayOptions, policies: Sequence[str]
+) -> dict[str, PolicyResult]:
+    """Each policy in turn on the same log (one after the other: they must not share CPU)."""
+    out: dict[str, PolicyResult] = {}
+    with tempfile.TemporaryDirectory(prefix="serveur-replay-") as tmp:
+        for p in policies:
+            out[p] = await replay_policy(orders, opts, p, Path(tmp))
+    return out
+
+
+# -- reporting ---------------------------------------------------------------------------------
+
+
+def _fmt_s(v: float) -> str:
+    return "-" if not math.isfinite(v) else f"{round(v):d} s"
+
+
+def _robot_cell(r: dict[str, Any]) -> str:
+    return f"{round(r['distance']):d} m / {round(r['busy'] / 60):d} min"
+
+
+def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOptions) -> str:
+    """The short report, policies side by side; times in whole seconds, distances in metres."""
+    names = list(results)
+    stats = {n: results[n].stats() for n in names}
+    rows: list[tuple[str, list[str]]] = [
+        ("orders", [str(stats[n]["orders"]) for n in names]),
+        ("undelivered", [str(stats[n]["undelivered"]) for n in names]),
+        ("wait mean", [_fmt_s(stats[n]["wait_mean"]) for n in names]),
+        ("wait p50", [_fmt_s(stats[n]["wait_p50"]) for n in names]),
+        ("wait p95", [_fmt_s(stats[n]["wait_p95"]) for n in names]),
+        ("wait max", [_fmt_s(stats[n]["wait_max"]) for n in names]),
+        ("lower bound mean", [_fmt_s(stats[n]["lower_bound_mean"]) for n in names]),
+        ("wait / lower bound", [f"{stats[n]['gap_to_lower_bound']:.1f}x" for n in names]),
+        ("trips", [str(stats[n]["trips"]) for n in names]),
+        (
+            "nav errors / staff rescues",
+            [f"{stats[n]['nav_errors']} / {stats[n]['recoveries']}" for n in names],
+        ),
+        ("dishes per trip", [f"{stats[n]['dishes_per_trip']:.1f}" for n in names]),
+        ("tables per trip", [f"{stats[n]['tables_per_trip']:.1f}" for n in names]),
+    ]
+    # Robots busiest first, not by name: which of two equal robots took a trip depends on
+    # which came home a few milliseconds earlier, and the summary should not flip with that.
+    ranked = {n: sorted(results[n].robots, key=lambda r: (-r["busy"], r["name"])) for n in names}
+    for i in range(max(len(r) for r in ranked.values())):
+        rows.append(
+            (
+                f"robot #{i + 1}: distance / busy",
+                [_robot_cell(ranked[n][i]) if i < len(ranked[n]) else "-" for n in names],
+            )
+        )
+    width = max(len(r[0]) for r in rows) + 2
+    colw = max(14, *(len(v) + 2 for _, vals in rows for v in vals))
+    lines = [
+        f"serveur replay of {source}: {stats[names[0]]['orders']} dishes, {opts.robots} robots, "
+        f"seed {opts.seed}, capacity {opts.capacity} tables",
+        "wait = dish ready at the pass -> guest pressed Food collected (server's records);",
+        "lower bound = path home->table at max speed + the dish's own guest dwell.",
+        "",
+        " " * width + "".join(f"{n:>{colw}}" for n in names),
+    ]
+    lines += [f"{k:<{width}}" + "".join(f"{v:>{colw}}" for v in vals) for k, vals in rows]
+    if "baseline" in stats and "serveur" in stats:
+        b, s = stats["baseline"]["wait_mean"], stats["serveur"]["wait_mean"]
+        if b > 0 and math.isfinite(s):
+            lines += ["", f"serveur mean wait vs baseline: {round(100 * (s - b) / b):+d} %"]
+    return "\n".join(lines) + "\n"
+
+
+def _report(results: dict[str, PolicyResult], source: str, opts: ReplayOptions) -> dict[str, Any]:
+    return {
+        "log": source,
+        "options": asdict(opts),
+        "policies": {
+            name: {
+                "summary": r.stats(),
+                "robots": r.robots,
+                "trips": r.trips,
+                "orders": r.orders,
+                "sim_seconds": r.sim_seconds,
+                "wall_seconds": r.wall_seconds,
+            }
+            for name, r in results.items()
+        },
+    }
+
+
+def write_outputs(
+    results: dict[str, PolicyResult], source: str, opts: ReplayOptions, out: Path
+) -> str:
+    """report.json, summary.txt and the plots into ``out``; returns the summary text."""
+    from serveur.replay_plots import write_plots
+
+    out.mkdir(parents=True, exist_ok=True)
+    text = summary_text(results, source, opts)
+    report = _report(results, source, opts)
+    (out / "report.json").write_text(
+        json.dumps(_finite(report), indent=1, allow_nan=False) + "\n", encoding="utf-8"
+    )
+    (out / "summary.txt").write_text(text, encoding="utf-8")
+    write_plots(results, opts.map_path, out)
+    return text
+
+
+def _finite(v: Any) -> Any:
+    """NaN and infinities (no dish delivered) as null: report.json stays standard JSON."""
+    if isinstance(v, float):
+        return v if math.isfinite(v) else None
+    if isinstance(v, dict):
+        return {k: _finite(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_finite(x) for x in v]
+    return v
+
+
+# -- command line ------------------------------------------------------------------------------
+
+
+async def _cmd_replay(ns: argparse.Namespace) -> int:
+    root = logging.getLogger()
+    level = root.level
+    if not ns.verbose:  # every status change is logged at INFO: too much for a whole service
+        root.setLevel(logging.ERROR)
+    try:
+        return await _replay_command(ns)
+    finally:
+        root.setLevel(level)
+
+
+async def _replay_command(ns: argparse.Namespace) -> int:
+    opts = ReplayOptions(
+        robots=ns.robots,
+        time_scale=ns.time_scale,
+        map_path=ns.map,
+        seed=ns.seed,
+        capacity=ns.capacity,
+        kinematics=ns.kinematics,
+        progress=not ns.quiet,
+    )
+    try:
+        _, waypoints, _ = _load_world(ns.map)
+        tables = {w.name for w in waypoints.values() if w.kind == "table"}
+        orders = read_orders(ns.log, tables=tables)
+    except (OrderLogError, ReplayError) as exc:
+        print(f"serveur replay: {exc}", file=sys.stderr)
+        return 2
+    policies = list(POLICIES) if ns.policy == "both" else [ns.policy]
+    try:
+        results = await replay(orders, opts, policies)
+    except ReplayError as exc:
+        print(f"serveur replay: {exc}", file=sys.stderr)
+        return 1
+    text = write_outputs(results, ns.log, opts, Path(ns.out))
+    print(text, end="")
+    print(f"report, summary and plots in {ns.out}/")
+    return 0 if all(r.undelivered == 0 for r in results.values()) else 1
+
+
+def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register ``serveur replay`` (called once from :mod:`serveur.cli`)."""
+    p = sub.add_parser(
+        "replay",
+        help="replay an order log through the server and simulated robots",
+        description="Run the real server and N simulated robots on one accelerated clock, "
+        "feed the log's dishes at their times, play staff and guests, and write report.json, "
+        "summary.txt and PNG plots to --out. Exit 1 if any dish was left undelivered.",
+    )
+    p.add_argument("log", help="order log CSV (ready_at,table,dish)")
+    p.add_argument("--robots", type=int, default=3, help="simulated robots (default 3)")
+    p.add_argument(
+        "--time-scale", type=float, default=30.0, help="simulated s per wall s (default 30)"
+    )
+    p.add_argument("--policy", choices=[*POLICIES, "both"], default="serveur")
+    p.add_argument("--map", default=None, help="map YAML (waypoints: <stem>_waypoints.json)")
+    p.add_argument("--seed", type=int, default=0, help="robots' and guests' seed (default 0)")
+    p.add_argument("--capacity", type=int, default=4, help="tables per tray (default 4)")
+    p.add_argument("--kinematics", choices=["omni", "diff"], default="omni")
+    p.add_argument("--out", default="replay-out", help="output directory (default replay-out)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_replay, is_async=True)

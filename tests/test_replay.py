@@ -1,0 +1,103 @@
+"""``serveur replay`` end to end: a short service through the real server and simulated robots.
+
+Twenty dishes in three parties-rushes, two robots, at 60x: every dish must be delivered with
+both policies, the report must carry its fields and plots, and a second run must plan the
+same trips. Times are compared with a tolerance: the replay runs on a scaled wall clock and
+shares the CPU with whatever else runs, so a wait can move by a few simulated seconds
+(docs/performance.md, "Replay").
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+from PIL import Image
+
+from serveur.cli import main
+from serveur.replay import dish_dwell, percentile, stop_dwell
+
+pytestmark = pytest.mark.slow
+
+# Three rushes two minutes apart; each party's dishes come out within a few seconds.
+LOG = """ready_at,table,dish
+5.0,T2,Laksa
+6.5,T2,Satay
+8.0,T6,Kopi
+9.0,T2,Popiah
+10.0,T6,Cendol
+11.0,T7,Teh tarik
+12.5,T7,Mee goreng
+125.0,T10,Chilli crab
+126.0,T5,Laksa
+127.0,T10,Kaya toast
+128.5,T10,Kopi
+129.0,T5,Satay
+130.0,T3,Rendang
+245.0,T11,Bak kut teh
+246.0,T4,Ice kachang
+247.0,T4,Hokkien mee
+248.0,T11,Carrot cake
+249.5,T4,Chicken rice
+250.0,T12,Otak-otak
+251.0,T12,Roti prata
+"""
+ARGS = ["--robots", "2", "--time-scale", "60", "--seed", "3", "--quiet"]
+
+
+def test_dwell_is_seeded_per_dish() -> None:
+    assert dish_dwell(1, 7) == dish_dwell(1, 7)
+    assert [dish_dwell(1, n) for n in range(20)] != [dish_dwell(2, n) for n in range(20)]
+    assert all(6.0 <= dish_dwell(0, n) <= 40.0 for n in range(200))
+    assert stop_dwell(0, [2, 3]) == max(dish_dwell(0, 2), dish_dwell(0, 3)) + 2.0
+    assert percentile([5.0, 1.0, 3.0, 2.0], 50) == 2.0
+    assert percentile([5.0, 1.0, 3.0, 2.0], 95) == 5.0
+
+
+def test_a_bad_log_is_refused_before_anything_starts(tmp_path: Path) -> None:
+    log = tmp_path / "bad.csv"
+    log.write_text("ready_at,table,dish\n5,T2,Laksa\n6,Nowhere,Satay\n")
+    assert main(["replay", str(log), *ARGS, "--out", str(tmp_path / "out")]) == 2
+    assert not (tmp_path / "out").exists()
+
+
+def _trips(policy: dict[str, Any]) -> list[tuple[tuple[str, ...], int]]:
+    return [(tuple(t["stops"]), t["dishes"]) for t in policy["trips"]]
+
+
+def test_short_replay_both_policies_and_again(tmp_path: Path) -> None:
+    log = tmp_path / "orders.csv"
+    log.write_text(LOG)
+    out1, out2 = tmp_path / "one", tmp_path / "two"
+    assert main(["replay", str(log), *ARGS, "--policy", "both", "--out", str(out1)]) == 0
+    report = json.loads((out1 / "report.json").read_text())
+    assert set(report["policies"]) == {"baseline", "serveur"}
+    for name, pol in report["policies"].items():
+        s = pol["summary"]
+        assert s["orders"] == s["delivered"] == 20 and s["undelivered"] == 0, name
+        for key in ("wait_mean", "wait_p50", "wait_p95", "wait_max", "lower_bound_mean"):
+            assert s[key] > 0, (name, key)
+        assert s["wait_p50"] <= s["wait_p95"] <= s["wait_max"]
+        assert s["wait_mean"] >= s["lower_bound_mean"]  # it is a lower bound
+        assert s["dishes_per_trip"] >= s["tables_per_trip"] >= 1
+        assert sum(r["trips"] for r in pol["robots"]) == s["trips"]
+        assert all(r["distance"] > 0 and r["busy"] > 0 for r in pol["robots"])
+        assert all(o["wait"] >= o["lower_bound"] for o in pol["orders"])
+        assert sorted(o["line"] for o in pol["orders"]) == list(range(2, 22))
+        for plot in ("wait-hist", "waits", "paths"):
+            with Image.open(out1 / f"{name}-{plot}.png") as img:
+                assert img.format == "PNG" and img.width > 100
+    # The serveur staff send each party whole, one area per robot.
+    serveur = report["policies"]["serveur"]
+    assert all(len(set(stops)) == len(stops) for stops, _ in _trips(serveur))
+    summary = (out1 / "summary.txt").read_text()
+    assert "baseline" in summary and "serveur" in summary and "undelivered" in summary
+
+    # Again (serveur only): the same trips, the same dishes on them, similar waits.
+    assert main(["replay", str(log), *ARGS, "--policy", "serveur", "--out", str(out2)]) == 0
+    again = json.loads((out2 / "report.json").read_text())["policies"]["serveur"]
+    assert _trips(again) == _trips(serveur)
+    assert again["summary"]["undelivered"] == 0
+    assert again["summary"]["wait_mean"] == pytest.approx(serveur["summary"]["wait_mean"], abs=8)
