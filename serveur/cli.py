@@ -109,6 +109,13 @@ async def _demo(ns: argparse.Namespace) -> int:
         for spec in specs:
             print(f"  robot {spec.name}: {spec.url} (home {spec.home})")
         print(f"  clients connect to {app.url}")
+        web = app.url.replace("ws://", "http://", 1).removesuffix("/ws")
+        print(f"  staff console: {web}/")
+        for spec in specs:
+            print(f"  robot screen {spec.name}: {web}/robot/{spec.name}")
+        tables = [w.name for w in waypoints.values() if w.kind == "table"]
+        first = min(tables, key=lambda n: (len(n), n)) if tables else "T1"
+        print(f"  table screen: {web}/table/{first} (any table's name)")
         print(f"  database: {db}")
         print("  Ctrl-C stops everything.", flush=True)
         await _wait_for_signal()
