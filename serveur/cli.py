@@ -12,6 +12,7 @@ import asyncio
 import contextlib
 import json
 import logging
+import os
 import signal
 import sys
 import tempfile
@@ -143,7 +144,12 @@ def _parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="run the server")
     run.add_argument("--host", default="127.0.0.1")
     run.add_argument("--port", type=int, default=8765)
-    run.add_argument("--db", default="./serveur.db", help="SQLite file (or sqlite:///path)")
+    run.add_argument(
+        "--db",
+        default=os.environ.get("SERVEUR_DB", "./serveur.db"),
+        help="SQLite file, sqlite:///path or mariadb://user@host:port/db "
+        "(default: $SERVEUR_DB, else ./serveur.db; see docs/mariadb.md)",
+    )
     run.add_argument(
         "--robot",
         action="append",
