@@ -1,0 +1,423 @@
+"""Server benchmarks on loopback: latency vs a raw websockets echo, fan-out, dispatch, footprint.
+
+Four processes, so that the load never shares an interpreter with what it measures:
+
+* ``serveur sim`` — N simulated robots (default 10) publishing AMCL pose at 10 Hz;
+* ``serveur run`` — the server, with the robots registered and the demo restaurant
+  (plus extra home spots so every robot has one);
+* a raw ``websockets`` echo server (same library, same settings as the server's endpoint);
+* this process — C clients (default 200) and the measurements.
+
+Phases (every one bounded in count and time; the script stops everything it started):
+
+1. **footprint** — server RSS and CPU over ``--idle`` seconds with the robots streaming and
+   the clients connected, subscribed to ``robots``, sending nothing;
+2. **latency** — clients also watch ``pose:<robot>`` (each one robot's, 10 Hz), and one client
+   times ``--samples`` requests (``data`` unsubscribing from ``map``: parsed, validated and
+   answered by the server, no database) alternately to serveur and to the echo server;
+3. **fan-out** — every client subscribes to ``pose:r1``; for each update, the time from the
+   robot's stamp to the *last* client's receipt;
+4. **dispatch** — ``create task`` sent -> the goal appears on the robot's ``/move_base/goal``
+   (the bench subscribes to the robot's rosbridge), ``--dispatches`` times.
+
+Run: ``python bench/bench_server.py`` (about two minutes). ``--profile`` writes a pyinstrument
+profile of the server (``pip install pyinstrument``) to ``bench-server-profile.txt``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import websockets
+from websockets.asyncio.client import ClientConnection, connect
+from websockets.asyncio.server import ServerConnection, serve
+
+from serveur.mapio import demo_map_path, demo_waypoints_path
+
+HZ = os.sysconf("SC_CLK_TCK")
+
+
+def pct(values: list[float], q: float) -> float:
+    s = sorted(values)
+    return s[max(0, math.ceil(q / 100 * len(s)) - 1)] if s else math.nan
+
+
+# -- the raw echo server (its own process) -----------------------------------------------------
+
+
+async def _echo_main() -> None:
+    async def echo(ws: ServerConnection) -> None:
+        async for frame in ws:
+            await ws.send(frame)
+
+    async with serve(echo, "127.0.0.1", 0, compression=None, max_queue=32) as srv:
+        port = next(iter(srv.sockets)).getsockname()[1]
+        print(port, flush=True)
+        await asyncio.Future()
+
+
+# -- process helpers ---------------------------------------------------------------------------
+
+
+def _proc_stats(pid: int) -> tuple[float, int]:
+    """(CPU seconds used, RSS bytes) of a process, from /proc."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    cpu = (int(fields[11]) + int(fields[12])) / HZ
+    rss = 0
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            rss = int(line.split()[1]) * 1024
+    return cpu, rss
+
+
+def _world(tmp: Path, robots: int) -> tuple[Path, Path]:
+    """The demo map with ``robots`` home spots (the demo has six) for both sim and server."""
+    shutil.copy(demo_map_path(), tmp / "room.yaml")
+    text = (tmp / "room.yaml").read_text()
+    image = demo_map_path().with_name(text.split("image:")[1].split()[0])
+    shutil.copy(image, tmp / image.name)
+    wps = json.loads(demo_waypoints_path().read_text())["waypoints"]
+    wps = [w for w in wps if w["kind"] != "home"]
+    for i in range(robots):
+        x = 3.6 + i * (9.0 / max(1, robots - 1)) if robots > 1 else 4.0
+        wps.append(
+            {"name": f"home{i + 1}", "x": round(x, 2), "y": 10.8, "yaw": 1.5708, "kind": "home"}
+        )
+    wp = tmp / "room_waypoints.json"
+    wp.write_text(json.dumps({"waypoints": wps}))
+    return tmp / "room.yaml", wp
+
+
+async def _start(cmd: list[str], lines: int) -> tuple[asyncio.subprocess.Process, list[str]]:
+    proc = await asyncio.create_subprocess_exec(
+        *cmd, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.DEVNULL
+    )
+    assert proc.stdout is not None
+    out = []
+    for _ in range(lines):
+        out.append((await asyncio.wait_for(proc.stdout.readline(), 60)).decode().strip())
+    return proc, out
+
+
+# -- clients -----------------------------------------------------------------------------------
+
+
+class Load:
+    """One client connection: replies by id; pose:r1 receipt times for the fan-out phase."""
+
+    def __init__(self, ws: ClientConnection) -> None:
+        self.ws = ws
+        self.n = 0
+        self.pending: dict[int, asyncio.Future[dict[str, Any]]] = {}
+        self.fanout: dict[float, float] | None = None
+        self.robots: dict[str, dict[str, Any]] = {}
+        self.changed = asyncio.Event()
+        self.task = asyncio.create_task(self.read())
+
+    async def until(self, cond: Any, limit: float = 60.0) -> None:
+        """Wait for a condition on the robots this client has heard of."""
+
+        async def wait() -> None:
+            while not cond():
+                self.changed.clear()
+                await self.changed.wait()
+
+        await asyncio.wait_for(wait(), limit)
+
+    async def read(self) -> None:
+        with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+            async for frame in self.ws:
+                now = time.time()
+                if '"servermsg":"update"' in frame:
+                    if self.fanout is not None and '"topic":"pose:r1"' in frame:
+                        self.fanout[json.loads(frame)["data"]["stamp"]] = now
+                    elif '"topic":"robots"' in frame:
+                        r = json.loads(frame)["data"]
+                        self.robots[r["name"]] = r
+                        self.changed.set()
+                    continue
+                msg = json.loads(frame)
+                fut = self.pending.pop(msg.get("id"), None)
+                if fut is not None and not fut.done():
+                    fut.set_result(msg)
+
+    async def call(self, verb: str, **fields: Any) -> dict[str, Any]:
+        self.n += 1
+        fut: asyncio.Future[dict[str, Any]] = asyncio.get_running_loop().create_future()
+        self.pending[self.n] = fut
+        await self.ws.send(json.dumps({"clientmsg": verb, "id": self.n, **fields}))
+        return await asyncio.wait_for(fut, 30)
+
+
+async def phase_latency(probe: Load, echo_url: str, samples: int) -> dict[str, float]:
+    req = json.dumps({"clientmsg": "data", "id": 0, "topics": ["map"], "unsubscribe": True})
+    srv: list[float] = []
+    raw: list[float] = []
+    async with connect(echo_url, compression=None) as echo:
+        for i in range(samples + 50):
+            t = time.perf_counter()
+            await probe.call("data", topics=["map"], unsubscribe=True)
+            a = time.perf_counter() - t
+            t = time.perf_counter()
+            await echo.send(req)
+            await echo.recv()
+            b = time.perf_counter() - t
+            if i >= 50:  # warm-up
+                srv.append(a)
+                raw.append(b)
+            await asyncio.sleep(0.002)
+    return {
+        "serveur_p50_ms": 1e3 * pct(srv, 50),
+        "serveur_p99_ms": 1e3 * pct(srv, 99),
+        "echo_p50_ms": 1e3 * pct(raw, 50),
+        "echo_p99_ms": 1e3 * pct(raw, 99),
+        "ratio_p50": pct(srv, 50) / pct(raw, 50),
+        "ratio_p99": pct(srv, 99) / pct(raw, 99),
+    }
+
+
+async def phase_fanout(clients: list[Load], seconds: float) -> dict[str, float]:
+    for c in clients:
+        c.fanout = {}
+    await asyncio.gather(*(c.call("data", topics=["pose:r1"]) for c in clients))
+    await asyncio.sleep(seconds)
+    for c in clients:
+        await c.call("data", topics=["pose:r1"], unsubscribe=True)
+    stamps: dict[float, list[float]] = {}
+    for c in clients:
+        assert c.fanout is not None
+        for stamp, t in c.fanout.items():
+            stamps.setdefault(stamp, []).append(t - stamp)
+        c.fanout = None
+    full = [max(v) for v in stamps.values() if len(v) == len(clients)]
+    return {
+        "updates": len(stamps),
+        "reached_all": len(full),
+        "last_client_p50_ms": 1e3 * pct(full, 50),
+        "last_client_p99_ms": 1e3 * pct(full, 99),
+    }
+
+
+async def phase_dispatch(
+    staff: Load, sim_urls: list[str], count: int, limit: float
+) -> dict[str, float]:
+    """Sequential dispatches to tables near the homes; guests press Food collected at once."""
+    seen: asyncio.Queue[tuple[float, float, float]] = asyncio.Queue()
+    watchers = []
+    for url in sim_urls:
+        ws = await connect(url, compression=None)
+        await ws.send(json.dumps({"op": "subscribe", "topic": "/move_base/goal"}))
+
+        async def watch(ws: ClientConnection = ws) -> None:
+            with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+                async for frame in ws:
+                    m = json.loads(frame)
+                    if m.get("op") == "publish":
+                        p = m["msg"]["goal"]["target_pose"]["pose"]["position"]
+                        seen.put_nowait((time.perf_counter(), p["x"], p["y"]))
+
+        watchers.append((ws, asyncio.create_task(watch())))
+    wps = {
+        w["name"]: w for w in (await staff.call("data", topics=["waypoints"]))["data"]["waypoints"]
+    }
+    tables = ["T2", "T3", "T1", "T6", "T7"]
+    names = sorted(staff.robots)
+    for n in names:
+        await staff.call("control", robot=n, action="auto")
+
+    async def guests() -> None:
+        while True:
+            await staff.until(
+                lambda: any(r["status"] == "Delivered" for r in staff.robots.values()), 1e9
+            )
+            for n, r in list(staff.robots.items()):
+                if r["status"] == "Delivered":
+                    with contextlib.suppress(Exception):
+                        staff.robots[n] = (await staff.call("next", robot=n))["robot"]
+
+    g = asyncio.create_task(guests())
+    lat: list[float] = []
+    end = time.monotonic() + limit
+    i = 0
+    try:
+        while len(lat) < count and time.monotonic() < end:
+            await staff.until(
+                lambda: any(
+                    r["status"] == "Awaiting" and r["current_task"] is None
+                    for r in staff.robots.values()
+                )
+            )
+            table = tables[i % len(tables)]
+            i += 1
+            oid = (await staff.call("create", type="order", dish="x", table=table))["order"]["id"]
+            while not seen.empty():
+                seen.get_nowait()
+            t0 = time.perf_counter()
+            reply = await staff.call("create", type="task", orders=[oid])
+            tid = reply["tasks"][0]["id"]
+            w = wps[table]
+            while True:
+                t, x, y = await asyncio.wait_for(seen.get(), 30)
+                if abs(x - w["x"]) < 1e-3 and abs(y - w["y"]) < 1e-3:
+                    lat.append(t - t0)
+                    break
+            # Only go on once this client *sees* the robot taken, so the next task is created
+            # when a robot is really free (else it would queue, and that is not dispatch time).
+            await staff.until(
+                lambda tid=tid: any(r["current_task"] == tid for r in staff.robots.values())
+            )
+    finally:
+        g.cancel()
+        for ws, task in watchers:
+            task.cancel()
+            await ws.close()
+    return {"dispatches": len(lat), "p50_ms": 1e3 * pct(lat, 50), "p99_ms": 1e3 * pct(lat, 99)}
+
+
+async def main(ns: argparse.Namespace) -> dict[str, Any]:
+    results: dict[str, Any] = {"clients": ns.clients, "robots": ns.robots}
+    procs: list[asyncio.subprocess.Process] = []
+    with tempfile.TemporaryDirectory(prefix="serveur-bench-") as tmpdir:
+        tmp = Path(tmpdir)
+        room, wps = _world(tmp, ns.robots)
+        try:
+            sim, urls = await _start(
+                [
+                    sys.executable,
+                    "-m",
+                    "serveur.cli",
+                    "sim",
+                    "--robots",
+                    str(ns.robots),
+                    "--port",
+                    "0",
+                    "--map",
+                    str(room),
+                ],
+                ns.robots,
+            )
+            procs.append(sim)
+            echo, [echo_port] = await _start([sys.executable, __file__, "--echo-server"], 1)
+            procs.append(echo)
+            port = _free_port()
+            cmd = [
+                sys.executable,
+                "-m",
+                "serveur.cli",
+                "run",
+                "--port",
+                str(port),
+                "--db",
+                str(tmp / "bench.db"),
+                "--map",
+                str(room),
+                "--waypoints",
+                str(wps),
+            ]
+            for i, url in enumerate(urls):
+                cmd += ["--robot", f"r{i + 1}={url},home=home{i + 1}"]
+            if ns.profile:
+                cmd = [
+                    sys.executable,
+                    "-m",
+                    "pyinstrument",
+                    "-r",
+                    "text",
+                    "-o",
+                    "bench-server-profile.txt",
+                    *cmd[1:],
+                ]
+            server, _ = await _start(cmd, 1)
+            procs.append(server)
+            url = f"ws://127.0.0.1:{port}/ws"
+            clients = [
+                Load(await connect(url, compression=None, max_size=2**24))
+                for _ in range(ns.clients)
+            ]
+            await asyncio.gather(*(c.call("data", topics=["robots"]) for c in clients))
+            staff = clients[0]
+            snap = await staff.call("data", topics=["robots"])
+            staff.robots = {r["name"]: r for r in snap["data"]["robots"]}
+            await staff.until(lambda: all(r["status"] != "Offline" for r in staff.robots.values()))
+            await asyncio.sleep(2.0)
+            spid = server.pid
+            cpu0, _ = _proc_stats(spid)
+            await asyncio.sleep(ns.idle)
+            cpu1, rss = _proc_stats(spid)
+            results["footprint"] = {
+                "rss_mb": rss / 2**20,
+                "idle_cpu_percent": 100 * (cpu1 - cpu0) / ns.idle,
+                "idle_seconds": ns.idle,
+            }
+            print("footprint", results["footprint"], flush=True)
+            await asyncio.gather(
+                *(
+                    c.call("data", topics=[f"pose:r{1 + i % ns.robots}"])
+                    for i, c in enumerate(clients[1:])
+                )
+            )
+            cpu0, _ = _proc_stats(spid)
+            t0 = time.monotonic()
+            results["latency"] = await phase_latency(
+                staff, f"ws://127.0.0.1:{echo_port}", ns.samples
+            )
+            cpu1, rss = _proc_stats(spid)
+            results["latency"]["server_cpu_percent"] = 100 * (cpu1 - cpu0) / (time.monotonic() - t0)
+            results["latency"]["rss_mb_watching"] = rss / 2**20
+            print("latency", results["latency"], flush=True)
+            for i, c in enumerate(clients[1:]):
+                await c.call("data", topics=[f"pose:r{1 + i % ns.robots}"], unsubscribe=True)
+            results["fanout"] = await phase_fanout(clients, ns.fanout_seconds)
+            print("fanout", results["fanout"], flush=True)
+            results["dispatch"] = await phase_dispatch(staff, urls, ns.dispatches, 150.0)
+            print("dispatch", results["dispatch"], flush=True)
+            for c in clients:
+                await c.ws.close()
+        finally:
+            for p in reversed(procs):
+                if p.returncode is None:
+                    p.send_signal(2)  # SIGINT: each process shuts down cleanly
+                    try:
+                        await asyncio.wait_for(p.wait(), 15)
+                    except TimeoutError:
+                        p.kill()
+                        await p.wait()
+    return results
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--clients", type=int, default=200)
+    ap.add_argument("--robots", type=int, default=10)
+    ap.add_argument("--samples", type=int, default=2000)
+    ap.add_argument("--idle", type=float, default=20.0, help="seconds of idle measurement")
+    ap.add_argument("--fanout-seconds", type=float, default=20.0)
+    ap.add_argument("--dispatches", type=int, default=150)
+    ap.add_argument("--profile", action="store_true")
+    ap.add_argument("--echo-server", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.echo_server:
+        with contextlib.suppress(KeyboardInterrupt):
+            asyncio.run(_echo_main())
+        sys.exit(0)
+    out = asyncio.run(main(args))
+    print(json.dumps(out, indent=1))
