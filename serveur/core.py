@@ -131,6 +131,8 @@ class Core:
             # Path distances between all waypoints, computed once before any robot is driven,
             # off the event loop: the scheduler's first cart must not stall every link.
             await asyncio.to_thread(self._distances.matrix, sorted(self._waypoints))
+            # Keep the distances, drop the fields they came from (~33 MB on the demo map).
+            self._distances.planner.clear_cache()
         for robot in await self.store.list_robots():
             self._add_runtime(robot)
             # Every robot starts Offline and resumes what it was doing once its link is up.

@@ -354,6 +354,15 @@ class Planner:
 
     # -- distance fields -------------------------------------------------------------------
 
+    def clear_cache(self) -> None:
+        """Forget the cached distance fields (1.1 MB each on the demo map).
+
+        A server needs them only while it fills its DistanceTable; a simulator keeps them
+        because its robots plan to the same tables again and again.
+        """
+        with self._lock:
+            self._fields.clear()
+
     def _field(self, goal_cell: tuple[int, int], *, metric: bool) -> tuple[np.ndarray, np.ndarray]:
         """(cost to the goal, next cell towards it) for every cell; ``metric`` in metres, else
         with the clearance margin's surcharge (what plan() follows)."""
