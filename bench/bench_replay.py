@@ -25,7 +25,8 @@ import numpy as np
 
 from serveur.mapio import OccupancyMap, Waypoint, save_map, save_waypoints
 from serveur.orders import format_orders, generate_orders
-from serveur.replay import ReplayOptions, replay, summary_text
+from serveur.replay import ReplayOptions, replay
+from serveur.replay_report import summary_text
 
 RES = 0.05
 ROOM_W, ROOM_H = 22.0, 14.5

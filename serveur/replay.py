@@ -41,7 +41,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -62,7 +62,6 @@ __all__ = [
     "replay",
     "replay_policy",
     "stop_dwell",
-    "summary_text",
 ]
 
 log = logging.getLogger(__name__)
@@ -704,112 +703,6 @@ async def replay(
     return out
 
 
-# -- reporting ---------------------------------------------------------------------------------
-
-
-def _fmt_s(v: float) -> str:
-    return "-" if not math.isfinite(v) else f"{round(v):d} s"
-
-
-def _robot_cell(r: dict[str, Any]) -> str:
-    return f"{round(r['distance']):d} m / {round(r['busy'] / 60):d} min"
-
-
-def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOptions) -> str:
-    """The short report, policies side by side; times in whole seconds, distances in metres."""
-    names = list(results)
-    stats = {n: results[n].stats() for n in names}
-    rows: list[tuple[str, list[str]]] = [
-        ("orders", [str(stats[n]["orders"]) for n in names]),
-        ("undelivered", [str(stats[n]["undelivered"]) for n in names]),
-        ("wait mean", [_fmt_s(stats[n]["wait_mean"]) for n in names]),
-        ("wait p50", [_fmt_s(stats[n]["wait_p50"]) for n in names]),
-        ("wait p95", [_fmt_s(stats[n]["wait_p95"]) for n in names]),
-        ("wait max", [_fmt_s(stats[n]["wait_max"]) for n in names]),
-        ("lower bound mean", [_fmt_s(stats[n]["lower_bound_mean"]) for n in names]),
-        ("wait / lower bound", [f"{stats[n]['gap_to_lower_bound']:.1f}x" for n in names]),
-        ("trips", [str(stats[n]["trips"]) for n in names]),
-        (
-            "nav errors / staff rescues",
-            [f"{stats[n]['nav_errors']} / {stats[n]['recoveries']}" for n in names],
-        ),
-        ("dishes per trip", [f"{stats[n]['dishes_per_trip']:.1f}" for n in names]),
-        ("tables per trip", [f"{stats[n]['tables_per_trip']:.1f}" for n in names]),
-    ]
-    # Robots busiest first, not by name: which of two equal robots took a trip depends on
-    # which came home a few milliseconds earlier, and the summary should not flip with that.
-    ranked = {n: sorted(results[n].robots, key=lambda r: (-r["busy"], r["name"])) for n in names}
-    for i in range(max(len(r) for r in ranked.values())):
-        rows.append(
-            (
-                f"robot #{i + 1}: distance / busy",
-                [_robot_cell(ranked[n][i]) if i < len(ranked[n]) else "-" for n in names],
-            )
-        )
-    width = max(len(r[0]) for r in rows) + 2
-    colw = max(14, *(len(v) + 2 for _, vals in rows for v in vals))
-    lines = [
-        f"serveur replay of {source}: {stats[names[0]]['orders']} dishes, {opts.robots} robots, "
-        f"seed {opts.seed}, capacity {opts.capacity} tables",
-        "wait = dish ready at the pass -> guest pressed Food collected (server's records);",
-        "lower bound = path home->table at max speed + the dish's own guest dwell.",
-        "",
-        " " * width + "".join(f"{n:>{colw}}" for n in names),
-    ]
-    lines += [f"{k:<{width}}" + "".join(f"{v:>{colw}}" for v in vals) for k, vals in rows]
-    if "baseline" in stats and "serveur" in stats:
-        b, s = stats["baseline"]["wait_mean"], stats["serveur"]["wait_mean"]
-        if b > 0 and math.isfinite(s):
-            lines += ["", f"serveur mean wait vs baseline: {round(100 * (s - b) / b):+d} %"]
-    return "\n".join(lines) + "\n"
-
-
-def _report(results: dict[str, PolicyResult], source: str, opts: ReplayOptions) -> dict[str, Any]:
-    return {
-        "log": source,
-        "options": asdict(opts),
-        "policies": {
-            name: {
-                "summary": r.stats(),
-                "robots": r.robots,
-                "trips": r.trips,
-                "orders": r.orders,
-                "sim_seconds": r.sim_seconds,
-                "wall_seconds": r.wall_seconds,
-            }
-            for name, r in results.items()
-        },
-    }
-
-
-def write_outputs(
-    results: dict[str, PolicyResult], source: str, opts: ReplayOptions, out: Path
-) -> str:
-    """report.json, summary.txt and the plots into ``out``; returns the summary text."""
-    from serveur.replay_plots import write_plots
-
-    out.mkdir(parents=True, exist_ok=True)
-    text = summary_text(results, source, opts)
-    report = _report(results, source, opts)
-    (out / "report.json").write_text(
-        json.dumps(_finite(report), indent=1, allow_nan=False) + "\n", encoding="utf-8"
-    )
-    (out / "summary.txt").write_text(text, encoding="utf-8")
-    write_plots(results, opts.map_path, out)
-    return text
-
-
-def _finite(v: Any) -> Any:
-    """NaN and infinities (no dish delivered) as null: report.json stays standard JSON."""
-    if isinstance(v, float):
-        return v if math.isfinite(v) else None
-    if isinstance(v, dict):
-        return {k: _finite(x) for k, x in v.items()}
-    if isinstance(v, list | tuple):
-        return [_finite(x) for x in v]
-    return v
-
-
 # -- command line ------------------------------------------------------------------------------
 
 
@@ -847,6 +740,8 @@ async def _replay_command(ns: argparse.Namespace) -> int:
     except ReplayError as exc:
         print(f"serveur replay: {exc}", file=sys.stderr)
         return 1
+    from serveur.replay_report import write_outputs
+
     text = write_outputs(results, ns.log, opts, Path(ns.out))
     print(text, end="")
     print(f"report, summary and plots in {ns.out}/")
