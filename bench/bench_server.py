@@ -20,7 +20,7 @@ Phases (every one bounded in count and time; the script stops everything it star
 4. **dispatch** — ``create task`` sent -> the goal appears on the robot's ``/move_base/goal``
    (the bench subscribes to the robot's rosbridge), ``--dispatches`` times.
 
-Run: ``python bench/bench_server.py`` (about two minutes). ``--profile`` writes a pyinstrument
+Run: ``python bench/bench_server.py`` (about four minutes). ``--profile`` writes a pyinstrument
 profile of the server (``pip install pyinstrument``) to ``bench-server-profile.txt``.
 """
 
