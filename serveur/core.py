@@ -35,7 +35,7 @@ from serveur.domain import Order, OrderStatus, Robot, Task, TaskStatus, Waypoint
 from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurError
 from serveur.hub import Hub
 from serveur.robot_link import RobotLink
-from serveur.scheduler import Candidate, Dispatcher, cart_order_trips, plan_trips
+from serveur.scheduler import Candidate, Dispatcher, cart_order_trips, order_stops, plan_trips
 from serveur.status import Action, Event, RobotState, RobotStatus, apply, check_allowed
 from serveur.store import Store
 
@@ -604,8 +604,6 @@ class Core:
             home = self._robots[robot].home or self._origin()
             task = await self.store.get_task(task_id)
             order = [s.table for s in task.stops]
-            from serveur.scheduler import order_stops
-
             if self.config.policy == "baseline":
                 stop_order = order  # the cart's order, as the design report's robot does
             else:

@@ -137,6 +137,8 @@ class Restaurant:
     db: Path | str  # a SQLite file, or a database URL (mariadb://...)
     specs: list[RobotSpec]
     clients: list[Client]
+    #: How this restaurant's server is built: (db, clock, specs, port) -> App.
+    make: Callable[[Path | str, ScaledClock, list[RobotSpec], int], App] = lambda *a: make_app(*a)
 
     async def client(self) -> Client:
         c = Client(await connect(self.app.url, max_size=2**24))
@@ -144,22 +146,25 @@ class Restaurant:
         return c
 
     async def restart_server(self) -> None:
-        """Stop the server (clean close) and start a new one on the same database file."""
+        """Stop the server (clean close) and start a new one on the same database and port,
+        as a real restart does: pages reconnect to the address they were loaded from."""
+        assert self.app.server is not None
+        port = self.app.server.port
         for c in self.clients:
             await c.close()
         self.clients.clear()
         await self.app.close()
-        self.app = make_app(self.db, self.clock, self.specs)
+        self.app = self.make(self.db, self.clock, self.specs, port)
         await self.app.start()
 
 
-def make_app(db: Path | str, clock: ScaledClock, specs: list[RobotSpec]) -> App:
+def make_app(db: Path | str, clock: ScaledClock, specs: list[RobotSpec], port: int = 0) -> App:
     from serveur.navigation import load_demo
 
     nav_map, waypoints = load_demo()
     cfg = CoreConfig(heartbeat=2.0, ack_timeout=3.0)
     return App(
-        db, port=0, clock=clock, nav_map=nav_map, waypoints=waypoints, robots=specs, config=cfg
+        db, port=port, clock=clock, nav_map=nav_map, waypoints=waypoints, robots=specs, config=cfg
     )
 
 

@@ -131,7 +131,7 @@ async def ui_restaurant(tmp_path: Path, robots: int = 1) -> AsyncIterator[Restau
         for i, (rb, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
     ]
     db = tmp_path / "serveur.db"
-    r = Restaurant(ui_app(db, clock, specs), sim, clock, db, specs, [])
+    r = Restaurant(ui_app(db, clock, specs), sim, clock, db, specs, [], make=ui_app)
     try:
         await r.app.start()
         yield r
@@ -140,19 +140,6 @@ async def ui_restaurant(tmp_path: Path, robots: int = 1) -> AsyncIterator[Restau
             await c.close()
         await r.app.close()
         await sim.close()
-
-
-async def restart_on_same_port(r: Restaurant) -> None:
-    """``Restaurant.restart_server`` but keeping the port, as a real restart does: the pages
-    reconnect to the address they were loaded from."""
-    assert r.app.server is not None
-    port = r.app.server.port
-    for cl in r.clients:
-        await cl.close()
-    r.clients.clear()
-    await r.app.close()
-    r.app = ui_app(r.db, r.clock, r.specs, port)
-    await r.app.start()
 
 
 def http_base(r: Restaurant) -> str:
@@ -463,7 +450,7 @@ async def test_pages_reconnect_after_a_server_restart(tmp_path: Path, browser: A
         table = await screens.open("/table/T5")
         await expect(robot.get_by_role("button", name="Activate this robot")).to_be_visible()
 
-        await restart_on_same_port(r)
+        await r.restart_server()
         c = await staff_client(r)
         await c.status("r1", "Ready")
         # Without a reload, every page is live again: a new order shows up...
