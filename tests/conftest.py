@@ -140,8 +140,18 @@ class Restaurant:
     #: How this restaurant's server is built: (db, clock, specs, port) -> App.
     make: Callable[[Path | str, ScaledClock, list[RobotSpec], int], App] = lambda *a: make_app(*a)
 
+    def auth_headers(self) -> dict[str, str]:
+        """Handshake headers that authenticate a raw ``connect(self.app.url, ...)`` as staff.
+
+        Use :meth:`client` where you can; a test that needs its own connection passes
+        ``additional_headers=r.auth_headers()``.
+        """
+        return {}
+
     async def client(self) -> Client:
-        c = Client(await connect(self.app.url, max_size=2**24))
+        c = Client(
+            await connect(self.app.url, max_size=2**24, additional_headers=self.auth_headers())
+        )
         self.clients.append(c)
         return c
 
