@@ -17,6 +17,7 @@ from serveur.core import Core, CoreConfig
 from serveur.domain import WaypointKind, WaypointRecord
 from serveur.errors import Conflict
 from serveur.server import Server
+from serveur.sessions import SecurityConfig, Sessions
 from serveur.store import Store, open_store
 
 __all__ = ["App", "RobotSpec", "parse_robot_spec"]
@@ -62,6 +63,8 @@ class App:
         waypoints: Mapping[str, Any] | None = None,
         robots: Sequence[RobotSpec] = (),
         config: CoreConfig | None = None,
+        security: SecurityConfig | None = None,
+        create_owner: bool = True,
     ) -> None:
         self.clock = clock or ScaledClock(1.0)
         self.store: Store = open_store(str(db))
@@ -71,8 +74,14 @@ class App:
         self._robots = robots
         self._config = config
         self._host, self._port = host, port
+        self._security = security
+        self._create_owner = create_owner
         self.core: Core | None = None
+        self.sessions: Sessions | None = None
         self.server: Server | None = None
+        #: Set on the first start of an empty database: the new owner's password, to be
+        #: shown once (by the CLI) and never again.
+        self.first_owner_password: str | None = None
 
     async def start(self) -> App:
         await self.store.open()
@@ -88,9 +97,30 @@ class App:
             await self._register(spec, now)
         self.core = Core(self.store, self.clock, config=self._config, nav_map=nav_map)
         await self.core.start()
-        self.server = Server(self.core, host=self._host, port=self._port)
+        self.sessions = Sessions(self.store, self.clock, self._security, hub=self.core.hub)
+        if self._create_owner:
+            self.first_owner_password = await self.sessions.ensure_owner()
+        self.sessions.start()
+        self.server = Server(self.core, self.sessions, host=self._host, port=self._port)
         await self.server.start()
         return self
+
+    async def issue_token(
+        self,
+        role: str = "staff",
+        *,
+        robot: str | None = None,
+        table: str | None = None,
+        scopes: Sequence[str] = (),
+        label: str = "",
+        ttl: float | None = None,
+    ) -> str:
+        """A new device/script token (tests, the demo and the replay tool use this)."""
+        assert self.sessions is not None, "start the app first"
+        token, _ = await self.sessions.create_token(
+            role, robot=robot, table=table, scopes=scopes, label=label, ttl=ttl
+        )
+        return token
 
     async def _register(self, spec: RobotSpec, now: float) -> None:
         try:
@@ -108,6 +138,8 @@ class App:
     async def close(self) -> None:
         if self.server is not None:
             await self.server.close()
+        if self.sessions is not None:
+            await self.sessions.close()
         if self.core is not None:
             await self.core.close()
         await self.store.close()

@@ -18,8 +18,13 @@ import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from serveur import __version__
+from serveur.errors import ServeurError
+
+if TYPE_CHECKING:
+    from serveur.sessions import SecurityConfig
 
 __all__ = ["main"]
 
@@ -33,6 +38,32 @@ async def _wait_for_signal() -> None:
         with contextlib.suppress(NotImplementedError):
             loop.add_signal_handler(sig, stop.set)
     await stop.wait()
+
+
+def _security(ns: argparse.Namespace) -> SecurityConfig:
+    from serveur.sessions import SecurityConfig
+
+    return SecurityConfig(
+        allowed_origins=tuple(ns.allow_origin),
+        max_per_address=ns.max_connections_per_address,
+        rate=ns.rate_limit,
+        burst=max(ns.rate_limit * 4, 20.0),
+    )
+
+
+def _add_security_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--allow-origin",
+        action="append",
+        default=[],
+        metavar="ORIGIN",
+        help="another web origin allowed to open the websocket (e.g. https://pos.local); "
+        "the server's own pages are always allowed",
+    )
+    p.add_argument("--max-connections-per-address", type=int, default=64)
+    p.add_argument(
+        "--rate-limit", type=float, default=50.0, help="requests per second per connection"
+    )
 
 
 async def _run(ns: argparse.Namespace) -> int:
@@ -53,9 +84,20 @@ async def _run(ns: argparse.Namespace) -> int:
         map_path=ns.map,
         waypoints=waypoints,
         robots=robots,
+        security=_security(ns),
     )
     await app.start()
     print(f"serveur {__version__} listening on {app.url} (database {ns.db})", flush=True)
+    web = app.url.replace("ws", "http", 1).removesuffix("/ws")
+    if app.first_owner_password is not None:
+        # Shown this once, on the terminal of whoever started an empty database.
+        print(
+            f"First start: created the owner account.\n"
+            f"  log in at {web}/ as user 'owner', password {app.first_owner_password}\n"
+            f"  then change it: serveur user passwd owner --db {ns.db}\n"
+            f"  staff accounts: serveur user add NAME --db {ns.db}",
+            flush=True,
+        )
     try:
         await _wait_for_signal()
     finally:
@@ -101,9 +143,12 @@ async def _demo(ns: argparse.Namespace) -> int:
         nav_map=nav_map,
         waypoints=waypoints,
         robots=specs,
+        security=_security(ns),
+        create_owner=False,
     )
     try:
         await app.start()
+        creds = await _demo_accounts(app, specs, waypoints)
         print(
             f"serveur demo: {ns.robots} simulated robots, time scale {ns.time_scale}x", flush=True
         )
@@ -112,11 +157,12 @@ async def _demo(ns: argparse.Namespace) -> int:
         print(f"  clients connect to {app.url}")
         web = app.url.replace("ws://", "http://", 1).removesuffix("/ws")
         print(f"  staff console: {web}/")
+        print(f"    log in as staff / {creds['staff']}  (owner: owner / {creds['owner']})")
         for spec in specs:
-            print(f"  robot screen {spec.name}: {web}/robot/{spec.name}")
-        tables = [w.name for w in waypoints.values() if w.kind == "table"]
-        first = min(tables, key=lambda n: (len(n), n)) if tables else "T1"
-        print(f"  table screen: {web}/table/{first} (any table's name)")
+            print(f"  robot screen {spec.name}: {web}/robot/{spec.name}#token={creds[spec.name]}")
+        first = creds["table"]
+        print(f"  table screen: {web}/table/{first}#token={creds['table-token']}")
+        print("  (demo credentials: fresh and random on every start)")
         print(f"  database: {db}")
         print("  Ctrl-C stops everything.", flush=True)
         await _wait_for_signal()
@@ -124,6 +170,27 @@ async def _demo(ns: argparse.Namespace) -> int:
         await app.close()
         await sim.close()
     return 0
+
+
+async def _demo_accounts(app: Any, specs: Sequence[Any], waypoints: Any) -> dict[str, str]:
+    """Demo logins: an owner and a staff user with random passwords, a token per robot
+    screen and one for the first table's screen."""
+    from serveur import auth
+
+    assert app.sessions is not None
+    creds: dict[str, str] = {}
+    for name, role in (("owner", "owner"), ("staff", "staff")):
+        password = auth.new_password()
+        pw_hash = await asyncio.to_thread(auth.hash_password, password)
+        await app.store.add_user(name, role, pw_hash, now=app.clock.epoch())
+        creds[name] = password
+    for spec in specs:
+        creds[spec.name] = await app.issue_token("robot-screen", robot=spec.name, label="demo")
+    tables = [w.name for w in waypoints.values() if w.kind == "table"]
+    first = min(tables, key=lambda n: (len(n), n)) if tables else "T1"
+    creds["table"] = first
+    creds["table-token"] = await app.issue_token("table-screen", table=first, label="demo")
+    return creds
 
 
 def _schema(ns: argparse.Namespace) -> int:
@@ -160,6 +227,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--map", help="ROS map YAML (default: adopt the map a robot publishes)")
     run.add_argument("--waypoints", help="waypoints JSON to import (tables, homes)")
     run.add_argument("--time-scale", type=float, default=1.0)
+    _add_security_arguments(run)
     run.set_defaults(func=_run, is_async=True)
 
     demo = sub.add_parser("demo", help="server + simulated robots + the demo restaurant")
@@ -171,6 +239,7 @@ def _parser() -> argparse.ArgumentParser:
     demo.add_argument("--kinematics", choices=["omni", "diff"], default="omni")
     demo.add_argument("--seed", type=int, default=0)
     demo.add_argument("--db", help="database file (default: a fresh temporary one)")
+    _add_security_arguments(demo)
     demo.set_defaults(func=_demo, is_async=True)
 
     sim = sub.add_parser("sim", help="simulated robots speaking rosbridge v2")
@@ -185,6 +254,9 @@ def _parser() -> argparse.ArgumentParser:
     from serveur.replay import add_replay_parser
 
     add_replay_parser(sub)
+    from serveur.accounts_cli import add_accounts_parsers
+
+    add_accounts_parsers(sub)
 
     schema = sub.add_parser("schema", help="print the JSON Schema of every message")
     schema.set_defaults(func=_schema, is_async=False)
@@ -195,12 +267,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     ns = _parser().parse_args(argv)
     level = logging.WARNING - 10 * min(ns.verbose, 2) if ns.verbose else logging.INFO
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    if ns.is_async:
-        try:
+    try:
+        if ns.is_async:
             return int(asyncio.run(ns.func(ns)))
-        except KeyboardInterrupt:
-            return 130
-    return int(ns.func(ns))
+        return int(ns.func(ns))
+    except KeyboardInterrupt:
+        return 130
+    except ServeurError as exc:  # a refused input or an unusable database: one clear line
+        print(f"serveur: {exc.message}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

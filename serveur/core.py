@@ -111,6 +111,7 @@ class Core:
         self.dispatcher = Dispatcher(self)
         self._rt: dict[str, _Runtime] = {}
         self._robots: dict[str, Robot] = {}
+        self._task_robots: dict[int, str] = {}  # task id -> robot, for screens' views
         self._waypoints: dict[str, WaypointRecord] = {}
         self._map = nav_map
         self._map_json: str | None = None
@@ -237,10 +238,21 @@ class Core:
 
     def _pub(self, topic: str, record: Any) -> None:
         if self.hub.watched(topic):
-            self.hub.publish(topic, P.dump(record))
+            self.hub.publish(topic, P.dump(record), record)
 
     def _pub_task(self, task: Task) -> None:
+        if task.robot is not None:
+            self._task_robots[task.id] = task.robot
+            while len(self._task_robots) > 10_000:  # a night has hundreds; bound it anyway
+                del self._task_robots[next(iter(self._task_robots))]
         self._pub("tasks", task)
+
+    def task_robot(self, task_id: int) -> str | None:
+        """The robot doing (or that did) task ``task_id``, if this server has seen it."""
+        robot = self._task_robots.get(task_id)
+        if robot is None:
+            robot = next((n for n, r in self._robots.items() if r.current_task == task_id), None)
+        return robot
 
     async def _pub_orders(self, ids: Sequence[int]) -> None:
         if self.hub.watched("orders"):

@@ -24,6 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from serveur.status import RobotMode, RobotStatus
 
 __all__ = [
+    "AuditRecord",
     "EventRecord",
     "Order",
     "OrderStatus",
@@ -145,4 +146,19 @@ class EventRecord(_Record):
     robot: str | None = None
     task_id: int | None = None
     order_id: int | None = None
+    data: dict[str, object] = Field(default_factory=dict)
+
+
+class AuditRecord(_Record):
+    """One instruction as given: who (``actor``, ``role``), from where (``peer``), what, and
+    how it ended (``outcome``: ``ok`` or the error code). Security trail, owner-readable."""
+
+    id: int
+    ts: float
+    actor: str
+    role: str
+    peer: str
+    verb: str
+    target: str | None = None
+    outcome: str
     data: dict[str, object] = Field(default_factory=dict)

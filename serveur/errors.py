@@ -13,15 +13,18 @@ from typing import Any
 __all__ = [
     "BadJson",
     "Conflict",
+    "Forbidden",
     "InvalidField",
     "LinkError",
     "MapError",
     "NavigationError",
     "NotAllowedInStatus",
     "NotFound",
+    "RateLimited",
     "RosbridgeError",
     "ServeurError",
     "StoreError",
+    "Unauthorized",
     "UnknownMessage",
     "Unreachable",
 ]
@@ -117,3 +120,21 @@ class LinkError(ServeurError):
     """The link to a robot is down or the robot did not answer in time."""
 
     code = "link_error"
+
+
+class Unauthorized(ServeurError):
+    """Not logged in, or the credentials are wrong, expired or revoked."""
+
+    code = "unauthorized"
+
+
+class Forbidden(ServeurError):
+    """Logged in, but this role or scope may not do that."""
+
+    code = "forbidden"
+
+
+class RateLimited(ServeurError):
+    """Too many requests (or failed logins); ``details.retry_after`` says when to try again."""
+
+    code = "rate_limited"

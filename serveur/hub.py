@@ -30,6 +30,7 @@ __all__ = ["CLOSE_TOO_SLOW", "Hub", "Subscriber", "is_stream_topic"]
 log = logging.getLogger(__name__)
 
 CLOSE_TOO_SLOW = 4002
+_CLOSE = "\x00close"  # queue marker: close here (an identity-compared sentinel, not a topic)
 
 
 def is_stream_topic(topic: str) -> bool:
@@ -62,6 +63,10 @@ class Subscriber:
         self._task: asyncio.Task[None] | None = None
         self.closed = False
         self.dropped_stream_frames = 0
+        #: Which records this client may see (a screen bound to one robot or table): called
+        #: with (topic, record) for each update that carries its record; None sees all.
+        self.view: Callable[[str, Any], bool] | None = None
+        self._closing: tuple[int, str] | None = None
 
     def start(self) -> None:
         self._task = asyncio.create_task(self._writer(), name=f"writer-{self.name}")
@@ -79,8 +84,17 @@ class Subscriber:
             self._state.append((None, frame))
             self._wake.set()
 
-    def update(self, topic: str, data_json: str) -> None:
+    def close_after_replies(self, code: int, reason: str) -> None:
+        """Close the connection once everything queued so far (the reply saying why) is sent."""
+        if not self.closed:
+            self._closing = (code, reason)
+            self._state.append((_CLOSE, ""))
+            self._wake.set()
+
+    def update(self, topic: str, data_json: str, record: Any = None) -> None:
         if self.closed:
+            return
+        if self.view is not None and record is not None and not self.view(topic, record):
             return
         if is_stream_topic(topic):
             if topic in self._latest:
@@ -104,6 +118,8 @@ class Subscriber:
             topic, data = self._state.popleft()
             if topic is None:
                 return data
+            if topic is _CLOSE:
+                return None
         elif self._latest:
             stream = next(iter(self._latest))
             topic, data = stream, self._latest.pop(stream)
@@ -119,6 +135,9 @@ class Subscriber:
                 self._wake.clear()
                 while (frame := self._next_frame()) is not None:
                     await self._send(frame)
+                if self._closing is not None and not any(t is _CLOSE for t, _ in self._state):
+                    self.closed = True
+                    await self._close(*self._closing)
         except asyncio.CancelledError:
             raise
         except Exception as exc:  # a dead socket ends this writer, nothing else
@@ -165,11 +184,15 @@ class Hub:
     def watched(self, topic: str) -> bool:
         return topic in self._by_topic
 
-    def publish(self, topic: str, data_json: str) -> int:
-        """Queue ``data_json`` (already serialised) for every subscriber of ``topic``."""
+    def publish(self, topic: str, data_json: str, record: Any = None) -> int:
+        """Queue ``data_json`` (already serialised) for every subscriber of ``topic``.
+
+        ``record`` (the object ``data_json`` was made from) lets a subscriber with a ``view``
+        skip records outside it; the JSON is still made once for everyone.
+        """
         subs = self._by_topic.get(topic)
         if not subs:
             return 0
         for s in subs:
-            s.update(topic, data_json)
+            s.update(topic, data_json, record)
         return len(subs)

@@ -44,7 +44,15 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from serveur.domain import EventRecord, Order, Robot, Task, WaypointKind, WaypointRecord
+from serveur.domain import (
+    AuditRecord,
+    EventRecord,
+    Order,
+    Robot,
+    Task,
+    WaypointKind,
+    WaypointRecord,
+)
 from serveur.errors import BadJson, InvalidField, ServeurError, UnknownMessage
 from serveur.status import Action
 
@@ -53,6 +61,8 @@ __all__ = [
     "MAX_FRAME_BYTES",
     "MAX_NAME",
     "MAX_ORDERS_PER_TASK",
+    "MAX_PASSWORD",
+    "MAX_TOKEN",
     "MAX_TOPICS",
     "ROBOT_TOPICS",
     "STATE_TOPICS",
@@ -75,6 +85,8 @@ __all__ = [
     "DataMsg",
     "ErrorCode",
     "ErrorReply",
+    "LoginMsg",
+    "LogoutMsg",
     "MapSnapshot",
     "NextMsg",
     "OkReply",
@@ -84,6 +96,7 @@ __all__ = [
     "RequestId",
     "ScanData",
     "ServerMessage",
+    "Session",
     "Snapshot",
     "StopMsg",
     "UpdateData",
@@ -110,11 +123,13 @@ MAX_ORDERS_PER_TASK: Final = 50
 #: Most topics one ``data`` request may name.
 MAX_TOPICS: Final = 64
 #: Topics whose updates carry one upserted record (``map`` carries the map snapshot).
-STATE_TOPICS: Final = ("robots", "orders", "tasks", "waypoints", "map", "events")
+STATE_TOPICS: Final = ("robots", "orders", "tasks", "waypoints", "map", "events", "audit")
 #: Per-robot topic prefixes: ``pose:<robot>`` and ``scan:<robot>``.
 ROBOT_TOPICS: Final = ("pose", "scan")
 #: Every ``clientmsg`` verb, in the order the documentation lists them.
 VERBS: Final = (
+    "login",
+    "logout",
     "data",
     "create",
     "control",
@@ -296,6 +311,42 @@ class _ClientMsg(BaseModel):
     id: RequestId | None = Field(
         default=None, description="Echoed in the reply so the client can match it"
     )
+
+
+#: Longest password accepted (scrypt hashes any length; this bounds the work).
+MAX_PASSWORD: Final = 1024
+#: Longest token accepted (ours are 47 characters).
+MAX_TOKEN: Final = 256
+
+
+class LoginMsg(_ClientMsg):
+    """Authenticate this connection: ``username`` + ``password`` (a person: the reply carries a
+    new session ``token``), or a ``token`` (a saved session, a screen's or a script's)."""
+
+    clientmsg: Literal["login"]
+    username: Name | None = None
+    # repr=False: a logged message must never show a secret.
+    password: Annotated[str, Field(min_length=1, max_length=MAX_PASSWORD)] | None = Field(
+        default=None, repr=False
+    )
+    token: Annotated[str, Field(min_length=1, max_length=MAX_TOKEN)] | None = Field(
+        default=None, repr=False
+    )
+
+    @model_validator(mode="after")
+    def _one_way(self) -> LoginMsg:
+        has_pw = self.username is not None or self.password is not None
+        if has_pw == (self.token is not None) or (
+            has_pw and (self.username is None or self.password is None)
+        ):
+            raise PydanticCustomError("login", "give username and password, or token")
+        return self
+
+
+class LogoutMsg(_ClientMsg):
+    """End this connection's session: a password session's token is revoked for good."""
+
+    clientmsg: Literal["logout"]
 
 
 class DataMsg(_ClientMsg):
@@ -496,7 +547,9 @@ class OrderMsg(_ClientMsg):
 
 
 ClientMessage: TypeAlias = Annotated[
-    DataMsg
+    LoginMsg
+    | LogoutMsg
+    | DataMsg
     | CreateMessage
     | ControlMessage
     | ReadyMsg
@@ -792,6 +845,7 @@ Snapshot: TypeAlias = (
     | list[Task]
     | list[WaypointRecord]
     | list[EventRecord]
+    | list[AuditRecord]
     | MapSnapshot
     | PoseData
     | ScanData
@@ -800,10 +854,21 @@ Snapshot: TypeAlias = (
 
 #: What one ``update`` carries: one upserted record, the map, a pose or a scan.
 UpdateData: TypeAlias = (
-    Robot | Order | Task | WaypointRecord | EventRecord | MapSnapshot | PoseData | ScanData
+    Robot
+    | Order
+    | Task
+    | WaypointRecord
+    | EventRecord
+    | AuditRecord
+    | MapSnapshot
+    | PoseData
+    | ScanData
 )
 
 ErrorCode: TypeAlias = Literal[
+    "unauthorized",
+    "forbidden",
+    "rate_limited",
     "bad_json",
     "unknown_message",
     "invalid_field",
@@ -833,6 +898,19 @@ class OkReply(_ServerModel):
         default=None, description="create robot, control, ready, next, stop, continue, cancel"
     )
     orders: list[Order] | None = Field(default=None, description="order")
+    session: Session | None = Field(default=None, description="login, logout")
+
+
+class Session(_ServerModel):
+    """Who this connection is. ``token`` only in the reply to a password login."""
+
+    user: str | None = None
+    role: Literal["owner", "staff", "robot-screen", "table-screen", "integration"]
+    robot: str | None = None
+    table: str | None = None
+    scopes: list[str]
+    expires: float | None = Field(default=None, description="epoch seconds; null: never")
+    token: str | None = None
 
 
 class ErrorReply(_ServerModel):

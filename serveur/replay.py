@@ -559,7 +559,10 @@ class _Service:
             core = app.core
             assert core is not None
             self.distance = core.distance
-            ws = await connect(app.url, max_size=2**24)
+            token = await app.issue_token("staff", label="replay")
+            ws = await connect(
+                app.url, max_size=2**24, additional_headers={"Authorization": f"Bearer {token}"}
+            )
             self.client = client = _Client(ws, self.on_update)
             snap = await client.call("data", topics=["robots", "tasks", "orders"])
             for r in snap["data"]["robots"]:

@@ -8,10 +8,14 @@ time per connection, so each client's requests are answered in order.
 
 from __future__ import annotations
 
+import asyncio
+import functools
 import http
 import json
 import logging
+from collections import Counter
 from typing import Any
+from urllib.parse import urlsplit
 
 import websockets
 from websockets.asyncio.server import Server as WsServer
@@ -20,9 +24,11 @@ from websockets.datastructures import Headers
 from websockets.http11 import Request, Response
 
 from serveur import protocol as P
+from serveur.auth import Principal, RateLimiter, Role, authorize, visible
 from serveur.core import Core
-from serveur.errors import InvalidField, NotFound, ServeurError
+from serveur.errors import InvalidField, NotFound, RateLimited, ServeurError, Unauthorized
 from serveur.hub import Subscriber
+from serveur.sessions import CLOSE_AUTH, Sessions
 from serveur.static import default_site
 
 __all__ = ["MAX_FRAME", "Server"]
@@ -30,7 +36,7 @@ __all__ = ["MAX_FRAME", "Server"]
 log = logging.getLogger(__name__)
 
 MAX_FRAME = 64 * 1024
-_STATE_TOPICS = {"robots", "orders", "tasks", "waypoints", "map", "events"}
+_STATE_TOPICS = frozenset(P.STATE_TOPICS)
 
 
 def _http(status: http.HTTPStatus, body: bytes, content_type: str) -> Response:
@@ -45,15 +51,62 @@ def _http(status: http.HTTPStatus, body: bytes, content_type: str) -> Response:
     return Response(status.value, status.phrase, headers, body)
 
 
-class Server:
-    """Serves ``/ws`` for clients and HTTP for everything else, on one port."""
+def _peer(ws: ServerConnection) -> str:
+    addr = ws.remote_address
+    if isinstance(addr, tuple) and len(addr) >= 2:
+        return f"{addr[0]}:{addr[1]}"
+    return str(addr)
 
-    def __init__(self, core: Core, *, host: str = "127.0.0.1", port: int = 8765) -> None:
+
+def _host_of(ws: ServerConnection) -> str:
+    addr = ws.remote_address
+    return str(addr[0]) if isinstance(addr, tuple) and addr else str(addr)
+
+
+class _Conn:
+    """One client connection: its outgoing side, who it is, and its request budget."""
+
+    __slots__ = ("close_after", "deadline", "limiter", "peer", "principal", "sub", "ws")
+
+    def __init__(self, ws: ServerConnection, sub: Subscriber, limiter: RateLimiter) -> None:
+        self.ws = ws
+        self.sub = sub
+        self.peer = _peer(ws)
+        self.limiter = limiter
+        self.principal: Principal | None = None
+        self.deadline: asyncio.Task[None] | None = None
+        #: Close with this (code, reason) once the current reply is sent.
+        self.close_after: tuple[int, str] | None = None
+
+
+class Server:
+    """Serves ``/ws`` for clients and HTTP for everything else, on one port.
+
+    Security (docs/security.md): a browser handshake must come from the page's own origin
+    (or a configured one), an address may hold ``max_per_address`` connections, a connection
+    must authenticate (``Authorization: Bearer`` on the handshake, or a ``login`` message
+    within ``login_deadline`` seconds), every instruction is checked against the
+    connection's role and scopes, requests are rate-limited per connection, and every
+    state-changing instruction is audited with who gave it and from where.
+    """
+
+    def __init__(
+        self,
+        core: Core,
+        sessions: Sessions,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 8765,
+    ) -> None:
         self.core = core
+        self.sessions = sessions
+        self.security = sessions.config
         self.host = host
         self.port = port
         self._ws: WsServer | None = None
         self.connections = 0
+        self._per_address: Counter[str] = Counter()
+        self._handshake: dict[ServerConnection, Principal] = {}
         self._site = default_site()  # the web UI's files, read once at start, never per request
 
     async def start(self) -> None:
@@ -82,10 +135,14 @@ class Server:
             await self._ws.wait_closed()
             self._ws = None
 
-    def _process_request(self, connection: ServerConnection, request: Request) -> Response | None:
+    # -- handshake ---------------------------------------------------------------------------
+
+    async def _process_request(
+        self, connection: ServerConnection, request: Request
+    ) -> Response | None:
         path = request.path.split("?", 1)[0]
         if path == "/ws":
-            return None
+            return await self._ws_handshake(connection, request)
         if path == "/healthz":
             body = json.dumps(
                 {"status": "ok", "robots": {n: st.value for n, st in self.core.robot_statuses()}}
@@ -93,41 +150,177 @@ class Server:
             return _http(http.HTTPStatus.OK, body, "application/json")
         return self._site.respond(request)  # the web UI (GET/HEAD), 404 for anything else
 
+    async def _ws_handshake(self, ws: ServerConnection, request: Request) -> Response | None:
+        origin = request.headers.get("Origin")
+        if origin is not None and not self._origin_ok(origin, request.headers.get("Host", "")):
+            log.warning("refused a websocket from origin %r (peer %s)", origin[:100], _peer(ws))
+            return _http(
+                http.HTTPStatus.FORBIDDEN, b"cross-origin websocket refused\n", "text/plain"
+            )
+        if self._per_address[_host_of(ws)] >= self.security.max_per_address:
+            return _http(http.HTTPStatus.TOO_MANY_REQUESTS, b"too many connections\n", "text/plain")
+        authz = request.headers.get("Authorization")
+        if authz is not None:
+            scheme, _, token = authz.partition(" ")
+            try:
+                if scheme.lower() != "bearer":
+                    raise Unauthorized("Authorization must be: Bearer <token>")
+                self._handshake[ws] = await self.sessions.authenticate_token(token.strip())
+            except ServeurError as exc:
+                await self.sessions.audit(
+                    None, _peer(ws), "login", exc.code, data={"via": "handshake"}
+                )
+                return _http(
+                    http.HTTPStatus.UNAUTHORIZED, f"{exc.message}\n".encode(), "text/plain"
+                )
+        return None
+
+    def _origin_ok(self, origin: str, host: str) -> bool:
+        """Same-origin (the page this server served) or explicitly allowed. Browsers always
+        send Origin on websocket handshakes; scripts usually send none, and pass."""
+        if origin in self.security.allowed_origins:
+            return True
+        parts = urlsplit(origin)
+        return parts.scheme in ("http", "https") and bool(host) and parts.netloc == host
+
+    # -- connection --------------------------------------------------------------------------
+
     async def _handler(self, ws: ServerConnection) -> None:
         self.connections += 1
-        peer = ws.remote_address
-        sub = Subscriber(ws.send, ws.close, name=f"{peer}")
+        host = _host_of(ws)
+        self._per_address[host] += 1
+        sub = Subscriber(ws.send, ws.close, name=_peer(ws))
+        conn = _Conn(
+            ws, sub, RateLimiter(self.security.rate, self.security.burst, self.sessions.monotonic())
+        )
         sub.start()
         self.core.hub.add(sub)
+        principal = self._handshake.pop(ws, None)
+        if principal is not None:
+            self._become(conn, principal)
+        else:
+            conn.deadline = asyncio.create_task(self._login_deadline(conn))
         try:
             async for frame in ws:
-                await self._serve_one(sub, frame)
+                await self._serve_one(conn, frame)
         except websockets.exceptions.ConnectionClosed:
             pass
         finally:
+            if conn.deadline is not None:
+                conn.deadline.cancel()
+            if conn.principal is not None:
+                self.sessions.unbind(conn.principal, ws.close)
             self.core.hub.remove(sub)
             await sub.stop()
+            self._per_address[host] -= 1
+            if self._per_address[host] <= 0:
+                del self._per_address[host]
 
-    async def _serve_one(self, sub: Subscriber, frame: str | bytes) -> None:
+    async def _login_deadline(self, conn: _Conn) -> None:
+        await asyncio.sleep(self.security.login_deadline)
+        if conn.principal is None:
+            await conn.ws.close(CLOSE_AUTH, "log in first")
+
+    def _become(self, conn: _Conn, p: Principal) -> None:
+        if conn.principal is not None:
+            self.sessions.unbind(conn.principal, conn.ws.close)
+            self.core.hub.unsubscribe(conn.sub, list(conn.sub.topics))
+        conn.principal = p
+        self.sessions.bind(p, conn.ws.close)
+        if p.role in (Role.ROBOT_SCREEN, Role.TABLE_SCREEN):
+            conn.sub.view = functools.partial(visible, p, task_robot=self.core.task_robot)
+        else:
+            conn.sub.view = None
+        if conn.deadline is not None:
+            conn.deadline.cancel()
+            conn.deadline = None
+
+    async def _serve_one(self, conn: _Conn, frame: str | bytes) -> None:
         request_id: Any = None
+        msg: Any = None
         try:
             msg = P.parse_client(frame)
             request_id = msg.id
-            if msg.clientmsg == "data":
-                payload = await self._data(sub, msg)
-            else:
-                payload = await self.core.handle(msg)
-            sub.reply(P.ok_frame(request_id, **payload))
+            wait = conn.limiter.allow(self.sessions.monotonic())
+            if wait:
+                raise RateLimited(
+                    "too many requests on this connection", retry_after=round(wait, 2)
+                )
+            payload = await self._dispatch(conn, msg)
+            sub_reply = P.ok_frame(request_id, **payload)
         except ServeurError as exc:
             if exc.request_id is None:
                 exc.request_id = request_id
-            sub.reply(P.error_frame(exc.request_id, exc))
+            sub_reply = P.error_frame(exc.request_id, exc)
+            await self._audit(conn, msg, exc.code)
         except Exception as exc:  # a bug must cost one request, not the connection
             log.exception("internal error handling a request")
             err = ServeurError(f"internal error: {type(exc).__name__}")
-            sub.reply(P.error_frame(request_id, err))
+            sub_reply = P.error_frame(request_id, err)
+            await self._audit(conn, msg, err.code)
+        else:
+            await self._audit(conn, msg, "ok")
+        conn.sub.reply(sub_reply)
+        if conn.close_after is not None:
+            conn.sub.close_after_replies(*conn.close_after)
 
-    async def _data(self, sub: Subscriber, msg: Any) -> dict[str, Any]:
+    async def _dispatch(self, conn: _Conn, msg: Any) -> dict[str, Any]:
+        if msg.clientmsg == "login":
+            return await self._login(conn, msg)
+        p = conn.principal
+        if p is not None and p.expired(self.core.clock.epoch()):
+            self.sessions.unbind(p, conn.ws.close)
+            conn.principal = None
+            conn.close_after = (CLOSE_AUTH, "session expired")
+            raise Unauthorized("session expired: log in again")
+        authorize(p, msg)
+        if msg.clientmsg == "logout":
+            assert p is not None
+            self.sessions.unbind(p, conn.ws.close)
+            conn.principal = None
+            self.core.hub.unsubscribe(conn.sub, list(conn.sub.topics))
+            await self.sessions.logout(p)
+            return {"session": None}
+        if msg.clientmsg == "data":
+            return await self._data(conn, msg)
+        return await self.core.handle(msg)
+
+    async def _login(self, conn: _Conn, msg: P.LoginMsg) -> dict[str, Any]:
+        p, token = await self.sessions.login(msg, conn.peer)
+        self._become(conn, p)
+        session = p.public()
+        if token is not None:
+            session["token"] = token
+        return {"session": session}
+
+    async def _audit(self, conn: _Conn, msg: Any, outcome: str) -> None:
+        """Record who asked what from where. Not recorded: unreadable frames, reads and
+        teleop frames that went through, and an anonymous connection's requests other than
+        ``login`` (an unauthenticated flood must not fill the trail; failed logins do go in).
+        """
+        if msg is None:
+            return
+        verb = msg.clientmsg
+        refused = outcome in ("forbidden", "unauthorized")
+        if conn.principal is None and verb != "login":
+            return
+        if not refused and (
+            verb in self.security.unaudited or (verb == "control" and msg.action == "teleop")
+        ):
+            return
+        p = conn.principal
+        target = getattr(msg, "robot", None) or getattr(msg, "name", None)
+        if target is None and getattr(msg, "table", None) is not None:
+            target = msg.table
+        data: dict[str, Any] = {}
+        for k in ("type", "action", "dish", "orders", "waypoint", "x", "y", "username"):
+            v = getattr(msg, k, None)
+            if v is not None:
+                data[k] = v
+        await self.sessions.audit(p, conn.peer, verb, outcome, target=target, data=data)
+
+    async def _data(self, conn: _Conn, msg: Any) -> dict[str, Any]:
+        sub = conn.sub
         topics: list[str] = list(msg.topics)
         for t in topics:
             if t not in _STATE_TOPICS:
@@ -140,5 +333,17 @@ class Server:
             self.core.hub.unsubscribe(sub, topics)
             return {"data": {}}
         self.core.hub.subscribe(sub, topics)
-        snapshot = {t: await self.core.snapshot(t) for t in topics}
+        snapshot = {t: await self._snapshot(t) for t in topics}
+        view = sub.view
+        if view is not None:
+            snapshot = {
+                t: [r for r in snap if view(t, r)] if isinstance(snap, list) else snap
+                for t, snap in snapshot.items()
+            }
         return {"data": snapshot}
+
+    async def _snapshot(self, topic: str) -> Any:
+        if topic == "audit":
+            last = await self.core.store.last_audit_id()
+            return await self.core.store.list_audit(since_id=max(0, last - 100))
+        return await self.core.snapshot(topic)

@@ -48,6 +48,7 @@ from serveur.domain import (
 )
 from serveur.errors import InvalidField, StoreError
 from serveur.status import RobotMode, RobotStatus
+from serveur.store_accounts import AccountsMixin, SqlTx, TokenRecord, UserRecord
 
 if TYPE_CHECKING:
     from serveur.store_sqlite import SQLiteStore
@@ -56,7 +57,10 @@ __all__ = [
     "DIALECTS",
     "Migration",
     "SQLiteStore",
+    "SqlTx",
     "Store",
+    "TokenRecord",
+    "UserRecord",
     "check_finite",
     "check_text",
     "check_trips",
@@ -129,7 +133,7 @@ def load_migrations(dialect: str) -> list[Migration]:
     return history
 
 
-class Store(ABC):
+class Store(AccountsMixin, ABC):
     """The restaurant's persistent state. Use as ``async with open_store(url) as store:``.
 
     Errors: :class:`~serveur.errors.NotFound` for a missing robot/waypoint/order/task,

@@ -21,9 +21,9 @@ import asyncio
 import contextlib
 import os
 import sqlite3
-from collections.abc import Collection, Mapping
+from collections.abc import Awaitable, Callable, Collection, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from serveur.domain import EventRecord, Order, OrderStatus, Robot, WaypointRecord
 from serveur.errors import Conflict, InvalidField, NotFound, StoreError
@@ -41,10 +41,36 @@ from serveur.mariadb_rows import (
     sql_in,
 )
 from serveur.status import RobotMode, RobotStatus
-from serveur.store import check_finite, check_text, digest, status_values, to_json
+from serveur.store import SqlTx, check_finite, check_text, digest, status_values, to_json
 from serveur.store_mariadb_tasks import MariaDBTasks
 
 __all__ = ["MAX_NAME", "MariaDBStore"]
+
+
+T = TypeVar("T")
+
+
+class _PortableTx:
+    """:class:`~serveur.store.SqlTx` over a MariaDB transaction: ``?`` becomes ``%s``.
+
+    Only for the portable account SQL, which has no ``?`` or ``%`` inside string literals.
+    """
+
+    def __init__(self, db: Tx) -> None:
+        self._db = db
+
+    @staticmethod
+    def _sql(sql: str) -> str:
+        return sql.replace("%", "%%").replace("?", "%s")
+
+    async def all(self, sql: str, params: Sequence[Any] = ()) -> list[dict[str, Any]]:
+        return await self._db.all(self._sql(sql), params)
+
+    async def run(self, sql: str, params: Sequence[Any] = ()) -> int:
+        return await self._db.run(self._sql(sql), params)
+
+    async def insert(self, sql: str, params: Sequence[Any]) -> int:
+        return await self._db.insert(self._sql(sql), params)
 
 
 class MariaDBStore(MariaDBTasks):
@@ -74,6 +100,12 @@ class MariaDBStore(MariaDBTasks):
         await self._db.close()
 
     # -- robots -------------------------------------------------------------------------
+
+    async def _portable(self, work: Callable[[SqlTx], Awaitable[T]], *, write: bool) -> T:
+        async def run(db: Tx) -> T:
+            return await work(_PortableTx(db))
+
+        return await (self._db.write(run) if write else self._db.read(run))
 
     async def add_robot(
         self, name: str, url: str, *, home: str | None, kinematics: str = "omni", now: float

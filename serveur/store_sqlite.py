@@ -22,10 +22,10 @@ import os
 import re
 import sqlite3
 import time
-from collections.abc import AsyncIterator, Collection, Mapping, Sequence
+from collections.abc import AsyncIterator, Awaitable, Callable, Collection, Mapping, Sequence
 from contextlib import asynccontextmanager
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, TypeVar
 
 import aiosqlite
 
@@ -43,6 +43,7 @@ from serveur.domain import (
 from serveur.errors import Conflict, InvalidField, NotFound, StoreError
 from serveur.status import RobotMode, RobotStatus
 from serveur.store import (
+    SqlTx,
     Store,
     check_finite,
     check_text,
@@ -143,6 +144,25 @@ def _event_record(row: Any) -> EventRecord:
     fields = dict(row)
     fields["data"] = json.loads(fields["data"])
     return EventRecord(**fields)
+
+
+T = TypeVar("T")
+
+
+class _PortableTx:
+    """:class:`~serveur.store.SqlTx` over aiosqlite: rows as dicts."""
+
+    def __init__(self, db: aiosqlite.Connection) -> None:
+        self._db = db
+
+    async def all(self, sql: str, params: Sequence[Any] = ()) -> list[dict[str, Any]]:
+        return [dict(r) for r in await _all(self._db, sql, params)]
+
+    async def run(self, sql: str, params: Sequence[Any] = ()) -> int:
+        return await _run(self._db, sql, params)
+
+    async def insert(self, sql: str, params: Sequence[Any]) -> int:
+        return await _insert(self._db, sql, params)
 
 
 class SQLiteStore(Store):
@@ -278,6 +298,10 @@ class SQLiteStore(Store):
                 # aiosqlite's "Connection closed", or a row the domain records refuse (pydantic
                 # errors are ValueErrors): either way the database, not the request, is wrong.
                 raise StoreError(f"database error: {exc}") from exc
+
+    async def _portable(self, work: Callable[[SqlTx], Awaitable[T]], *, write: bool) -> T:
+        async with self._tx("write" if write else "read") as db:
+            return await work(_PortableTx(db))
 
     async def _event(
         self,

@@ -140,13 +140,16 @@ class Restaurant:
     #: How this restaurant's server is built: (db, clock, specs, port) -> App.
     make: Callable[[Path | str, ScaledClock, list[RobotSpec], int], App] = lambda *a: make_app(*a)
 
+    #: A staff token made at start (the database keeps it across restart_server).
+    token: str = ""
+
     def auth_headers(self) -> dict[str, str]:
         """Handshake headers that authenticate a raw ``connect(self.app.url, ...)`` as staff.
 
         Use :meth:`client` where you can; a test that needs its own connection passes
         ``additional_headers=r.auth_headers()``.
         """
-        return {}
+        return {"Authorization": f"Bearer {self.token}"}
 
     async def client(self) -> Client:
         c = Client(
@@ -198,6 +201,7 @@ async def restaurant(
     app = make_app(db, clock, specs)
     await app.start()
     r = Restaurant(app, sim, clock, db, specs, [])
+    r.token = await app.issue_token("staff", label="tests")
     try:
         yield r
     finally:

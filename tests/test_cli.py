@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import json
 import os
+import re
 import signal
 import socket
 import sys
@@ -81,7 +82,17 @@ async def test_demo_runs_the_restaurant_and_stops_on_sigterm(tmp_path: Path) -> 
         out = await read_until(proc, "Ctrl-C")
         assert f"ws://127.0.0.1:{port}/ws" in out
         assert "robot r1" in out and "robot r2" in out
+        # The demo prints its credentials: log in with the staff password it shows.
+        password = re.search(r"log in as staff / (\S+)", out)
+        assert password, out
         async with connect(f"ws://127.0.0.1:{port}/ws") as ws:
+            await ws.send(json.dumps({"clientmsg": "data", "id": 0, "topics": ["robots"]}))
+            refused = json.loads(await asyncio.wait_for(ws.recv(), 10))
+            assert refused["code"] == "unauthorized"
+            login = {"clientmsg": "login", "username": "staff", "password": password[1]}
+            await ws.send(json.dumps(login))
+            session = json.loads(await asyncio.wait_for(ws.recv(), 10))
+            assert session["session"]["role"] == "staff", session
             await ws.send(
                 json.dumps({"clientmsg": "data", "id": 1, "topics": ["robots", "waypoints"]})
             )

@@ -353,6 +353,8 @@ def test_any_finite_yaw_lands_in_half_open_pi_range(yaw: float) -> None:
 
 def test_action_of_and_robot_of() -> None:
     expected = {
+        "login": (None, None),
+        "logout": (None, None),
         "data": (None, None),
         "create waypoint": (None, None),
         "create waypoint robot": (Action.SAVE_WAYPOINT, "r1"),

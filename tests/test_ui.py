@@ -76,13 +76,14 @@ async def browser() -> AsyncIterator[Any]:
 class Screens:
     """Pages of one browser context, each recording its console errors and uncaught exceptions."""
 
-    def __init__(self, browser: Any, base: str) -> None:
+    def __init__(self, browser: Any, base: str, token: str = "") -> None:
         self.browser = browser
         self.base = base
+        self.token = token  # given to each page by its setup link (#token=...), as on a device
         self.errors: list[str] = []
         self.sent: list[dict[str, Any]] = []  # every message the pages sent on their websockets
 
-    async def open(self, path: str, ws_route: Any = None) -> Any:
+    async def open(self, path: str, ws_route: Any = None, *, online: bool = True) -> Any:
         # One context (window) per screen, as on separate devices: a second tab in the same
         # window would be a hidden tab, whose animation frames Chromium pauses.
         context = await self.browser.new_context(viewport=TABLET)
@@ -99,8 +100,9 @@ class Screens:
         page.on(
             "websocket", lambda ws: ws.on("framesent", lambda f: self.sent.append(json.loads(f)))
         )
-        await page.goto(self.base + path)
-        await expect(page.locator("body")).to_have_attribute("data-connection", "online")
+        await page.goto(self.base + path + (f"#token={self.token}" if self.token else ""))
+        if online:
+            await expect(page.locator("body")).to_have_attribute("data-connection", "online")
         return page
 
     def assert_no_errors(self, allowed: re.Pattern[str] | None = None) -> None:
@@ -134,6 +136,7 @@ async def ui_restaurant(tmp_path: Path, robots: int = 1) -> AsyncIterator[Restau
     r = Restaurant(ui_app(db, clock, specs), sim, clock, db, specs, [], make=ui_app)
     try:
         await r.app.start()
+        r.token = await r.app.issue_token("staff", label="ui tests")
         yield r
     finally:
         for c in r.clients:
@@ -172,7 +175,7 @@ async def test_a_whole_delivery_by_clicking(tmp_path: Path, browser: Any) -> Non
         # Other dishes already waiting at the pass; they stay pending throughout.
         for dish, tbl in [("Satay", "T7"), ("Teh tarik", "T3"), ("Rendang", "T12")]:
             await c.ok("create", type="order", dish=dish, table=tbl)
-        screens = Screens(browser, http_base(r))
+        screens = Screens(browser, http_base(r), r.token)
         staff = await screens.open("/")
         robot = await screens.open("/robot/r1")
         table = await screens.open("/table/T3")
@@ -248,7 +251,7 @@ async def test_stop_then_cancel_with_confirmation(tmp_path: Path, browser: Any) 
         await c.status("r1", "Ready")
         await c.ok("control", robot="r1", action="auto")
         oid = (await c.ok("create", type="order", dish="Curry", table="T16"))["order"]["id"]
-        screens = Screens(browser, http_base(r))
+        screens = Screens(browser, http_base(r), r.token)
         staff = await screens.open("/")
         robot = await screens.open("/robot.html?robot=r1")
         await c.ok("create", type="task", orders=[oid])
@@ -347,7 +350,7 @@ async def test_calibrate_move_here_teleop_and_waypoints(tmp_path: Path, browser:
     async with ui_restaurant(tmp_path) as r:
         c = await staff_client(r)
         m = (await c.ok("data", topics=["map"]))["data"]["map"]
-        screens = Screens(browser, http_base(r))
+        screens = Screens(browser, http_base(r), r.token)
         staff = await screens.open("/")
         await expect(staff.get_by_role("button", name="Take control r1")).to_be_visible()
         await staff.get_by_role("button", name="Take control r1").click()
@@ -444,7 +447,7 @@ async def test_calibrate_move_here_teleop_and_waypoints(tmp_path: Path, browser:
 
 async def test_pages_reconnect_after_a_server_restart(tmp_path: Path, browser: Any) -> None:
     async with ui_restaurant(tmp_path) as r:
-        screens = Screens(browser, http_base(r))
+        screens = Screens(browser, http_base(r), r.token)
         staff = await screens.open("/")
         robot = await screens.open("/robot/r1")
         table = await screens.open("/table/T5")
@@ -473,7 +476,7 @@ async def test_server_refusals_are_shown_and_gaps_resync(tmp_path: Path, browser
     async with ui_restaurant(tmp_path) as r:
         c = await staff_client(r)
         await c.status("r1", "Ready")
-        screens = Screens(browser, http_base(r))
+        screens = Screens(browser, http_base(r), r.token)
         # A lagging tablet: the page's websocket goes through a relay that can drop updates.
         held = {"on": False}
 
@@ -514,3 +517,42 @@ async def test_server_refusals_are_shown_and_gaps_resync(tmp_path: Path, browser
         await expect(dialog).to_have_count(0)
         assert c.records["waypoints"]["T1"]["x"] == WAYPOINTS["T1"].x
         screens.assert_no_errors()
+
+
+async def test_logging_in_and_out_and_screen_setup_links(tmp_path: Path, browser: Any) -> None:
+    async with ui_restaurant(tmp_path) as r:
+        password = r.app.first_owner_password
+        assert password
+        screens = Screens(browser, http_base(r))  # a fresh device: no token yet
+        staff = await screens.open("/", online=False)
+        form = staff.get_by_role("dialog").filter(has_text="Log in to serveur")
+        await expect(form).to_be_visible()
+        await form.get_by_label("Login").fill("owner")
+        await form.get_by_label("Password").fill("not the password")
+        await form.get_by_role("button", name="Log in").click()
+        await expect(form.get_by_role("alert")).to_have_text("Wrong user name, password or token.")
+        await form.get_by_label("Password").fill(password)
+        await form.get_by_role("button", name="Log in").click()
+        await expect(staff.locator("body")).to_have_attribute("data-connection", "online")
+        await expect(form).to_be_hidden()
+        await expect(staff.get_by_test_id("who")).to_have_text("owner (owner)")
+        await expect(staff.get_by_role("button", name="Take control r1")).to_be_visible()
+        # The session survives a reload (kept in this browser), and ends with "Log out".
+        await staff.reload()
+        await expect(staff.locator("body")).to_have_attribute("data-connection", "online")
+        await staff.get_by_role("button", name="Log out").click()
+        await expect(form).to_be_visible()
+        await staff.reload()
+        await expect(form).to_be_visible()
+
+        # A robot screen set up by its link: the token leaves the address at once, and the
+        # screen offers only what a robot screen may do.
+        screens.token = await r.app.issue_token("robot-screen", robot="r1")
+        robot = await screens.open("/robot/r1")
+        assert "token" not in robot.url
+        await expect(robot.get_by_text("Staff can activate me from the console.")).to_be_visible()
+        await expect(robot.get_by_role("button", name="Activate this robot")).to_have_count(0)
+        screens.token = await r.app.issue_token("table-screen", table="T3")
+        table = await screens.open("/table/T3")
+        assert "token" not in table.url
+        screens.assert_no_errors(re.compile("401|4001|Unauthorized", re.I))

@@ -51,8 +51,13 @@ function view(robot) {
     case "Ready":
       return [
         el("p", { class: "hello" }, `Hello, I'm ${name}`),
-        bigButton("Activate this robot", (b) => act(b, () => request({ clientmsg: "control", action: "auto" }))),
-        el("p", { class: "sub" }, "to deliver orders"),
+        // Activating is staff's call (the screen's own token may not); staff logged in here may.
+        ...(conn.session && conn.session.scopes.includes("control")
+          ? [
+              bigButton("Activate this robot", (b) => act(b, () => request({ clientmsg: "control", action: "auto" }))),
+              el("p", { class: "sub" }, "to deliver orders"),
+            ]
+          : [el("p", { class: "sub" }, "Staff can activate me from the console.")]),
       ];
     case "Awaiting":
       return [el("p", { class: "hello" }, `Hello, I'm ${name}`), el("h1", {}, "Awaiting orders")];
@@ -146,6 +151,7 @@ live.addEventListener("change", (e) => {
   if (e.detail.topic === "orders") cartFor = ""; // a dish changed: ask again for this stop
   if (["robots", "tasks", "orders"].includes(e.detail.topic)) render();
 });
+conn.addEventListener("session", () => render()); // what this screen may do depends on who it is
 if (!name) render();
 conn.subscribe(["robots", "tasks", "orders"]);
 conn.start();

@@ -134,6 +134,67 @@ export function watchConnection(conn) {
     timer = setInterval(show, 500);
   });
   conn.addEventListener("problem", (e) => showError(e.detail.error));
+  loginForm(conn);
+}
+
+/**
+ * The login form, shown whenever the connection needs credentials: a person's user name and
+ * password, or a device token (robot and table screens; usually given once by a
+ * `#token=...` setup link instead).
+ */
+function loginForm(conn) {
+  const why = el("p", { class: "login-why", role: "alert" });
+  const user = el("input", { name: "username", autocomplete: "username", required: true });
+  const pass = el("input", { name: "password", type: "password", autocomplete: "current-password", required: true });
+  const token = el("input", { name: "token", autocomplete: "off", placeholder: "srv_…" });
+  const form = el(
+    "form",
+    { class: "login", "aria-label": "Log in" },
+    el("h2", {}, "Log in to serveur"),
+    why,
+    el("label", {}, "Login", user),
+    el("label", {}, "Password", pass),
+    el("button", { type: "submit", class: "primary" }, "Log in"),
+    el(
+      "details",
+      {},
+      el("summary", {}, "This is a robot or table screen"),
+      el("label", {}, "Screen token", token),
+      el("button", { type: "button", class: "use-token" }, "Use token"),
+    ),
+  );
+  const dialog = el("dialog", { class: "login-dialog" }, form);
+  document.body.append(dialog);
+  dialog.addEventListener("cancel", (e) => e.preventDefault()); // no way around it but logging in
+  form.addEventListener("submit", (e) => {
+    e.preventDefault();
+    why.textContent = "Logging in…";
+    conn.login({ username: user.value.trim(), password: pass.value });
+    pass.value = "";
+  });
+  form.querySelector(".use-token").addEventListener("click", () => {
+    if (!token.value.trim()) return;
+    why.textContent = "Logging in…";
+    conn.login({ token: token.value.trim() });
+    token.value = "";
+  });
+  conn.addEventListener("login", (e) => {
+    const err = e.detail.error;
+    why.textContent = !err
+      ? ""
+      : err.code === "unauthorized"
+        ? "Wrong user name, password or token."
+        : err.code === "rate_limited"
+          ? `Too many attempts: wait ${Math.ceil(err.details?.retry_after ?? 1)} s and try again.`
+          : describeError(err);
+    if (!dialog.open) dialog.showModal();
+    (err && err.code !== "unauthorized" ? pass : user).focus();
+  });
+  conn.addEventListener("session", (e) => {
+    document.body.dataset.role = e.detail.session.role;
+    if (dialog.open) dialog.close();
+    why.textContent = "";
+  });
 }
 
 export function formatDuration(seconds) {

@@ -3,7 +3,14 @@
 //
 // Events (an EventTarget): "state" {state: "connecting"|"online"|"offline", retryIn},
 // "snapshot" {data} (a fresh {topic: snapshot} that replaces what the page has),
-// "update" {topic, data}, "problem" {error} (something failed that no caller is awaiting).
+// "update" {topic, data}, "problem" {error} (something failed that no caller is awaiting),
+// "login" {error} (credentials are needed: show the login form; `error` says why, or null),
+// "session" {session} (logged in: who this page is).
+//
+// Authentication (docs/protocol.md "Authentication"): every connection starts with a `login`.
+// The token is kept in localStorage: a session token from a password login (a shift long),
+// or a screen's device token, given once in the address as `#token=...` (a fragment is never
+// sent to the server nor written to its logs) and removed from the address at once.
 
 const BACKOFF_MIN_MS = 250;
 const BACKOFF_MAX_MS = 5000;
@@ -17,6 +24,34 @@ export class ServerError extends Error {
     this.code = code;
     this.details = details;
   }
+}
+
+const TOKEN_KEY = "serveur.token";
+const CLOSE_AUTH = 4001;
+
+export function loadToken() {
+  try {
+    return window.localStorage.getItem(TOKEN_KEY);
+  } catch {
+    return null; // storage disabled: log in on every visit
+  }
+}
+
+export function saveToken(token) {
+  try {
+    if (token) window.localStorage.setItem(TOKEN_KEY, token);
+    else window.localStorage.removeItem(TOKEN_KEY);
+  } catch {
+    /* storage disabled */
+  }
+}
+
+/** A `#token=...` in the address (a screen's setup link) is stored and wiped from the address. */
+function adoptTokenFromAddress(loc = window.location) {
+  const m = /(?:^#|&)token=([^&]+)/.exec(loc.hash);
+  if (!m) return;
+  saveToken(decodeURIComponent(m[1]));
+  window.history.replaceState(null, "", loc.pathname + loc.search);
 }
 
 export function defaultUrl(loc = window.location) {
@@ -36,11 +71,73 @@ export class Connection extends EventTarget {
     this._lastSeq = 0;
     this._attempt = 0;
     this._retryTimer = null;
+    this.session = null;
+    this._creds = null; // credentials typed in the login form, sent when the socket is open
   }
 
   start() {
+    adoptTokenFromAddress();
     this._open();
     return this;
+  }
+
+  /** Log in with {username, password} or {token} (from the login form). */
+  login(creds) {
+    this._creds = creds;
+    if (this._ws && this._ws.readyState === WebSocket.OPEN) this._authenticate();
+  }
+
+  /** End the session here (and for good, for a password session); shows the login form. */
+  async logout() {
+    try {
+      await this.request({ clientmsg: "logout" });
+    } finally {
+      saveToken(null);
+      this.session = null;
+      this._setState("connecting");
+      this._emit("login", { error: null });
+    }
+  }
+
+  _authenticate() {
+    const creds = this._creds || (loadToken() ? { token: loadToken() } : null);
+    this._creds = null;
+    if (!creds) {
+      this._emit("login", { error: null });
+      return;
+    }
+    const id = this._nextId++;
+    const entry = {
+      msg: { clientmsg: "login", id, ...creds },
+      resend: false,
+      sent: false,
+      timer: null,
+      resolve: (reply) => {
+        if (reply.session.token) saveToken(reply.session.token);
+        this.session = reply.session;
+        this._attempt = 0;
+        this._lastSeq = 0; // seq counts per connection
+        this._emit("session", { session: reply.session });
+        this._setState("online");
+        if (this.topics.size) this._sendData(this.topics);
+        for (const e of this._pending.values()) if (!e.sent) this._send(e);
+      },
+      reject: (err) => {
+        if (err.code === "connection_lost") return; // the reconnect logs in again
+        if (err.code === "timeout") {
+          if (this._ws) this._ws.close();
+          return;
+        }
+        if (err.code === "unauthorized" && !creds.password) saveToken(null);
+        this._emit("login", { error: err });
+      },
+    };
+    entry.timer = setTimeout(() => {
+      this._pending.delete(id);
+      entry.reject(new ServerError("timeout", "The server did not answer in time."));
+    }, REPLY_TIMEOUT_MS);
+    this._pending.set(id, entry);
+    this._send(entry);
   }
 
   /** Subscribe to more topics; the reply's snapshot is emitted as a "snapshot" event. */
@@ -111,17 +208,14 @@ export class Connection extends EventTarget {
       return;
     }
     this._ws = ws;
-    ws.onopen = () => {
-      this._attempt = 0;
-      this._lastSeq = 0; // seq counts per connection
-      this._setState("online");
-      if (this.topics.size) this._sendData(this.topics);
-      for (const entry of this._pending.values()) if (!entry.sent) this._send(entry);
-    };
+    ws.onopen = () => this._authenticate(); // "online" once the server knows who we are
     ws.onmessage = (ev) => this._receive(ev.data);
-    ws.onclose = () => {
+    ws.onclose = (ev) => {
       if (this._ws !== ws) return;
       this._ws = null;
+      // Session expired or revoked (not merely "too slow to log in"): forget the token.
+      if (ev.code === CLOSE_AUTH && this.session) saveToken(null);
+      this.session = null;
       this._dropInFlight();
       this._scheduleRetry();
     };

@@ -2,7 +2,7 @@
 
 import { Connection } from "../ws.js";
 import { Live } from "../live.js";
-import { watchConnection } from "../ui.js";
+import { el, showError, watchConnection } from "../ui.js";
 import { MapView } from "../map/view.js";
 import { RobotsPanel } from "./robots.js";
 import { MapTools } from "./maptools.js";
@@ -14,6 +14,16 @@ import { NewOrderPanel } from "./neworder.js";
 const conn = new Connection();
 const live = new Live(conn);
 watchConnection(conn);
+
+// Who is logged in, and the way out (a shared tablet at the pass changes hands).
+const who = el("span", { class: "who muted", "data-testid": "who" });
+const logout = el("button", { class: "logout", type: "button" }, "Log out");
+document.querySelector(".topbar").append(who, logout);
+conn.addEventListener("session", (e) => {
+  const s = e.detail.session;
+  who.textContent = s.user ? `${s.user} (${s.role})` : s.role;
+});
+logout.addEventListener("click", () => conn.logout().catch(showError));
 
 // Which robot the map's scan, the tools, teleop and waypoints act on.
 const selection = {
