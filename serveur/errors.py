@@ -22,6 +22,7 @@ __all__ = [
     "RosbridgeError",
     "ServeurError",
     "StoreError",
+    "TlsError",
     "UnknownMessage",
     "Unreachable",
 ]
@@ -117,3 +118,12 @@ class LinkError(ServeurError):
     """The link to a robot is down or the robot did not answer in time."""
 
     code = "link_error"
+
+
+class TlsError(ServeurError):
+    """A certificate, key or CA file cannot be used (missing, unreadable, not PEM, mismatched).
+
+    Raised while starting up, never in a client's reply: a server or simulator that was asked
+    for TLS must refuse to start rather than quietly serve in the clear. Since no client ever
+    sees it, it adds no protocol error code (it keeps the root's ``internal_error``).
+    """
