@@ -11,6 +11,7 @@ from __future__ import annotations
 import http
 import json
 import logging
+import ssl as ssl_module
 from typing import Any
 
 import websockets
@@ -46,12 +47,25 @@ def _http(status: http.HTTPStatus, body: bytes, content_type: str) -> Response:
 
 
 class Server:
-    """Serves ``/ws`` for clients and HTTP for everything else, on one port."""
+    """Serves ``/ws`` for clients and HTTP for everything else, on one port.
 
-    def __init__(self, core: Core, *, host: str = "127.0.0.1", port: int = 8765) -> None:
+    With ``ssl`` (see :func:`serveur.tls.server_context`) that port speaks only TLS: the web UI
+    is https and /ws is wss, so a tablet that loaded the page over https opens its socket with
+    the same certificate, and nothing is ever accepted in the clear.
+    """
+
+    def __init__(
+        self,
+        core: Core,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 8765,
+        ssl: ssl_module.SSLContext | None = None,
+    ) -> None:
         self.core = core
         self.host = host
         self.port = port
+        self.ssl = ssl
         self._ws: WsServer | None = None
         self.connections = 0
         self._site = default_site()  # the web UI's files, read once at start, never per request
@@ -67,14 +81,16 @@ class Server:
             ping_interval=20,
             ping_timeout=20,
             compression=None,
+            ssl=self.ssl,
         )
         sock = next(iter(self._ws.sockets))
         self.port = sock.getsockname()[1]
-        log.info("serving ws://%s:%d/ws", self.host, self.port)
+        log.info("serving %s", self.url)
 
     @property
     def url(self) -> str:
-        return f"ws://{self.host}:{self.port}/ws"
+        scheme = "wss" if self.ssl is not None else "ws"
+        return f"{scheme}://{self.host}:{self.port}/ws"
 
     async def close(self) -> None:
         if self._ws is not None:
