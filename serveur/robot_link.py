@@ -116,7 +116,7 @@ class RobotLink:
         self._open_timeout = open_timeout
         # Only for wss:// (websockets refuses a context for ws://); None there means the
         # system trust store, which websockets' own default context uses.
-        self._ssl = ssl if url.startswith("wss://") else None
+        self._ssl = ssl if url[:6].lower() == "wss://" else None
         self._ws: ClientConnection | None = None
         self._task: asyncio.Task[None] | None = None
         self._goal: _Goal | None = None

@@ -258,6 +258,21 @@ async def test_robot_over_wss_becomes_ready_and_delivers(tmp_path: Path, pki: Pk
         await c.status("r1", "Delivered")
 
 
+async def test_robot_added_from_the_console_over_wss(tmp_path: Path, pki: Pki) -> None:
+    """A robot created at run time gets the same robot CA as the ones on the command line."""
+    from serveur.robot_sim import start_simulation
+
+    async with tls_restaurant(tmp_path, server_tls=pki.server(), robot_tls=pki.client()) as r:
+        c = await tls_client(r, pki.client())
+        await c.subscribe("robots")
+        async with await start_simulation(
+            1, port=0, clock=r.clock, names=["r2"], ssl=pki.server()
+        ) as sim:
+            url = sim.urls[0].replace("wss://", "WSS://", 1)  # schemes are case-insensitive
+            await c.ok("create", type="robot", name="r2", url=url, home="home2")
+            await c.status("r2", "Ready")
+
+
 class _LinkLog(logging.Handler):
     """Collects serveur.robot_link records and wakes a waiter (the link logs on the loop)."""
 
