@@ -203,6 +203,30 @@ async def test_healthz_and_ui_over_https(tmp_path: Path, pki: Pki) -> None:
         assert status == 200 and b"<html" in body.lower()
 
 
+async def test_staff_console_over_https_opens_wss(tmp_path: Path, pki: Pki) -> None:
+    """The page chooses its socket's scheme from its own: loaded over https, it must use wss
+    (a ws:// socket from an https page is blocked by browsers as mixed content)."""
+    pw = pytest.importorskip("playwright.async_api")
+    from tests.test_ui import CHROMIUM, CHROMIUM_ARGS
+
+    if not CHROMIUM.exists():
+        pytest.skip("needs Debian's chromium package")
+    async with tls_restaurant(tmp_path, server_tls=pki.server()) as r, pw.async_playwright() as p:
+        browser = await p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        try:
+            # Chromium does not read our CA file; the certificate checks are the other tests'.
+            context = await browser.new_context(ignore_https_errors=True)
+            page = await context.new_page()
+            web = r.app.url.replace("wss://", "https://", 1).removesuffix("/ws")
+            async with page.expect_websocket(timeout=WAIT * 1000) as opened:
+                await page.goto(web + "/")
+            ws = await opened.value
+            assert ws.url.startswith("wss://"), ws.url
+            await ws.wait_for_event("framereceived", timeout=WAIT * 1000)  # the server answers
+        finally:
+            await browser.close()
+
+
 # -- (b) nothing in the clear, nothing unverified ---------------------------------------------
 
 
