@@ -7,6 +7,7 @@ one way to wire it and the tests exercise the same path that production uses.
 from __future__ import annotations
 
 import logging
+import ssl as ssl_module
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,7 +50,12 @@ def parse_robot_spec(text: str) -> RobotSpec:
 
 
 class App:
-    """A running server. Use ``async with App(...) as app`` or ``start()``/``close()``."""
+    """A running server. Use ``async with App(...) as app`` or ``start()``/``close()``.
+
+    ``ssl`` makes the server's one port TLS-only (https + wss); ``robot_ssl`` is how links
+    verify ``wss://`` robots (None: the system trust store). Both are contexts rather than
+    file names so tests and embedders can build them however they like (serveur.tls).
+    """
 
     def __init__(
         self,
@@ -65,6 +71,8 @@ class App:
         config: CoreConfig | None = None,
         security: SecurityConfig | None = None,
         create_owner: bool = True,
+        ssl: ssl_module.SSLContext | None = None,
+        robot_ssl: ssl_module.SSLContext | None = None,
     ) -> None:
         self.clock = clock or ScaledClock(1.0)
         self.store: Store = open_store(str(db))
@@ -76,6 +84,7 @@ class App:
         self._host, self._port = host, port
         self._security = security
         self._create_owner = create_owner
+        self._ssl, self._robot_ssl = ssl, robot_ssl
         self.core: Core | None = None
         self.sessions: Sessions | None = None
         self.server: Server | None = None
@@ -95,13 +104,17 @@ class App:
             await import_waypoints(self.store, self._waypoints.values(), now=now)
         for spec in self._robots:
             await self._register(spec, now)
-        self.core = Core(self.store, self.clock, config=self._config, nav_map=nav_map)
+        self.core = Core(
+            self.store, self.clock, config=self._config, nav_map=nav_map, robot_ssl=self._robot_ssl
+        )
         await self.core.start()
         self.sessions = Sessions(self.store, self.clock, self._security, hub=self.core.hub)
         if self._create_owner:
             self.first_owner_password = await self.sessions.ensure_owner()
         self.sessions.start()
-        self.server = Server(self.core, self.sessions, host=self._host, port=self._port)
+        self.server = Server(
+            self.core, self.sessions, host=self._host, port=self._port, ssl=self._ssl
+        )
         await self.server.start()
         return self
 

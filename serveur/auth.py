@@ -210,9 +210,7 @@ def _topics(p: Principal, topics: Iterable[str]) -> None:
             raise Forbidden(f"role {p.role.value} may not read topic {t!r}", topic=t)
 
 
-def visible(
-    p: Principal, topic: str, record: Any, task_robot: Callable[[int], str | None]
-) -> bool:
+def visible(p: Principal, topic: str, record: Any, task_robot: Callable[[int], str | None]) -> bool:
     """Does this pushed or snapshot record belong in ``p``'s view of ``topic``?
 
     Staff, owners and integrations see everything they may subscribe to. A robot screen

@@ -14,6 +14,7 @@ import json
 import logging
 import os
 import signal
+import ssl
 import sys
 import tempfile
 from collections.abc import Sequence
@@ -66,9 +67,26 @@ def _add_security_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _tls(ns: argparse.Namespace) -> tuple[ssl.SSLContext | None, ssl.SSLContext | None]:
+    """The server's and the robot links' TLS contexts from ``--certfile/--keyfile`` and
+    ``--robot-cafile`` (None: serve in the clear / the system trust store)."""
+    from serveur.tls import client_context, server_context
+
+    server = server_context(ns.certfile, ns.keyfile) if ns.certfile else None
+    robots = client_context(ns.robot_cafile) if ns.robot_cafile else None
+    return server, robots
+
+
 async def _run(ns: argparse.Namespace) -> int:
     from serveur.app import App, parse_robot_spec
     from serveur.clock import ScaledClock
+    from serveur.errors import ServeurError
+
+    try:
+        tls, robot_tls = _tls(ns)
+    except ServeurError as exc:
+        print(f"serveur run: cannot start: {exc}", file=sys.stderr)
+        return 1
 
     waypoints = None
     if ns.waypoints:
@@ -85,6 +103,8 @@ async def _run(ns: argparse.Namespace) -> int:
         waypoints=waypoints,
         robots=robots,
         security=_security(ns),
+        ssl=tls,
+        robot_ssl=robot_tls,
     )
     await app.start()
     print(f"serveur {__version__} listening on {app.url} (database {ns.db})", flush=True)
@@ -108,9 +128,15 @@ async def _run(ns: argparse.Namespace) -> int:
 async def _demo(ns: argparse.Namespace) -> int:
     from serveur.app import App, RobotSpec
     from serveur.clock import ScaledClock
+    from serveur.errors import ServeurError
     from serveur.navigation import demo_map_path, load_demo
     from serveur.robot_sim import start_simulation
 
+    try:
+        tls, robot_tls = _tls(ns)
+    except ServeurError as exc:
+        print(f"serveur demo: cannot start: {exc}", file=sys.stderr)
+        return 1
     clock = ScaledClock(ns.time_scale)
     nav_map, waypoints = load_demo()
     homes = sorted((w for w in waypoints.values() if w.kind == "home"), key=lambda w: w.name)
@@ -145,6 +171,8 @@ async def _demo(ns: argparse.Namespace) -> int:
         robots=specs,
         security=_security(ns),
         create_owner=False,
+        ssl=tls,
+        robot_ssl=robot_tls,
     )
     try:
         await app.start()
@@ -155,7 +183,7 @@ async def _demo(ns: argparse.Namespace) -> int:
         for spec in specs:
             print(f"  robot {spec.name}: {spec.url} (home {spec.home})")
         print(f"  clients connect to {app.url}")
-        web = app.url.replace("ws://", "http://", 1).removesuffix("/ws")
+        web = app.url.replace("ws", "http", 1).removesuffix("/ws")  # wss:// -> https://
         print(f"  staff console: {web}/")
         print(f"    log in as staff / {creds['staff']}  (owner: owner / {creds['owner']})")
         for spec in specs:
@@ -200,6 +228,18 @@ def _schema(ns: argparse.Namespace) -> int:
     return 0
 
 
+def _add_tls_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--certfile",
+        help="PEM certificate (chain, leaf first): serve https and wss only (needs --keyfile)",
+    )
+    p.add_argument("--keyfile", help="PEM private key of --certfile (unencrypted)")
+    p.add_argument(
+        "--robot-cafile",
+        help="PEM CA bundle that verifies wss:// robot URLs (default: the system trust store)",
+    )
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="serveur", description="Fleet server for restaurant waiter robots"
@@ -228,6 +268,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--waypoints", help="waypoints JSON to import (tables, homes)")
     run.add_argument("--time-scale", type=float, default=1.0)
     _add_security_arguments(run)
+    _add_tls_arguments(run)
     run.set_defaults(func=_run, is_async=True)
 
     demo = sub.add_parser("demo", help="server + simulated robots + the demo restaurant")
@@ -240,6 +281,9 @@ def _parser() -> argparse.ArgumentParser:
     demo.add_argument("--seed", type=int, default=0)
     demo.add_argument("--db", help="database file (default: a fresh temporary one)")
     _add_security_arguments(demo)
+    # The demo's own simulated robots stay on plain ws:// (loopback, same process);
+    # --robot-cafile is for wss:// robots added from the console.
+    _add_tls_arguments(demo)
     demo.set_defaults(func=_demo, is_async=True)
 
     sim = sub.add_parser("sim", help="simulated robots speaking rosbridge v2")
@@ -264,7 +308,11 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ns = _parser().parse_args(argv)
+    parser = _parser()
+    ns = parser.parse_args(argv)
+    if bool(getattr(ns, "certfile", None)) != bool(getattr(ns, "keyfile", None)):
+        # Half a TLS configuration must not silently serve in the clear.
+        parser.error(f"{ns.command}: --certfile and --keyfile go together: give both or neither")
     level = logging.WARNING - 10 * min(ns.verbose, 2) if ns.verbose else logging.INFO
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     try:

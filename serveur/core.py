@@ -24,6 +24,7 @@ import hashlib
 import json
 import logging
 import math
+import ssl
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -103,10 +104,14 @@ class Core:
         *,
         config: CoreConfig | None = None,
         nav_map: Any = None,
+        robot_ssl: ssl.SSLContext | None = None,
     ) -> None:
         self.store = store
         self.clock = clock
         self.config = config or CoreConfig()
+        #: How robot links verify ``wss://`` robots (see serveur.tls.client_context); None:
+        #: the system trust store.
+        self.robot_ssl = robot_ssl
         self.hub = Hub(on_watch=self._on_watch)
         self.dispatcher = Dispatcher(self)
         self._rt: dict[str, _Runtime] = {}
@@ -189,6 +194,7 @@ class Core:
             ack_timeout=self.config.ack_timeout,
             ack_retries=self.config.ack_retries,
             want_map=self._map is None,
+            ssl=self.robot_ssl,
         )
         rt.link.start()
 

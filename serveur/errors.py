@@ -24,6 +24,7 @@ __all__ = [
     "RosbridgeError",
     "ServeurError",
     "StoreError",
+    "TlsError",
     "Unauthorized",
     "UnknownMessage",
     "Unreachable",
@@ -138,3 +139,12 @@ class RateLimited(ServeurError):
     """Too many requests (or failed logins); ``details.retry_after`` says when to try again."""
 
     code = "rate_limited"
+
+
+class TlsError(ServeurError):
+    """A certificate, key or CA file cannot be used (missing, unreadable, not PEM, mismatched).
+
+    Raised while starting up, never in a client's reply: a server or simulator that was asked
+    for TLS must refuse to start rather than quietly serve in the clear. Since no client ever
+    sees it, it adds no protocol error code (it keeps the root's ``internal_error``).
+    """

@@ -16,6 +16,11 @@ Two failure modes users of other fleet managers report are designed out here:
 The link is "up" only once both a status and a pose have arrived, so the server never acts on
 a robot whose position it does not know. Everything the robot sends is treated as untrusted:
 malformed frames are logged and dropped, never allowed to kill the link.
+
+A ``wss://`` robot is verified like any TLS server — its certificate must chain to the given
+CA (or the system store) and name the URL's host — because whoever answers as the robot gets
+to report its position and receive its goals. A robot failing verification stays Offline and
+the link keeps retrying (the certificate may be fixed), logging the reason once, not per try.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import itertools
 import logging
 import math
 import secrets
+import ssl as ssl_module
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -96,6 +102,7 @@ class RobotLink:
         backoff_min: float = 0.2,
         backoff_max: float = 5.0,
         open_timeout: float = 5.0,
+        ssl: ssl_module.SSLContext | None = None,
     ) -> None:
         self.name = name
         self.url = url
@@ -107,6 +114,9 @@ class RobotLink:
         self._want_map = want_map
         self._backoff = (backoff_min, backoff_max)
         self._open_timeout = open_timeout
+        # Only for wss:// (websockets refuses a context for ws://); None there means the
+        # system trust store, which websockets' own default context uses.
+        self._ssl = ssl if url[:6].lower() == "wss://" else None
         self._ws: ClientConnection | None = None
         self._task: asyncio.Task[None] | None = None
         self._goal: _Goal | None = None
@@ -148,6 +158,8 @@ class RobotLink:
 
     async def _run(self) -> None:
         delay = self._backoff[0]
+        tls_failure = ""  # the last TLS failure logged, so a bad certificate is said once
+        tls: dict[str, Any] = {"ssl": self._ssl} if self._ssl is not None else {}
         while True:
             try:
                 async with connect(
@@ -156,15 +168,26 @@ class RobotLink:
                     max_size=16 * 2**20,
                     ping_interval=None,  # the move_base status stream is our heartbeat
                     compression=None,
+                    **tls,
                 ) as ws:
                     self._ws = ws
                     self.connects += 1
                     delay = self._backoff[0]
+                    tls_failure = ""
                     await self._session(ws)
                     reason = "connection closed"
             except asyncio.CancelledError:
                 self._set_down("server shutting down")
                 raise
+            except ssl_module.SSLError as exc:
+                # Not a network blip: retrying will not help until someone fixes a certificate
+                # or --robot-cafile, so tell the operator (once per distinct reason).
+                reason = f"TLS: {exc}"
+                if reason != tls_failure:
+                    tls_failure = reason
+                    log.warning("%s: cannot connect to %s: %s", self.name, self.url, reason)
+                else:
+                    log.debug("%s: cannot connect to %s: %s", self.name, self.url, reason)
             except (OSError, TimeoutError, websockets.exceptions.WebSocketException) as exc:
                 reason = f"{type(exc).__name__}: {exc}"
             finally:

@@ -32,6 +32,7 @@ import math
 import random
 import signal
 import socket
+import ssl as ssl_module
 import sys
 import threading
 from collections import deque
@@ -1170,12 +1171,19 @@ _ROSAPI: Final[dict[str, Callable[[_Client, Any], dict[str, Any]]]] = {
 
 
 class _Endpoint:
-    """The rosbridge websocket server of one robot; can be stopped and restarted on its port."""
+    """The rosbridge websocket server of one robot; can be stopped and restarted on its port.
 
-    def __init__(self, robot: SimRobot, host: str, port: int) -> None:
+    With ``ssl`` it speaks only TLS (``wss://``), as a robot whose rosbridge_server was started
+    with ``ssl:=true`` does, so the server's certificate checks are exercised for real.
+    """
+
+    def __init__(
+        self, robot: SimRobot, host: str, port: int, ssl: ssl_module.SSLContext | None = None
+    ) -> None:
         self.robot = robot
         self.host = host
         self.port = port
+        self.ssl = ssl
         self.server: Server | None = None
         self.clients: set[_Client] = set()
         self.services: dict[str, _Client] = {}
@@ -1183,7 +1191,8 @@ class _Endpoint:
     @property
     def url(self) -> str:
         host = f"[{self.host}]" if ":" in self.host else self.host
-        return f"ws://{host}:{self.port}"
+        scheme = "wss" if self.ssl is not None else "ws"
+        return f"{scheme}://{host}:{self.port}"
 
     async def start(self) -> None:
         if self.server is not None:
@@ -1196,6 +1205,7 @@ class _Endpoint:
             max_size=MAX_FRAME,
             close_timeout=2.0,
             reuse_address=True,
+            ssl=self.ssl,
         )
         if self.port == 0:
             self.port = int(self.server.sockets[0].getsockname()[1])
@@ -1263,7 +1273,7 @@ class Simulation:
 
     @property
     def urls(self) -> list[str]:
-        """ws://host:port of each robot, in robot order."""
+        """ws://host:port (wss:// with TLS) of each robot, in robot order."""
         return [e.url for e in self._endpoints]
 
     async def start(self) -> None:
@@ -1390,11 +1400,13 @@ async def start_simulation(
     seed: int = 0,
     clock: Clock | None = None,
     names: Sequence[str] | None = None,
+    ssl: ssl_module.SSLContext | None = None,
 ) -> Simulation:
     """Start ``n`` robots listening on ports ``port``..``port+n-1`` (0: free ports).
 
     Robot i is named ``names[i]`` or ``r{i+1}``, starts at waypoint ``home{i+1}`` and uses random
     seed ``seed + i``. ``clock`` overrides ``time_scale`` (tests pass a shared ScaledClock).
+    ``ssl`` (a server context, see serveur.tls.server_context) serves every robot over TLS.
     """
     if n < 1:
         raise ValueError("at least one robot")
@@ -1428,7 +1440,7 @@ async def start_simulation(
             plan_lock=plan_lock,
         )
         robots.append(robot)
-        endpoints.append(_Endpoint(robot, host, port + i if port else 0))
+        endpoints.append(_Endpoint(robot, host, port + i if port else 0, ssl))
     sim = Simulation(robots, endpoints, clock)
     await sim.start()
     return sim
@@ -1459,6 +1471,10 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--names", default=None, help="comma-separated robot names (default r1, r2...)"
     )
+    parser.add_argument(
+        "--certfile", default=None, help="PEM certificate (chain): serve wss:// (needs --keyfile)"
+    )
+    parser.add_argument("--keyfile", default=None, help="PEM private key of --certfile")
 
 
 async def run_sim(
@@ -1473,6 +1489,7 @@ async def run_sim(
     names: Sequence[str] | None = None,
     stop: asyncio.Event | None = None,
     out: TextIO | None = None,
+    ssl: ssl_module.SSLContext | None = None,
 ) -> int:
     """Run a simulation until ``stop`` is set or SIGINT/SIGTERM; print the URLs first.
 
@@ -1497,6 +1514,7 @@ async def run_sim(
                 time_scale=time_scale,
                 seed=seed,
                 names=names,
+                ssl=ssl,
             )
         except (OSError, ServeurError, ValueError) as exc:
             print(f"serveur sim: cannot start: {exc}", file=sys.stderr, flush=True)
@@ -1517,6 +1535,19 @@ async def run_sim(
 async def run_sim_from_args(ns: argparse.Namespace) -> int:
     """``serveur sim`` entry point: the options of :func:`add_sim_arguments` -> :func:`run_sim`."""
     names = [s.strip() for s in ns.names.split(",")] if getattr(ns, "names", None) else None
+    ctx = None
+    certfile, keyfile = getattr(ns, "certfile", None), getattr(ns, "keyfile", None)
+    if certfile or keyfile:
+        from serveur.tls import server_context
+
+        if not (certfile and keyfile):
+            print("serveur sim: --certfile and --keyfile go together", file=sys.stderr)
+            return 2
+        try:
+            ctx = server_context(certfile, keyfile)
+        except ServeurError as exc:
+            print(f"serveur sim: cannot start: {exc}", file=sys.stderr, flush=True)
+            return 1
     return await run_sim(
         ns.robots,
         port=ns.port,
@@ -1526,4 +1557,5 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
         time_scale=ns.time_scale,
         seed=ns.seed,
         names=names,
+        ssl=ctx,
     )

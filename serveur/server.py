@@ -13,6 +13,7 @@ import functools
 import http
 import json
 import logging
+import ssl as ssl_module
 from collections import Counter
 from typing import Any
 from urllib.parse import urlsplit
@@ -88,6 +89,10 @@ class Server:
     within ``login_deadline`` seconds), every instruction is checked against the
     connection's role and scopes, requests are rate-limited per connection, and every
     state-changing instruction is audited with who gave it and from where.
+
+    With ``ssl`` (see :func:`serveur.tls.server_context`) that port speaks only TLS: the web UI
+    is https and /ws is wss, so a tablet that loaded the page over https opens its socket with
+    the same certificate, and nothing is ever accepted in the clear.
     """
 
     def __init__(
@@ -97,12 +102,14 @@ class Server:
         *,
         host: str = "127.0.0.1",
         port: int = 8765,
+        ssl: ssl_module.SSLContext | None = None,
     ) -> None:
         self.core = core
         self.sessions = sessions
         self.security = sessions.config
         self.host = host
         self.port = port
+        self.ssl = ssl
         self._ws: WsServer | None = None
         self.connections = 0
         self._per_address: Counter[str] = Counter()
@@ -120,14 +127,16 @@ class Server:
             ping_interval=20,
             ping_timeout=20,
             compression=None,
+            ssl=self.ssl,
         )
         sock = next(iter(self._ws.sockets))
         self.port = sock.getsockname()[1]
-        log.info("serving ws://%s:%d/ws", self.host, self.port)
+        log.info("serving %s", self.url)
 
     @property
     def url(self) -> str:
-        return f"ws://{self.host}:{self.port}/ws"
+        scheme = "wss" if self.ssl is not None else "ws"
+        return f"{scheme}://{self.host}:{self.port}/ws"
 
     async def close(self) -> None:
         if self._ws is not None:

@@ -31,7 +31,7 @@ WEB_ROOT = Path(__file__).with_name("web")
 # websocket: nothing else is needed offline, and nothing else can be injected.
 CONTENT_SECURITY_POLICY = (
     "default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
-    "connect-src 'self' ws:; object-src 'none'; base-uri 'none'; form-action 'self'; "
+    "connect-src 'self' ws: wss:; object-src 'none'; base-uri 'none'; form-action 'self'; "
     "frame-ancestors 'none'"
 )
 SECURITY_HEADERS = (
