@@ -175,7 +175,7 @@ def test_doc_map_example_is_consistent() -> None:
 def test_doc_python_client_compiles() -> None:
     (code,) = _blocks("python")
     compile(code, "docs/protocol.md", "exec")
-    assert 'connect("ws://localhost:8765/ws")' in code
+    assert 'connect("ws://localhost:8765/ws", additional_headers=auth)' in code
 
 
 def test_doc_allowed_actions_table_matches_status_allowed() -> None:
