@@ -315,6 +315,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"{ns.command}: --certfile and --keyfile go together: give both or neither")
     level = logging.WARNING - 10 * min(ns.verbose, 2) if ns.verbose else logging.INFO
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    from serveur.sessions import RedactSecrets
+
+    for handler in logging.getLogger().handlers:  # every record, from any logger, is scrubbed
+        handler.addFilter(RedactSecrets())
     try:
         if ns.is_async:
             return int(asyncio.run(ns.func(ns)))

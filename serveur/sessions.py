@@ -18,6 +18,7 @@ import asyncio
 import contextlib
 import functools
 import logging
+import re
 import time
 from collections.abc import Callable, Coroutine, Sequence
 from dataclasses import dataclass, field
@@ -31,12 +32,51 @@ from serveur.errors import Conflict, InvalidField, ServeurError, Unauthorized
 from serveur.hub import Hub
 from serveur.store import Store, TokenRecord
 
-__all__ = ["CLOSE_AUTH", "SecurityConfig", "Sessions"]
+__all__ = ["CLOSE_AUTH", "RedactSecrets", "SecurityConfig", "Sessions", "install_redaction"]
 
 log = logging.getLogger(__name__)
 
 #: Close code for "authentication needed, expired or revoked": log in again.
 CLOSE_AUTH = 4001
+
+_SECRET = re.compile(
+    r"srv_[A-Za-z0-9_-]{8,}"  # our tokens, wherever they appear
+    r"|(?i:authorization)\s*[:=]\s*\S+(?:\s+\S+)?"  # a header line, whatever the scheme
+    r'|"password"\s*:\s*"(?:[^"\\]|\\.)*"'  # a login frame's password
+)
+
+
+_FRAME_LOG = re.compile(r"^([<>] (?:TEXT|BINARY|CONT)) .*?(\[\d+ bytes\])?$", re.S)
+
+
+class RedactSecrets(logging.Filter):
+    """Scrubs tokens, Authorization headers and JSON passwords from log records.
+
+    websockets logs every handshake header at DEBUG (``serveur -vv``), Authorization included;
+    a frame logged while debugging could hold a login's password. Nothing secret may reach a
+    log file, whatever the level, so the records are rewritten before any handler sees them.
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        text = record.getMessage()
+        frame = _FRAME_LOG.match(text)
+        if frame is not None:
+            # websockets shortens long frames from the middle, which can cut a password's key
+            # off and keep its value: a frame's payload is never logged, only its size.
+            record.msg, record.args = f"{frame[1]} [payload not logged] {frame[2] or ''}", None
+            return True
+        clean = _SECRET.sub("[redacted]", text)
+        if clean != text:
+            record.msg, record.args = clean, None
+        return True
+
+
+def install_redaction() -> None:
+    """Attach :class:`RedactSecrets` to the loggers that could see secrets (idempotent)."""
+    for name in ("websockets", "websockets.server", "websockets.client", "serveur"):
+        logger = logging.getLogger(name)
+        if not any(isinstance(f, RedactSecrets) for f in logger.filters):
+            logger.addFilter(RedactSecrets())
 
 
 @dataclass(frozen=True)
@@ -86,6 +126,7 @@ class Sessions:
         self.throttle = auth.LoginThrottle(free=self.config.free_failures)
         self._live: dict[int, set[Closer]] = {}
         self._sweeper: asyncio.Task[None] | None = None
+        install_redaction()
 
     # -- lifecycle --------------------------------------------------------------------------
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+import logging
 import os
 import sqlite3
 import sys
@@ -410,3 +411,25 @@ async def test_oversized_frames_close_the_connection(tmp_path: Path) -> None:
     async with bare_server(tmp_path) as app, connect(app.url, max_size=None) as ws:
         await ws.send("x" * (65 * 1024))
         assert await closed_code(ws) == 1009
+
+
+async def test_no_secret_reaches_the_logs_even_at_debug(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.DEBUG)
+    async with bare_server(tmp_path) as app:
+        token = await app.issue_token("staff")
+        password = app.first_owner_password
+        assert password
+        async with connect(app.url, additional_headers={"Authorization": f"Bearer {token}"}) as ws:
+            assert (await request(ws, ORDER))["servermsg"] == "ok"
+        async with connect(app.url) as ws:
+            session = (await login(ws, username="owner", password=password))["session"]
+            await login(ws, username="owner", password="a wrong one")
+        assert any(
+            "Authorization" in r.getMessage() or "[redacted]" in r.getMessage()
+            for r in caplog.records
+        ), "websockets logged no handshake: test is blind"
+    text = "\n".join(r.getMessage() for r in caplog.records)
+    for secret in (token, password, session["token"], "a wrong one"):
+        assert secret not in text
