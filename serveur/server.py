@@ -32,11 +32,13 @@ from serveur.hub import Subscriber
 from serveur.sessions import CLOSE_AUTH, Sessions
 from serveur.static import default_site
 
-__all__ = ["MAX_FRAME", "Server"]
+__all__ = ["CLOSE_IDLE", "MAX_FRAME", "Server"]
 
 log = logging.getLogger(__name__)
 
 MAX_FRAME = 64 * 1024
+#: Close code for a connection idle past ``SecurityConfig.idle_timeout``.
+CLOSE_IDLE = 4003
 _STATE_TOPICS = frozenset(P.STATE_TOPICS)
 
 
@@ -67,7 +69,16 @@ def _host_of(ws: ServerConnection) -> str:
 class _Conn:
     """One client connection: its outgoing side, who it is, and its request budget."""
 
-    __slots__ = ("close_after", "deadline", "limiter", "peer", "principal", "sub", "ws")
+    __slots__ = (
+        "active_at",
+        "close_after",
+        "deadline",
+        "limiter",
+        "peer",
+        "principal",
+        "sub",
+        "ws",
+    )
 
     def __init__(self, ws: ServerConnection, sub: Subscriber, limiter: RateLimiter) -> None:
         self.ws = ws
@@ -78,6 +89,7 @@ class _Conn:
         self.deadline: asyncio.Task[None] | None = None
         #: Close with this (code, reason) once the current reply is sent.
         self.close_after: tuple[int, str] | None = None
+        self.active_at = 0.0  # when it connected or last sent a request (monotonic)
 
 
 class Server:
@@ -114,6 +126,8 @@ class Server:
         self.connections = 0
         self._per_address: Counter[str] = Counter()
         self._handshake: dict[ServerConnection, Principal] = {}
+        self._conns: set[_Conn] = set()
+        self._idle_task: asyncio.Task[None] | None = None
         self._site = default_site()  # the web UI's files, read once at start, never per request
 
     async def start(self) -> None:
@@ -131,6 +145,7 @@ class Server:
         )
         sock = next(iter(self._ws.sockets))
         self.port = sock.getsockname()[1]
+        self._idle_task = asyncio.create_task(self._close_idle(), name="idle-connections")
         log.info("serving %s", self.url)
 
     @property
@@ -139,6 +154,9 @@ class Server:
         return f"{scheme}://{self.host}:{self.port}/ws"
 
     async def close(self) -> None:
+        if self._idle_task is not None:
+            self._idle_task.cancel()
+            self._idle_task = None
         if self._ws is not None:
             self._ws.close(close_connections=True)
             await self._ws.wait_closed()
@@ -204,6 +222,8 @@ class Server:
         )
         sub.start()
         self.core.hub.add(sub)
+        conn.active_at = self.sessions.monotonic()
+        self._conns.add(conn)
         principal = self._handshake.pop(ws, None)
         if principal is not None:
             self._become(conn, principal)
@@ -215,6 +235,7 @@ class Server:
         except websockets.exceptions.ConnectionClosed:
             pass
         finally:
+            self._conns.discard(conn)
             if conn.deadline is not None:
                 conn.deadline.cancel()
             if conn.principal is not None:
@@ -224,6 +245,21 @@ class Server:
             self._per_address[host] -= 1
             if self._per_address[host] <= 0:
                 del self._per_address[host]
+
+    async def _close_idle(self) -> None:
+        """Close connections that neither subscribe to anything nor ask anything for
+        ``idle_timeout`` seconds: a script that forgot its socket holds a slot of its address's
+        quota for nothing. Subscribers (screens) are never idle: they are listening."""
+        limit = self.security.idle_timeout
+        while True:
+            await asyncio.sleep(min(30.0, limit / 4))
+            now = self.sessions.monotonic()
+            for conn in list(self._conns):
+                if not conn.sub.topics and now - conn.active_at > limit:
+                    log.info("closing idle connection %s", conn.peer)
+                    asyncio.get_running_loop().create_task(
+                        conn.ws.close(CLOSE_IDLE, "idle: nothing subscribed, nothing asked")
+                    )
 
     async def _login_deadline(self, conn: _Conn) -> None:
         await asyncio.sleep(self.security.login_deadline)
@@ -250,7 +286,8 @@ class Server:
         try:
             msg = P.parse_client(frame)
             request_id = msg.id
-            wait = conn.limiter.allow(self.sessions.monotonic())
+            conn.active_at = self.sessions.monotonic()
+            wait = conn.limiter.allow(conn.active_at)
             if wait:
                 raise RateLimited(
                     "too many requests on this connection", retry_after=round(wait, 2)

@@ -87,6 +87,9 @@ class SecurityConfig:
     session_ttl: float = 14 * 3600.0
     #: An unauthenticated connection must log in within this many wall seconds.
     login_deadline: float = 15.0
+    #: A connection with no subscription that sends nothing for this long (wall seconds) is
+    #: closed (code 4003); subscribed screens are never idle.
+    idle_timeout: float = 600.0
     #: Requests per second per connection, on average, and the burst allowed on top.
     rate: float = 50.0
     burst: float = 200.0

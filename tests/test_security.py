@@ -433,3 +433,17 @@ async def test_no_secret_reaches_the_logs_even_at_debug(
     text = "\n".join(r.getMessage() for r in caplog.records)
     for secret in (token, password, session["token"], "a wrong one"):
         assert secret not in text
+
+
+async def test_idle_connections_without_subscriptions_are_closed(tmp_path: Path) -> None:
+    async with bare_server(tmp_path, idle_timeout=0.4) as app:
+        token = await app.issue_token("staff")
+        headers = {"Authorization": f"Bearer {token}"}
+        async with (
+            connect(app.url, additional_headers=headers) as idle,
+            connect(app.url, additional_headers=headers) as listening,
+        ):
+            await request(listening, {"clientmsg": "data", "topics": ["orders"]})
+            assert await closed_code(idle) == 4003
+            # The subscriber is listening, not idle: still served after the idle one is gone.
+            assert (await request(listening, ORDER))["servermsg"] == "ok"
