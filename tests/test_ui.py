@@ -83,7 +83,9 @@ class Screens:
         self.errors: list[str] = []
         self.sent: list[dict[str, Any]] = []  # every message the pages sent on their websockets
 
-    async def open(self, path: str, ws_route: Any = None, *, online: bool = True) -> Any:
+    async def open(
+        self, path: str, ws_route: Any = None, *, online: bool = True, token: str | None = None
+    ) -> Any:
         # One context (window) per screen, as on separate devices: a second tab in the same
         # window would be a hidden tab, whose animation frames Chromium pauses.
         context = await self.browser.new_context(viewport=TABLET)
@@ -100,7 +102,8 @@ class Screens:
         page.on(
             "websocket", lambda ws: ws.on("framesent", lambda f: self.sent.append(json.loads(f)))
         )
-        await page.goto(self.base + path + (f"#token={self.token}" if self.token else ""))
+        token = self.token if token is None else token
+        await page.goto(self.base + path + (f"#token={token}" if token else ""))
         if online:
             await expect(page.locator("body")).to_have_attribute("data-connection", "online")
         return page
@@ -177,9 +180,13 @@ async def test_a_whole_delivery_by_clicking(tmp_path: Path, browser: Any) -> Non
             await c.ok("create", type="order", dish=dish, table=tbl)
         screens = Screens(browser, http_base(r), r.token)
         staff = await screens.open("/")
-        robot = await screens.open("/robot/r1")
-        table = await screens.open("/table/T3")
-        await expect(robot.get_by_role("button", name="Activate this robot")).to_be_visible()
+        # The robot's and the table's screens run on their own device tokens, as deployed.
+        robot_token = await r.app.issue_token("robot-screen", robot="r1")
+        robot = await screens.open("/robot/r1", token=robot_token)
+        table = await screens.open(
+            "/table/T3", token=await r.app.issue_token("table-screen", table="T3")
+        )
+        await expect(robot.get_by_text("Staff can activate me from the console.")).to_be_visible()
         await expect(table.get_by_role("list", name="Ready in the kitchen")).to_have_text(
             "Teh tarik"
         )
