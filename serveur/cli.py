@@ -185,6 +185,9 @@ def _parser() -> argparse.ArgumentParser:
     from serveur.replay import add_replay_parser
 
     add_replay_parser(sub)
+    from serveur.maintenance import add_maintenance_parser
+
+    add_maintenance_parser(sub)
 
     schema = sub.add_parser("schema", help="print the JSON Schema of every message")
     schema.set_defaults(func=_schema, is_async=False)
