@@ -101,3 +101,14 @@ def check_robots(snap: Snapshot) -> None:
                 current = [s for s in snap.stops.values() if s["task_id"] == task_id]
                 current.sort(key=lambda s: s["seq"])
                 assert current[task["current_stop"]]["status"] == "arrived", (r, current)
+
+
+def integrity(db: str | Path) -> str:
+    """SQLite's own verdict on the file: ``"ok"`` or the problems, one per line."""
+    con = sqlite3.connect(db, timeout=30)
+    try:
+        rows = [r[0] for r in con.execute("PRAGMA integrity_check")]
+        rows += [f"foreign key: {r}" for r in con.execute("PRAGMA foreign_key_check")]
+    finally:
+        con.close()
+    return "\n".join(rows)
