@@ -9,9 +9,15 @@ from __future__ import annotations
 import asyncio
 import os
 import random
+from pathlib import Path
 from typing import Any
 
-from serveur.core import Core
+from serveur.app import App, RobotSpec
+from serveur.clock import ScaledClock
+from serveur.core import Core, CoreConfig
+from serveur.mapio import demo_map_path
+from serveur.navigation import load_demo
+from serveur.robot_sim import start_simulation
 from tests import invariants
 from tests.conftest import Client, Restaurant
 from tests.test_e2e import activate, near, new_orders, serve_current_stop, staff
@@ -145,3 +151,40 @@ async def test_dropouts_at_random_moments_lose_and_repeat_nothing(two_robots: Re
     invariants.check_robots(snap)
     assert snap.delivered() == set(ids)
     assert [snap.deliveries[i] for i in ids] == [1] * len(ids)
+
+
+async def test_silent_robot_is_offline_within_two_simulated_seconds(tmp_path: Path) -> None:
+    """The socket stays open but the robot stops talking (ROS hung, Wi-Fi half-dead): the
+    move_base status heartbeat, with the default settings, makes it Offline within 2 s."""
+    clock = ScaledClock(2.0)  # a slow clock: the bound is checked, not the box's load
+    sim = await start_simulation(1, port=0, map_path=demo_map_path(), clock=clock)
+    nav_map, waypoints = load_demo()
+    app = App(
+        tmp_path / "serveur.db",
+        port=0,
+        clock=clock,
+        nav_map=nav_map,
+        waypoints=waypoints,
+        robots=[RobotSpec("r1", sim.urls[0], "home1")],
+        config=CoreConfig(),  # the defaults: heartbeat 1 s
+    )
+    await app.start()
+    r = Restaurant(app, sim, clock, tmp_path / "serveur.db", [], [])
+    try:
+        c = await staff(r)
+        await c.status("r1", "Ready")
+        loop_task = sim._loop_task  # the physics and publishing loop: the robot goes silent
+        assert loop_task is not None
+        loop_task.cancel()
+        t0 = clock.now()
+        await c.status("r1", "Offline")
+        assert clock.now() - t0 <= 2.0
+        assert "link lost" in c.robot("r1")["last_error"]
+        sim._loop_task = None
+        await sim.start()  # it talks again: back in the status of its mode
+        await c.status("r1", "Ready")
+    finally:
+        for cl in r.clients:
+            await cl.close()
+        await app.close()
+        await sim.close()
