@@ -195,7 +195,9 @@ class Core:
         task_id = robot.current_task
         if task_id is not None:
             task = await self.store.get_task(task_id)
-            if task.status is TaskStatus.ACTIVE and task.current_stop >= len(task.stops):
+            if task.status is not TaskStatus.ACTIVE:  # the store frees robots in the same tx
+                log.error("%s holds trip %d, which is %s", robot.name, task_id, task.status)
+            elif task.current_stop >= len(task.stops):
                 log.warning("%s: closing trip %d, served before the restart", robot.name, task_id)
                 await self.store.finish_task(task_id, now=self.clock.epoch())
                 robot = await self.store.get_robot(robot.name)
