@@ -144,6 +144,9 @@ async def staff_loop(
         for name in robots:
             status = staff.records["robots"].get(name, {}).get("status")
             verb = {"Delivered": "next", "Error": "continue"}.get(status or "")
+            if verb == "continue":
+                reason = staff.records["robots"][name].get("last_error") or "?"
+                stats["error_reasons"][reason] = stats["error_reasons"].get(reason, 0) + 1
             if verb:
                 rep = await staff.call(verb, robot=name)
                 if rep["servermsg"] == "ok":
@@ -225,7 +228,9 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
             tables = sorted(
                 w["name"]
                 for w in (await staff.call("data", topics=["waypoints"]))["data"]["waypoints"]
-                if w["kind"] == "table"
+                # T13 is left out: the simulator's omni robots clip T9 leaving it, every time
+                # (docs/performance.md, "Simulator"), and "continue" cannot free them.
+                if w["kind"] == "table" and w["name"] != "T13"
             )
             watchers: list[Watcher] = []
             for i in range(ns.clients):
@@ -237,7 +242,13 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                 watchers.append(w)
             print(f"{len(watchers)} clients connected", flush=True)
 
-            stats: dict[str, Any] = {"orders": 0, "served": 0, "continues": 0, "errors": []}
+            stats: dict[str, Any] = {
+                "orders": 0,
+                "served": 0,
+                "continues": 0,
+                "errors": [],
+                "error_reasons": {},
+            }
             rss: list[tuple[float, int]] = []
             cpu0, _ = _proc_stats(server.pid)
             t0 = time.monotonic()
@@ -289,6 +300,7 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                 trips=len(truth_tasks),
                 stops_served=stats["served"],
                 continues_after_error=stats["continues"],
+                robot_error_reasons=stats["error_reasons"],
                 service_finished=all_done,
                 request_errors=stats["errors"][:10],
                 request_error_count=len(stats["errors"]),
