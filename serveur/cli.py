@@ -301,6 +301,9 @@ def _parser() -> argparse.ArgumentParser:
     from serveur.accounts_cli import add_accounts_parsers
 
     add_accounts_parsers(sub)
+    from serveur.maintenance import add_maintenance_parser
+
+    add_maintenance_parser(sub)
 
     schema = sub.add_parser("schema", help="print the JSON Schema of every message")
     schema.set_defaults(func=_schema, is_async=False)

@@ -10,10 +10,20 @@ dispatcher giving it a trip — runs under that robot's lock, so "check the stat
 can never interleave (two staff pressing Continue and Cancel together get one success and one
 ``not_allowed_in_status``). Link reports are queued per robot and handled in arrival order.
 
-Robot dropouts (current policy): the trip stays with its robot — the dishes are physically
-on its tray. The robot is Offline while the link is down; when it returns, it resumes the
-status it had and re-sends the goal of the current stop (or arrives at once if it is already
-there). Server restarts are the same case: every robot starts Offline and resumes on link-up.
+Robot dropouts: at first the trip stays with its robot — the dishes are physically on its
+tray. The robot is Offline while the link is down; when it returns, it resumes the status it
+had and re-sends the goal of the current stop (or arrives at once if it is already there).
+A robot Offline for longer than ``CoreConfig.handover_after`` has its trip handed over: the
+task goes back to the queue (its orders stay on it) and the next free robot takes it; the
+away robot, when it returns, goes home instead of continuing a trip that is no longer its own.
+
+Server restarts are the same case: every robot starts Offline and resumes on link-up. Before
+that, :meth:`Core.start` reconciles what a crash may have left half-done between two
+transactions (a trip taken but the robot not yet Delivering, the last stop served but the
+trip not closed, a trip handed over but the robot still meant to deliver it).
+
+Shutdown (:meth:`Core.close`) stops every robot's move so none drives off unattended; the
+stored status is kept, so a restarted server sends the robot on with its trip.
 """
 
 from __future__ import annotations
@@ -32,12 +42,21 @@ from typing import Any
 from serveur import protocol as P
 from serveur import rosbridge as rb
 from serveur.clock import Clock
-from serveur.domain import Order, OrderStatus, Robot, Task, TaskStatus, WaypointKind, WaypointRecord
+from serveur.domain import (
+    Order,
+    OrderStatus,
+    Robot,
+    StopStatus,
+    Task,
+    TaskStatus,
+    WaypointKind,
+    WaypointRecord,
+)
 from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurError
 from serveur.hub import Hub
 from serveur.robot_link import RobotLink
 from serveur.scheduler import Candidate, Dispatcher, cart_order_trips, order_stops, plan_trips
-from serveur.status import Action, Event, RobotState, RobotStatus, apply, check_allowed
+from serveur.status import Action, Event, RobotMode, RobotState, RobotStatus, apply, check_allowed
 from serveur.store import Store
 
 __all__ = ["Core", "CoreConfig", "Destination"]
@@ -60,6 +79,11 @@ class CoreConfig:
     far_tolerance: float = 0.6  # SUCCEEDED this far from the goal is an error, not an arrival
     pose_persist_period: float = 5.0
     robot_radius: float = 0.2
+    #: A robot Offline this long (simulated seconds) with a trip has the trip handed to another
+    #: robot; ``None`` never hands over. Two minutes: long enough for a Wi-Fi dead spot or a
+    #: rosbridge restart (seconds) to resume in place, short enough that food is still warm
+    #: when the kitchen re-plates it for another robot.
+    handover_after: float | None = 120.0
     #: "serveur": trips by area, stops in shortest-route order (scheduler.plan_trips);
     #: "baseline": the design report's behaviour, stops in the order of the cart (replay A/B).
     policy: str = "serveur"
@@ -88,6 +112,7 @@ class _Runtime:
     pose: tuple[float, float, float] | None = None
     battery: float | None = None
     pose_saved_at: float = -1e9
+    handover: asyncio.Task[None] | None = None  # the hand-over timer while Offline with a trip
 
 
 def _fingerprint(payload: Mapping[str, Any]) -> str:
@@ -140,26 +165,82 @@ class Core:
             # Keep the distances, drop the fields they came from (~33 MB on the demo map).
             self._distances.planner.clear_cache()
         for robot in await self.store.list_robots():
-            self._add_runtime(robot)
             # Every robot starts Offline and resumes what it was doing once its link is up.
             resume = robot.resume if robot.status is S.OFFLINE else robot.status
-            st = RobotState(S.OFFLINE, robot.mode, resume if resume in _RESUMABLE else None)
+            robot, resume = await self._reconcile(robot, resume)
+            self._add_runtime(robot)
+            st = RobotState(S.OFFLINE, robot.mode, resume)
             self._rt[robot.name].state = st
             await self._save_state(robot.name, st, event="robot.restored")
         self.dispatcher.start()
         for rt in self._rt.values():
             self._start_link(rt)
 
+    async def _reconcile(
+        self, robot: Robot, resume: RobotStatus | None
+    ) -> tuple[Robot, RobotStatus | None]:
+        """The status to resume after a restart, made consistent with the robot's trip.
+
+        Each step of a trip is its own transaction, and the robot's status another one, so a
+        crash (SIGKILL, power cut) can fall between them. The trip in the store is the truth;
+        the status to resume is derived from it:
+
+        * a trip whose stops are all done but which is still active (crash after the last
+          "food collected"): finish it, the robot goes home;
+        * a trip taken but the robot not yet Delivering (crash right after dispatch), or
+          Delivered although the current stop is not reached (crash after "food collected"
+          at a middle stop): the robot delivers to the current stop;
+        * Delivering or Delivered without a trip (crash after a hand-over or a cancel): the
+          robot goes home.
+
+        Where the robot really is decides the rest on link-up (:meth:`_resume_move`: already
+        at the goal counts as arrived, otherwise the goal is sent again).
+        """
+        if resume not in _RESUMABLE:
+            resume = None
+        task_id = robot.current_task
+        if task_id is not None:
+            task = await self.store.get_task(task_id)
+            if task.status is not TaskStatus.ACTIVE:  # the store frees robots in the same tx
+                log.error("%s holds trip %d, which is %s", robot.name, task_id, task.status)
+            elif task.current_stop >= len(task.stops):
+                log.warning("%s: closing trip %d, served before the restart", robot.name, task_id)
+                await self.store.finish_task(task_id, now=self.clock.epoch())
+                robot = await self.store.get_robot(robot.name)
+            else:
+                reached = task.stops[task.current_stop].status is StopStatus.ARRIVED
+                on_trip = (S.DELIVERING, S.DELIVERED, S.STOPPED, S.ERROR)
+                if resume not in on_trip or (resume is S.DELIVERED and not reached):
+                    resume = S.DELIVERING
+        if robot.current_task is None and resume in (S.DELIVERING, S.DELIVERED):
+            resume = S.TRANSIT if robot.mode is RobotMode.AUTO else None
+        return robot, resume
+
     async def close(self) -> None:
+        """Stop serving robots: no more dispatch, every robot's move cancelled, poses saved.
+
+        Robots are stopped where they are rather than left driving with nobody watching
+        (a goal whose result no server will read, "Food collected" that nobody can press).
+        Their stored status is left as it was, so a restarted server resumes each trip.
+        """
         self._closing = True
         await self.dispatcher.stop()
         for rt in self._rt.values():
-            if rt.link is not None:
-                await rt.link.close()
+            self._disarm_handover(rt)
             if rt.worker is not None:
                 rt.worker.cancel()
                 with contextlib.suppress(asyncio.CancelledError):
                     await rt.worker
+        # Workers, dispatcher and clients are gone: nothing can send a new goal after this.
+        for rt in self._rt.values():
+            if rt.link is not None and rt.link.up:
+                try:
+                    await asyncio.wait_for(rt.link.cancel_goal(), self.clock.wall(2.0) + 1.0)
+                except (LinkError, TimeoutError) as exc:
+                    log.warning("%s: could not stop the robot on shutdown: %s", rt.name, exc)
+        for rt in self._rt.values():
+            if rt.link is not None:
+                await rt.link.close()
         for rt in self._rt.values():
             if rt.pose is not None:
                 with contextlib.suppress(ServeurError):
@@ -290,10 +371,69 @@ class Core:
         )
         self._robots[name] = robot
         self._pub("robots", self._robot_view(name))
+        if st.status is S.OFFLINE and robot.current_task is not None:
+            self._arm_handover(rt)
+        else:
+            self._disarm_handover(rt)
         if st.status is S.AWAITING:
             rt.idle_since = self.clock.now()
             self.dispatcher.kick()
         return robot
+
+    # -- hand-over of the trip of a robot gone too long ---------------------------------------
+
+    def _arm_handover(self, rt: _Runtime) -> None:
+        if self.config.handover_after is None or rt.handover is not None or self._closing:
+            return
+        rt.handover = asyncio.create_task(self._handover_timer(rt), name=f"handover-{rt.name}")
+
+    def _disarm_handover(self, rt: _Runtime) -> None:
+        timer, rt.handover = rt.handover, None
+        if timer is not None and timer is not asyncio.current_task():
+            timer.cancel()
+
+    async def _handover_timer(self, rt: _Runtime) -> None:
+        assert self.config.handover_after is not None
+        await self.clock.sleep(self.config.handover_after)
+        rt.handover = None
+        # Through the robot's queue, like a link report: a link-up already queued is handled
+        # first, and the hand-over then sees the robot back and does nothing.
+        self._post(rt.name, "handover")
+
+    async def _hand_over(self, rt: _Runtime) -> None:
+        """Give the trip of a robot Offline past ``handover_after`` back to the dispatcher.
+
+        The task is requeued whole (its orders stay ``assigned`` to it, stops not served go
+        back to ``pending``) and the next free robot takes it. The away robot keeps no trip:
+        on its return it goes home (a robot that was Stopped or in Error stays so, for staff
+        to look at, and ``continue`` sends it home).
+        """
+        task_id = self._robots[rt.name].current_task
+        if rt.state.status is not S.OFFLINE or task_id is None:
+            return
+        limit = self.config.handover_after
+        reason = f"offline for over {limit:g} s: trip {task_id} handed to another robot"
+        log.warning("%s: %s", rt.name, reason)
+        now = self.clock.epoch()
+        try:
+            task = await self.store.requeue_task(task_id, now=now, reason=reason)
+        except Conflict:
+            # Every stop was served before the link dropped: the trip is over, not handed on.
+            task = await self.store.finish_task(task_id, now=now)
+        self._robots[rt.name] = await self.store.get_robot(rt.name)
+        self._pub_task(task)
+        await self._pub_orders([o for s in task.stops for o in s.orders])
+        resume = rt.state.resume
+        if resume in (S.DELIVERING, S.DELIVERED):
+            resume = S.TRANSIT
+        await self._save_state(
+            rt.name,
+            replace(rt.state, resume=resume),
+            event="robot.handover",
+            error=reason,
+            data={"task": task_id},
+        )
+        self.dispatcher.kick()
 
     async def _event(self, rt: _Runtime, ev: Event, *, error: str | None = None) -> Robot:
         new = apply(rt.state, ev)
@@ -738,6 +878,8 @@ class Core:
                 )
         elif kind == "goal":
             await self._on_goal(rt, *args)
+        elif kind == "handover":
+            await self._hand_over(rt)
         elif kind == "persist_pose" and rt.pose is not None:
             await self.store.save_robot_pose(
                 rt.name,
