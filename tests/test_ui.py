@@ -468,7 +468,9 @@ async def test_pages_reconnect_after_a_server_restart(tmp_path: Path, browser: A
         await staff.get_by_role("tab", name="Issue task").click()
         await expect(staff.get_by_role("button", name="Add Soup for T5 to cart")).to_be_visible()
         await expect(table.get_by_role("list", name="Ready in the kitchen")).to_contain_text("Soup")
-        # ...and a click on one page reaches the new server and shows on the others.
+        # ...and a click on one page reaches the new server and shows on the others (once
+        # that page is back online: a click while offline is refused, and says so).
+        await expect(robot.locator("body")).to_have_attribute("data-connection", "online")
         await robot.get_by_role("button", name="Activate this robot").click()
         await expect(robot.get_by_text("Awaiting orders")).to_be_visible()
         await staff.get_by_role("tab", name="Map & robots").click()
