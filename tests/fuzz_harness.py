@@ -291,12 +291,23 @@ class LiveRestaurant:
     """One live restaurant shared by many examples; every method is called from one thread."""
 
     def __init__(
-        self, tmp: Path, *, robots: int = 2, time_scale: float = 30.0, conns: int = 2
+        self,
+        tmp: Path,
+        *,
+        robots: int = 2,
+        time_scale: float = 30.0,
+        conns: int = 2,
+        wait_scale: float = 1.0,
+        fresh_every: int = 10,
     ) -> None:
         self.tmp = tmp
         self.robots = robots
         self.time_scale = time_scale
         self.n_conns = conns
+        self.wait_scale = wait_scale  # multiplies every Wait's timeout (0: never wait)
+        # New connections every few examples: subscriptions (pose, scan at 10 and 5 Hz a
+        # robot) would otherwise pile up on two connections and slow everything down.
+        self.fresh_every = fresh_every
         self.stats = Stats()
         self.live = Live()
         self.errors = _ErrorLog()
@@ -373,6 +384,8 @@ class LiveRestaurant:
             self.call(self._run(steps), timeout=REPLY_TIMEOUT * (len(steps) + 4))
             if check:
                 self.check()
+            if self.fresh_every and (self.stats.examples + 1) % self.fresh_every == 0:
+                self.call(self._reconnect())
         except Exception as exc:
             self.stats.failures.append(f"{type(exc).__name__}: {str(exc)[:2000]}")
             self.call(self._reconnect())  # a clean start for the next example
@@ -402,7 +415,8 @@ class LiveRestaurant:
         self.errors.records.clear()
         for step in steps:
             if isinstance(step, Wait):
-                reached = await self.observer.wait(step.robot, step.statuses, step.timeout)
+                timeout = step.timeout * self.wait_scale
+                reached = await self.observer.wait(step.robot, step.statuses, timeout)
                 self.stats.waits["reached" if reached else "timed out"] += 1
             else:
                 await self._send(step)
@@ -451,15 +465,26 @@ class LiveRestaurant:
     async def _drain(self, conn: _Conn, index: int) -> None:
         while conn.pending:
             expect = conn.pending.popleft()
-            try:
-                reply = await asyncio.wait_for(conn.replies.get(), REPLY_TIMEOUT)
-            except TimeoutError:
+            reply = await self._reply(conn)
+            if reply is _MISSING:
                 closed = "" if conn.open else f" (connection closed: {conn.ws.close_code})"
                 raise FuzzFailure(
                     f"no reply within {REPLY_TIMEOUT}s{closed} to {expect.label}:"
                     f" {expect.text[:500]!r}"
-                ) from None
+                )
             self._check_reply(expect, reply)
+
+    @staticmethod
+    async def _reply(conn: _Conn) -> Any:
+        """The next reply on ``conn``; _MISSING after REPLY_TIMEOUT or once it is closed."""
+        if not conn.replies.empty():
+            return conn.replies.get_nowait()
+        get = asyncio.ensure_future(conn.replies.get())
+        await asyncio.wait({get, conn.reader}, timeout=REPLY_TIMEOUT, return_when="FIRST_COMPLETED")
+        if get.done():
+            return get.result()
+        get.cancel()
+        return conn.replies.get_nowait() if not conn.replies.empty() else _MISSING
 
     def _check_reply(self, expect: _Expect, reply: Any) -> None:
         def fail(why: str) -> FuzzFailure:

@@ -20,7 +20,7 @@ import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, TypeAlias
+from typing import Any, TypeAlias, TypeVar
 
 from hypothesis import strategies as st
 
@@ -45,6 +45,8 @@ __all__ = [
     "mutated",
     "valid_messages",
 ]
+
+T = TypeVar("T")
 
 # --------------------------------------------------------------------------- the JSON tree
 
@@ -287,25 +289,34 @@ _angular = st.one_of(st.floats(-4.0, 4.0), st.sampled_from((0.0, 4.0, -4.0, 0.5)
 _kind = st.sampled_from(("table", "home", "pass", "other"))
 
 
-def _with(fields: dict[str, Node], optional: dict[str, st.SearchStrategy[Node]]) -> Any:
-    """``fields`` plus any subset of ``optional`` (each drawn)."""
-
-    @st.composite
-    def build(draw: st.DrawFn) -> Obj:
-        out: dict[str, Node] = {"id": IdSlot(), **fields}
-        for name, strat in optional.items():
-            if draw(st.booleans()):
-                out[name] = draw(strat)
-        return Obj(tuple(out.items()))
-
-    return build()
+# Strategies are built once, at import: one made inside a draw costs hypothesis a validation
+# each time (it was 3/4 of the generation time). Helpers taking ``draw`` are plain functions.
 
 
-@st.composite
+def _pick(draw: st.DrawFn, seq: Sequence[T]) -> T:
+    """One item of ``seq`` (any sequence, built at draw time) without a new strategy."""
+    return seq[draw(st.integers(0, len(seq) - 1))]
+
+
+def _with(
+    draw: st.DrawFn, fields: dict[str, Node], optional: dict[str, st.SearchStrategy[Any]]
+) -> Obj:
+    """``fields`` (and an ``id``) plus any subset of ``optional``, each drawn."""
+    out: dict[str, Node] = {"id": IdSlot(), **fields}
+    for name, strat in optional.items():
+        if draw(_bool):
+            out[name] = draw(strat)
+    return Obj(tuple(out.items()))
+
+
+_bool = st.booleans()
+_jitter = st.floats(-0.2, 0.2)
+
+
 def _pose(draw: st.DrawFn) -> tuple[float, float, float]:
     if draw(st.integers(0, 9)) < 8:
-        x, y, yaw = draw(st.sampled_from(GOOD_POSES))
-        jitter = draw(st.floats(-0.2, 0.2))
+        x, y, yaw = _pick(draw, GOOD_POSES)
+        jitter = draw(_jitter)
         return (x + jitter, y - jitter, yaw)
     return (draw(_coord), draw(_coord), draw(_yaw))
 
@@ -325,58 +336,52 @@ def data_msgs() -> st.SearchStrategy[Obj]:
 
 @st.composite
 def create_order(draw: st.DrawFn) -> Obj:
-    return draw(
-        _with(
-            {"clientmsg": "create", "type": "order", "dish": draw(_name), "table": draw(_table)},
-            {"key": _key},
-        )
+    return _with(
+        draw,
+        {"clientmsg": "create", "type": "order", "dish": draw(_name), "table": draw(_table)},
+        {"key": _key},
     )
 
 
 @st.composite
 def create_task(draw: st.DrawFn) -> Obj:
-    backs = draw(st.lists(st.integers(0, 12), min_size=1, max_size=6, unique=True))
-    orders: list[Node] = [Ref("order", b) for b in backs]
+    orders: list[Node] = [Ref("order", b) for b in draw(_backs)]
     if draw(st.integers(0, 9)) == 0:
-        orders.append(draw(st.sampled_from((2**53, 10**6 + 7))))  # never created
-    return draw(_with({"clientmsg": "create", "type": "task", "orders": orders}, {"key": _key}))
+        orders.append(_pick(draw, (2**53, 10**6 + 7)))  # never created
+    return _with(draw, {"clientmsg": "create", "type": "task", "orders": orders}, {"key": _key})
+
+
+_backs = st.lists(st.integers(0, 12), min_size=1, max_size=6, unique=True)
 
 
 @st.composite
 def create_waypoint(draw: st.DrawFn) -> Obj:
-    name = draw(st.one_of(st.sampled_from(NEW_WAYPOINTS), st.sampled_from(TABLES)))
+    name = _pick(draw, NEW_WAYPOINTS + TABLES)
     fields: dict[str, Node] = {"clientmsg": "create", "type": "waypoint", "name": name}
-    if draw(st.booleans()):
+    if draw(_bool):
         fields["robot"] = draw(_any_robot)
-        return draw(_with(fields, {"kind": _kind, "replace": st.booleans()}))
-    x, y, yaw = draw(_pose())
+        return _with(draw, fields, {"kind": _kind, "replace": _bool})
+    x, y, yaw = _pose(draw)
     fields.update(x=x, y=y)
-    return draw(_with(fields, {"yaw": st.just(yaw), "kind": _kind, "replace": st.booleans()}))
+    out = _with(draw, fields, {"kind": _kind, "replace": _bool})
+    return out.set("yaw", yaw) if draw(_bool) else out
 
 
 @st.composite
 def create_robot(draw: st.DrawFn) -> Obj:
-    if draw(st.booleans()):  # an existing robot: same content (no-op) or other (conflict)
+    if draw(_bool):  # an existing robot: same content (no-op) or other (conflict)
         name = draw(_robot)
-        home = f"home{ROBOTS.index(name) + 1}"
-        url: Node = draw(st.sampled_from((Ref("url", name), DEAD_URL)))
+        url: Node = _pick(draw, (Ref("url", name), DEAD_URL))
         fields: dict[str, Node] = {"clientmsg": "create", "type": "robot", "name": name}
         fields["url"] = url
-        return draw(
-            _with(
-                fields,
-                {
-                    "home": st.sampled_from((home, "home3", "T3")),
-                    "kinematics": st.sampled_from(("omni", "diff")),
-                },
-            )
-        )
-    name = draw(st.sampled_from(NEW_ROBOTS))
-    return draw(
-        _with(
-            {"clientmsg": "create", "type": "robot", "name": name, "url": DEAD_URL},
-            {"home": st.sampled_from(("home3", "home4")), "kinematics": st.just("diff")},
-        )
+        out = _with(draw, fields, {"kinematics": st.sampled_from(("omni", "diff"))})
+        if draw(_bool):  # its own home (same content), another, or a table
+            out = out.set("home", _pick(draw, (f"home{ROBOTS.index(name) + 1}", "home3", "T3")))
+        return out
+    return _with(
+        draw,
+        {"clientmsg": "create", "type": "robot", "name": _pick(draw, NEW_ROBOTS), "url": DEAD_URL},
+        {"home": st.sampled_from(("home3", "home4")), "kinematics": st.just("diff")},
     )
 
 
@@ -391,23 +396,22 @@ def _control(action: str, **fields: st.SearchStrategy[Node]) -> st.SearchStrateg
 @st.composite
 def control_teleop(draw: st.DrawFn) -> Obj:
     robot = draw(_any_robot)
-    return draw(
-        _with(
-            {
-                "clientmsg": "control",
-                "robot": robot,
-                "action": "teleop",
-                "vx": draw(_linear),
-                "wz": draw(_angular),
-            },
-            {"vy": _linear},
-        )
+    return _with(
+        draw,
+        {
+            "clientmsg": "control",
+            "robot": robot,
+            "action": "teleop",
+            "vx": draw(_linear),
+            "wz": draw(_angular),
+        },
+        {"vy": _linear},
     )
 
 
 @st.composite
 def control_pose(draw: st.DrawFn, action: str) -> Obj:
-    x, y, yaw = draw(_pose())
+    x, y, yaw = _pose(draw)
     return obj(
         clientmsg="control", id=IdSlot(), robot=draw(_any_robot), action=action, x=x, y=y, yaw=yaw
     )
@@ -451,6 +455,8 @@ def valid_messages(labels: Sequence[str] | None = None) -> st.SearchStrategy[tup
     chosen = list(labels) if labels is not None else list(VERB_STRATEGIES)
     return st.one_of(*(VERB_STRATEGIES[lb].map(lambda m, lb=lb: (lb, m)) for lb in chosen))
 
+
+_VALID = valid_messages()
 
 # --------------------------------------------------------------------------- mutations
 
@@ -563,76 +569,76 @@ def _safe_robot_create(msg: Obj) -> Obj:
     return msg
 
 
-@st.composite
+_TAGS = (*P.VERBS, "waypoint", "order", "task", "robot", "auto", "teleop", "goto", "login")
+_BORROWED: tuple[tuple[str, Node], ...] = (
+    ("robot", "r1"),
+    ("table", "T3"),
+    ("x", 1.0),
+    ("key", "k1"),
+    ("unsubscribe", True),
+    ("replace", True),
+    ("home", "home1"),
+    ("orders", (1, 2)),
+    ("vy", 0.0),
+    ("waypoint", "T1"),
+    ("topics", ("robots",)),
+)
+_SAME_OR_WEIRD = st.one_of(st.none(), _WEIRD_SCALAR)
+_UNKNOWN_VERB = _WEIRD_STR.filter(lambda v: v not in P.VERBS)
+
+
 def _neutral(draw: st.DrawFn, msg: Obj) -> Obj:
     """A change that may or may not keep the message valid."""
     keys = msg.names()
     how = draw(st.integers(0, 5))
     if how <= 2 and keys:  # replace a value by a weird one
-        key = draw(st.sampled_from(keys))
-        return msg.set(key, draw(_WEIRD))
+        return msg.set(_pick(draw, keys), draw(_WEIRD))
     if how == 3 and keys:  # drop a field
-        return msg.without(draw(st.sampled_from(keys)))
+        return msg.without(_pick(draw, keys))
     if how == 4:  # another verb's or sub-type's tag
-        key = draw(st.sampled_from(("clientmsg", "type", "action")))
-        tags = (*P.VERBS, "waypoint", "order", "task", "robot", "auto", "teleop", "goto", "login")
-        return msg.set(key, draw(st.sampled_from(tags)))
-    # a field from another message
-    key, value = draw(
-        st.sampled_from(
-            (
-                ("robot", "r1"),
-                ("table", "T3"),
-                ("x", 1.0),
-                ("key", "k1"),
-                ("unsubscribe", True),
-                ("replace", True),
-                ("home", "home1"),
-                ("orders", (1, 2)),
-                ("vy", 0.0),
-                ("waypoint", "T1"),
-                ("topics", ("robots",)),
-            )
-        )
-    )
+        return msg.set(_pick(draw, ("clientmsg", "type", "action")), _pick(draw, _TAGS))
+    key, value = _pick(draw, _BORROWED)  # a field from another message
     return msg.set(key, value)
 
 
-@st.composite
 def _invalidate(draw: st.DrawFn, msg: Obj) -> tuple[Obj, str]:
     """A change after which the message is certainly refused."""
     keys = msg.names()
     required = _required(msg)
     how = draw(st.integers(0, 5))
     if how == 0 and keys:
-        return msg.set(draw(st.sampled_from(keys)), draw(_ALWAYS_INVALID)), "invalid value"
-    if how == 1 and keys:  # the same key twice
-        key = draw(st.sampled_from(keys))
-        return msg.add(key, draw(st.one_of(st.just(msg.get(key)), _WEIRD_SCALAR))), "duplicate key"
+        return msg.set(_pick(draw, keys), draw(_ALWAYS_INVALID)), "invalid value"
+    if how == 1 and keys:  # the same key twice: with its own value or another
+        key = _pick(draw, keys)
+        value = draw(_SAME_OR_WEIRD)
+        return msg.add(key, msg.get(key) if value is None else value), "duplicate key"
     if how == 2 and required:
-        return msg.without(draw(st.sampled_from(required))), "missing field"
+        return msg.without(_pick(draw, required)), "missing field"
     if how == 3:
-        unknown = draw(_WEIRD_STR.filter(lambda v: v not in P.VERBS))
-        return msg.set("clientmsg", unknown), "unknown verb"
+        return msg.set("clientmsg", draw(_UNKNOWN_VERB)), "unknown verb"
     model = _model(msg)
     extra = draw(_EXTRA_KEYS)
     if model is not None and extra not in model.model_fields:
         return msg.add(extra, draw(_WEIRD_SCALAR)), "unknown field"
-    return msg.set("clientmsg", draw(st.sampled_from((1, None, True, ("data",))))), "bad verb type"
+    return msg.set("clientmsg", _pick(draw, (1, None, True, ("data",)))), "bad verb type"
+
+
+def _mutate(draw: st.DrawFn, msg: Obj) -> tuple[Obj, str, bool | None]:
+    label = "mutated"
+    valid: bool | None = True
+    for _ in range(draw(st.integers(0, 2))):
+        msg = _neutral(draw, msg)
+        valid = None
+    if valid is True or draw(_bool):
+        msg, label = _invalidate(draw, msg)
+        valid = False
+    return _safe_robot_create(msg), label, valid
 
 
 @st.composite
 def mutated(draw: st.DrawFn, msg: Obj) -> tuple[Obj, str, bool | None]:
     """``(message, label, valid)``: 0-2 neutral changes, then maybe one invalidating change."""
-    label = "mutated"
-    valid: bool | None = True
-    for _ in range(draw(st.integers(0, 2))):
-        msg = draw(_neutral(msg))
-        valid = None
-    if valid is True or draw(st.booleans()):
-        msg, label = draw(_invalidate(msg))
-        valid = False
-    return _safe_robot_create(msg), label, valid
+    return _mutate(draw, msg)
 
 
 _NOT_OBJECTS = st.sampled_from(
@@ -681,20 +687,19 @@ def frames(draw: st.DrawFn, conns: int = 2) -> Send:
     conn = draw(st.integers(0, conns - 1))
     kind = draw(st.integers(0, 19))
     if kind < 10:
-        label, msg = draw(valid_messages())
+        label, msg = draw(_VALID)
         step = Send(msg, label, True, conn, verb=label)
     elif kind < 16:
-        label, msg = draw(valid_messages())
-        msg, how, valid = draw(mutated(msg))
+        label, msg = draw(_VALID)
+        msg, how, valid = _mutate(draw, msg)
         step = Send(msg, f"{label}: {how}", valid, conn, verb=label)
     elif kind < 18:
         step = Send(Raw(draw(_NOT_OBJECTS)), "not an object", False, conn)
     else:
         step = Send(Raw(draw(_GARBAGE)), "not JSON", False, conn)
-    return draw(_framing(step))
+    return _framing(draw, step)
 
 
-@st.composite
 def _framing(draw: st.DrawFn, step: Send) -> Send:
     """How the frame travels: text or binary, padded, truncated, or not UTF-8."""
     how = draw(st.integers(0, 19))
@@ -703,7 +708,7 @@ def _framing(draw: st.DrawFn, step: Send) -> Send:
     if how < 16:
         return _replace(step, binary=True)
     if how == 16:
-        return _replace(step, pad=draw(st.sampled_from((" ", "\n", "\t \r\n", "  "))))
+        return _replace(step, pad=_pick(draw, (" ", "\n", "\t \r\n", "  ")))
     if how == 17:
         return _replace(step, binary=True, bad_utf8=True, valid=False, label="not UTF-8")
     # Shorter than the text: refused (no prefix of a JSON object is a whole object); the
@@ -728,7 +733,7 @@ def _send(label: str, body: Obj, conn: int) -> Send:
 def deliver(draw: st.DrawFn, conns: int = 2) -> list[Step]:
     """Dishes for 1-3 tables, their cart confirmed, a wait for a robot to take the trip."""
     conn = draw(st.integers(0, conns - 1))
-    tables = draw(st.lists(st.sampled_from(TABLES), min_size=1, max_size=3))
+    tables = draw(_tables)
     steps: list[Step] = [
         _send(
             "create order",
@@ -745,6 +750,7 @@ def deliver(draw: st.DrawFn, conns: int = 2) -> list[Step]:
     return steps
 
 
+_tables = st.lists(st.sampled_from(TABLES), min_size=1, max_size=3)
 #: Wall seconds a Wait gives a robot; robots keep moving between examples anyway.
 _timeout = st.sampled_from((0.02, 0.1, 0.3))
 
@@ -775,7 +781,7 @@ def serve(draw: st.DrawFn, conns: int = 2) -> list[Step]:
 def interrupt(draw: st.DrawFn, conns: int = 2) -> list[Step]:
     """Stop a moving robot, then continue, cancel or take it over manually."""
     conn, robot = draw(st.integers(0, conns - 1)), draw(_robot)
-    then = draw(st.sampled_from(("continue", "cancel", "manual")))
+    then = _pick(draw, ("continue", "cancel", "manual"))
     last = (
         obj(clientmsg="control", id=IdSlot(), robot=robot, action="manual")
         if then == "manual"
@@ -792,7 +798,7 @@ def interrupt(draw: st.DrawFn, conns: int = 2) -> list[Step]:
 def manual_session(draw: st.DrawFn, conns: int = 2) -> list[Step]:
     """Manual control: teleop, go-to, calibrate at a real pose, hand back."""
     conn, robot = draw(st.integers(0, conns - 1)), draw(_robot)
-    x, y, yaw = draw(st.sampled_from(GOOD_POSES))
+    x, y, yaw = _pick(draw, GOOD_POSES)
     return [
         _send(
             "control manual",
@@ -811,7 +817,7 @@ def manual_session(draw: st.DrawFn, conns: int = 2) -> list[Step]:
                 id=IdSlot(),
                 robot=robot,
                 action="goto",
-                waypoint=draw(st.sampled_from(TABLES)),
+                waypoint=_pick(draw, TABLES),
             ),
             conn,
         ),
