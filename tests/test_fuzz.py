@@ -117,6 +117,40 @@ def test_fuzz_live_still_serves(live: LiveRestaurant) -> None:
     live.check()
 
 
+# --------------------------------------------------------------------------- regressions
+
+#: Frames the fuzzer found that broke the server, each with what it broke. A lone surrogate
+#: (JSON's "\ud800" escape) is text UTF-8 cannot carry: echoing it as the reply's id, or in an
+#: error's details, made the reply unserialisable and the server dropped the connection (1011).
+REGRESSIONS = {
+    "lone surrogate as the id": '{"clientmsg":"data","id":"\\udfff","topics":["robots"]}',
+    "lone surrogate id, invalid message": '{"clientmsg":"data","id":"\\udfff"}',
+    "lone surrogate as a duplicate key": '{"clientmsg":"data","id":1,"\\ud800":1,"\\ud800":2}',
+    "lone surrogate as a topic's robot": '{"clientmsg":"data","id":2,"topics":["pose:\\ud800"]}',
+}
+
+
+@pytest.mark.parametrize("case", sorted(REGRESSIONS))
+def test_regression_frames_are_answered(live: LiveRestaurant, case: str) -> None:
+    live.run([Send(Raw(REGRESSIONS[case]), case, False)])
+
+
+@pytest.mark.parametrize("case", sorted(REGRESSIONS))
+def test_regression_error_frames_serialise(case: str) -> None:
+    with pytest.raises(ServeurError) as exc:
+        P.parse_client(REGRESSIONS[case])
+    assert exc.value.code == "invalid_field"
+    reply = json.loads(P.error_frame(None, exc.value))  # raised UnicodeEncodeError before
+    assert reply["code"] == "invalid_field"
+    assert reply.get("id") in (None, 1, 2)  # a lone-surrogate id is not readable: no id
+
+
+def test_error_frame_scrubs_text_utf8_cannot_carry() -> None:
+    err = ServeurError("no robot named '\\ud800'", robot="\ud800", more=["\udfff"])
+    reply = json.loads(P.error_frame("\udc80", err))
+    assert reply["id"] == "?" and reply["details"] == {"robot": "?", "more": ["?"]}
+
+
 # --------------------------------------------------------------------------- the strategies
 
 
