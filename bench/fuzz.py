@@ -39,7 +39,7 @@ def main() -> int:
     ap.add_argument("--examples", type=int, default=100_000)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--time-scale", type=float, default=30.0, help="simulated robots' speed-up")
-    ap.add_argument("--wait-scale", type=float, default=1.0, help="multiplies Wait timeouts")
+    ap.add_argument("--wait-scale", type=float, default=0.3, help="multiplies Wait timeouts")
     ap.add_argument("--check-every", type=int, default=50, help="examples between DB checks")
     ap.add_argument("--max-minutes", type=float, default=60.0, help="stop after this long")
     ap.add_argument("--report-every", type=int, default=5000, help="progress line every N")

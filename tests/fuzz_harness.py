@@ -37,6 +37,8 @@ from pydantic import TypeAdapter, ValidationError
 from websockets.asyncio.client import ClientConnection, connect
 
 from serveur import protocol as P
+from serveur.domain import OrderStatus, TaskStatus
+from serveur.errors import Conflict
 from tests import invariants
 from tests.conftest import Restaurant, restaurant
 from tests.fuzz_strategies import Live, Obj, Ref, Send, Step, Wait, encode
@@ -59,6 +61,8 @@ PAYLOAD = {
     "order": "orders",
 }
 REPLY_TIMEOUT = 30.0  # wall seconds; generous for a loaded 2-core box
+MAX_QUEUED = 6  # trips waiting for a robot kept by housekeeping
+MAX_PENDING = 40  # dishes waiting at the pass kept by housekeeping
 MAX_TEXT = 60_000  # stay under the 64 KiB frame limit (beyond it the server closes: 1009)
 _WS_RANDOM_USERS = (websockets.asyncio.connection, websockets.client)
 _SERVER_MSG: TypeAdapter[Any] = TypeAdapter(P.ServerMessage)
@@ -386,6 +390,7 @@ class LiveRestaurant:
                 self.check()
             if self.fresh_every and (self.stats.examples + 1) % self.fresh_every == 0:
                 self.call(self._reconnect())
+                self.call(self._housekeep())
         except Exception as exc:
             self.stats.failures.append(f"{type(exc).__name__}: {str(exc)[:2000]}")
             self.call(self._reconnect())  # a clean start for the next example
@@ -409,6 +414,25 @@ class LiveRestaurant:
             for name in sorted(runtimes):
                 await stack.enter_async_context(runtimes[name].lock)
             return invariants.violations(self.db_path)
+
+    async def _housekeep(self) -> None:
+        """Keep the restaurant in a realistic regime: the kitchen withdraws the oldest carts
+        and dishes beyond a backlog (store calls, as a kitchen screen would make them).
+
+        The fuzzer queues trips far faster than two robots deliver them, and no client verb
+        cancels a queued trip; without this the backlog grows without bound and every
+        dispatch round and ``tasks``/``orders`` snapshot grows with it.
+        """
+        assert self.r is not None
+        store, now = self.r.app.store, self.r.clock.epoch()
+        queued = await store.list_tasks(status=TaskStatus.QUEUED)
+        for task in queued[: max(0, len(queued) - MAX_QUEUED)]:
+            with contextlib.suppress(Conflict):  # a robot took it meanwhile
+                await store.cancel_task(task.id, now=now, reason="fuzz: backlog")
+        pending = await store.list_orders(status=OrderStatus.PENDING)
+        for order in pending[: max(0, len(pending) - MAX_PENDING)]:
+            with contextlib.suppress(Conflict):
+                await store.cancel_order(order.id, now=now)
 
     async def _run(self, steps: list[Step]) -> None:
         assert self.observer is not None
