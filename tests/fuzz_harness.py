@@ -104,7 +104,7 @@ class Stats:
 
 
 @dataclass
-class _Expect:
+class Expect:
     """What the reply to one sent frame must look like."""
 
     label: str
@@ -121,7 +121,7 @@ class _Conn:
     def __init__(self, ws: ClientConnection) -> None:
         self.ws = ws
         self.replies: asyncio.Queue[Any] = asyncio.Queue()
-        self.pending: deque[_Expect] = deque()
+        self.pending: deque[Expect] = deque()
         self.updates = 0
         self.reader = asyncio.create_task(self._read())
 
@@ -449,7 +449,7 @@ class LiveRestaurant:
             probe = {"clientmsg": "data", "id": "probe", "topics": ["robots"]}
             if c.open:
                 await c.ws.send(json.dumps(probe))
-                c.pending.append(_Expect("probe", "data", True, "probe", (), json.dumps(probe)))
+                c.pending.append(Expect("probe", "data", True, "probe", (), json.dumps(probe)))
             await self._drain(c, i)
             if not c.open:
                 raise FuzzFailure(f"connection {i} was closed by the server ({c.ws.close_code})")
@@ -479,7 +479,7 @@ class LiveRestaurant:
         if step.binary:
             payload = text.encode("utf-8") + (b"\xff\xfe\x80" if step.bad_utf8 else b"")
         conn = self.conns[step.conn % len(self.conns)]
-        conn.pending.append(_Expect(step.label, step.verb, valid, exact, loose, text))
+        conn.pending.append(Expect(step.label, step.verb, valid, exact, loose, text))
         self.stats.frames += 1
         try:
             await conn.ws.send(payload)
@@ -510,7 +510,7 @@ class LiveRestaurant:
         get.cancel()
         return conn.replies.get_nowait() if not conn.replies.empty() else _MISSING
 
-    def _check_reply(self, expect: _Expect, reply: Any) -> None:
+    def _check_reply(self, expect: Expect, reply: Any) -> None:
         def fail(why: str) -> FuzzFailure:
             return FuzzFailure(
                 f"{why}\n  frame ({expect.label}, valid={expect.valid}): {expect.text[:600]!r}"

@@ -20,6 +20,7 @@ import os
 import sqlite3
 from collections.abc import Iterator
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from hypothesis import HealthCheck, Phase, given, settings
@@ -29,7 +30,7 @@ from serveur.domain import WaypointKind, WaypointRecord
 from serveur.errors import ServeurError
 from serveur.status import RobotMode, RobotStatus
 from serveur.store import open_store
-from tests.fuzz_harness import ERROR_CODES, LiveRestaurant
+from tests.fuzz_harness import ERROR_CODES, Expect, FuzzFailure, LiveRestaurant, Stats
 from tests.fuzz_strategies import (
     LABELS,
     IdSlot,
@@ -38,6 +39,7 @@ from tests.fuzz_strategies import (
     Raw,
     Ref,
     Send,
+    Step,
     encode,
     examples,
     frames,
@@ -82,7 +84,7 @@ def test_fuzz_live(live: LiveRestaurant) -> None:
         suppress_health_check=list(HealthCheck),
     )
     @given(examples())
-    def one_example(steps: list[Send]) -> None:
+    def one_example(steps: list[Step]) -> None:
         live.run(steps)  # raises on any broken property, including the invariants
 
     one_example()
@@ -149,6 +151,29 @@ def test_error_frame_scrubs_text_utf8_cannot_carry() -> None:
     err = ServeurError("no robot named '\\ud800'", robot="\ud800", more=["\udfff"])
     reply = json.loads(P.error_frame("\udc80", err))
     assert reply["id"] == "?" and reply["details"] == {"robot": "?", "more": ["?"]}
+
+
+def test_harness_refuses_bad_replies() -> None:
+    """The reply checks fail on what they must catch (so a quiet run means something)."""
+    me = SimpleNamespace(stats=Stats(), live=Live())
+    asked = Expect("data", "data", True, 7, (), '{"clientmsg":"data","id":7,"topics":["map"]}')
+    LiveRestaurant._check_reply(me, asked, {"servermsg": "ok", "id": 7, "data": {}})  # type: ignore[arg-type]
+    error = {"servermsg": "error", "id": 7, "message": "m"}
+    for bad in (
+        {**error, "code": "internal_error"},
+        {**error, "code": "bad_json"},  # a valid frame refused as malformed
+        {**error, "code": "no_such_code"},
+        {"servermsg": "ok", "id": 8, "data": {}},  # another request's id
+        {"servermsg": "ok", "data": {}},  # no id
+        {"servermsg": "ok", "id": 7},  # no payload
+        {"servermsg": "update", "topic": "robots", "seq": 1, "data": {}},
+        ["not", "an", "object"],
+    ):
+        with pytest.raises(FuzzFailure):
+            LiveRestaurant._check_reply(me, asked, bad)  # type: ignore[arg-type]
+    broken = Expect("x", "data", False, None, (), "{")
+    with pytest.raises(FuzzFailure, match="malformed frame was accepted"):
+        LiveRestaurant._check_reply(me, broken, {"servermsg": "ok", "data": {}})  # type: ignore[arg-type]
 
 
 # --------------------------------------------------------------------------- the strategies
