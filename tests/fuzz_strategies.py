@@ -16,6 +16,7 @@ Adding a verb is one line in :data:`VERB_STRATEGIES` (e.g. ``"login": login_msgs
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections.abc import Sequence
@@ -717,9 +718,7 @@ def _framing(draw: st.DrawFn, step: Send) -> Send:
 
 
 def _replace(step: Send, **changes: Any) -> Send:
-    from dataclasses import replace
-
-    return replace(step, **changes)
+    return dataclasses.replace(step, **changes)
 
 
 # --------------------------------------------------------------------------- flows
