@@ -25,7 +25,7 @@ import random
 import re
 import threading
 from collections import Counter, deque
-from collections.abc import Coroutine
+from collections.abc import AsyncIterator, Coroutine
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar, get_args
@@ -408,12 +408,18 @@ class LiveRestaurant:
             raise invariants.InvariantViolation("\n  ".join(["invariants broken:", *found]))
 
     async def _check(self) -> list[str]:
+        async with self._robots_locked():
+            return invariants.violations(self.db_path)
+
+    @contextlib.asynccontextmanager
+    async def _robots_locked(self) -> AsyncIterator[None]:
+        """Every robot's lock, in name order (the server never holds two at once)."""
         assert self.r is not None and self.r.app.core is not None
         runtimes = self.r.app.core._rt
         async with contextlib.AsyncExitStack() as stack:
             for name in sorted(runtimes):
                 await stack.enter_async_context(runtimes[name].lock)
-            return invariants.violations(self.db_path)
+            yield
 
     async def _housekeep(self) -> None:
         """Keep the restaurant in a realistic regime: the kitchen withdraws the oldest carts
@@ -425,13 +431,16 @@ class LiveRestaurant:
         """
         assert self.r is not None
         store, now = self.r.app.store, self.r.clock.epoch()
-        queued = await store.list_tasks(status=TaskStatus.QUEUED)
-        for task in queued[: max(0, len(queued) - MAX_QUEUED)]:
-            with contextlib.suppress(Conflict):  # a robot took it meanwhile
+        # Under every robot's lock: a robot takes a queued trip under its lock, and
+        # ``cancel_task`` also cancels an *active* trip — without the locks a trip taken
+        # meanwhile would be cancelled under a Delivering robot (a harness bug, not a server one).
+        async with self._robots_locked():
+            queued = await store.list_tasks(status=TaskStatus.QUEUED)
+            for task in queued[: max(0, len(queued) - MAX_QUEUED)]:
                 await store.cancel_task(task.id, now=now, reason="fuzz: backlog")
         pending = await store.list_orders(status=OrderStatus.PENDING)
         for order in pending[: max(0, len(pending) - MAX_PENDING)]:
-            with contextlib.suppress(Conflict):
+            with contextlib.suppress(Conflict):  # put on a trip meanwhile
                 await store.cancel_order(order.id, now=now)
 
     async def _run(self, steps: list[Step]) -> None:

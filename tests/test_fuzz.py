@@ -66,7 +66,9 @@ _QUICK = settings(
 
 @pytest.fixture(scope="module")
 def live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveRestaurant]:
-    restaurant = LiveRestaurant(tmp_path_factory.mktemp("fuzz"), robots=2, time_scale=TIME_SCALE)
+    restaurant = LiveRestaurant(
+        tmp_path_factory.mktemp("fuzz"), robots=2, time_scale=TIME_SCALE, wait_scale=0.5
+    )
     restaurant.start()
     try:
         yield restaurant
