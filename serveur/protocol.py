@@ -214,11 +214,21 @@ OrderId: TypeAlias = Annotated[int, Field(ge=1, le=2**53)]
 _ID_INT_BOUND: Final = 10**63
 
 
+def _is_utf8(value: str) -> bool:
+    """False for text with a lone surrogate (JSON can write one as ``"\\ud800"``): it cannot
+    be echoed in a UTF-8 frame, so it is neither a readable id nor a robot name."""
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
 def _check_request_id(value: object) -> str | int:
     # One validator instead of a str|int union so that a bad id gets one clear error, not one
     # per union branch. Ints are bounded so their decimal form, like a str id, is <= 64 chars;
     # bool is refused although Python counts it as an int.
-    if type(value) is str and len(value) <= MAX_NAME:
+    if type(value) is str and len(value) <= MAX_NAME and _is_utf8(value):
         return value
     if type(value) is int and -_ID_INT_BOUND < value < 10 * _ID_INT_BOUND:
         return value
@@ -266,6 +276,7 @@ def _check_topic(value: str) -> str:
         and 0 < len(robot) <= MAX_NAME
         and robot == robot.strip()
         and not _CONTROL_CHARS.search(robot)
+        and _is_utf8(robot)
     ):
         return value
     raise PydanticCustomError(
@@ -970,14 +981,29 @@ def ok_frame(request_id: str | int | None, **payload: object) -> str:
 def error_frame(request_id: str | int | None, exc: ServeurError) -> str:
     """The error reply for ``exc``; ``request_id`` defaults to ``exc.request_id``.
 
-    Never raises: details that are not JSON-able are sent as their ``str``.
+    Never raises: details that are not JSON-able are sent as their ``str``, and text that UTF-8
+    cannot carry (a lone surrogate a client sent as ``"\\ud800"``) with ``?`` in its place.
     """
     rid = request_id if request_id is not None else exc.request_id
     frame: dict[str, object] = {"servermsg": "error"}
     if rid is not None:
         frame["id"] = rid
     frame.update(exc.to_dict())
-    return _to_json(frame, fallback=str)
+    try:
+        return _to_json(frame, fallback=str)
+    except ValueError:  # text that UTF-8 cannot carry (a lone surrogate from a \ud800 escape)
+        return _to_json(_scrub(frame), fallback=str)
+
+
+def _scrub(value: Any) -> Any:
+    """``value`` with every string made UTF-8-safe (lone surrogates become ``?``)."""
+    if isinstance(value, str):
+        return value.encode("utf-8", "replace").decode("utf-8")
+    if isinstance(value, dict):
+        return {_scrub(k): _scrub(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_scrub(v) for v in value]
+    return value
 
 
 _topic_json: dict[str, str] = {}
