@@ -9,8 +9,9 @@ server timeout scales with it. The replay itself is only a client of the websock
 * **the kitchen** creates each dish (``create order``) at its ``ready_at``;
 * **the staff** confirm a cart (``create task``) when robots are free — the ``baseline`` staff
   fill it first-in first-out up to the tray's tables (the design report); the ``serveur`` staff
-  follow :func:`serveur.scheduler.suggest_carts` (areas, longest wait first, spread over the
-  free robots, a short hold for a table's next dish seen on the kitchen display);
+  follow :func:`serveur.scheduler.suggest_carts` (each table, oldest first, on the trip that
+  collects it soonest: a free robot now, or one due back from its trip; a short hold for a
+  table's next dish seen on the kitchen display);
 * **the guests** press "Food collected" (``next``) a seeded dwell time after the robot stops.
 
 The server runs with ``CoreConfig(policy=...)``: ``baseline`` visits tables in cart order,
@@ -85,7 +86,7 @@ class ReplayOptions:
     seed: int = 0
     capacity: int = 4
     kinematics: str = "omni"
-    hold: float = 25.0  # serveur staff: wait this long at most for a table's next dish
+    hold: float = 10.0  # serveur staff: wait this long at most for a table's next dish
     lookahead: float = 60.0  # the kitchen display shows dishes this far ahead of ready
     overtime: float = 3600.0  # give up this long after the last dish was ready
     progress: bool = True
@@ -238,6 +239,7 @@ class _Service:
         self.tasks: dict[int, dict[str, Any]] = {}
         self.busy: dict[str, float] = {}
         self.busy_since: dict[str, float] = {}
+        self.eta: dict[str, float] = {}  # busy robot -> when staff expect it back (service s)
         self.served: set[tuple[int, int]] = set()
         self.nav_errors = 0
         self.recoveries = 0
@@ -285,8 +287,11 @@ class _Service:
         if self.t0:
             if old == "Awaiting":
                 self.busy_since[name] = self.now()
+                self._expect(name, robot)
             elif status == "Awaiting" and name in self.busy_since:
                 self.busy[name] = self.busy.get(name, 0.0) + self.now() - self.busy_since.pop(name)
+        if status == "Awaiting":
+            self.eta.pop(name, None)
         if status == "Delivered":
             task = self.tasks.get(robot["current_task"] or -1)
             if task is not None and task["current_stop"] < len(task["stops"]):
@@ -298,6 +303,43 @@ class _Service:
         elif status == "Error":
             self.nav_errors += 1
             self._spawn(self._retry(name))
+
+    def _expect(self, name: str, robot: dict[str, Any]) -> None:
+        """When staff expect a robot that just left to be back, from its trip's stops.
+
+        What a waiter sees on the console (the trip's tables and dishes) and a rule of
+        thumb per leg and per stop (:class:`serveur.scheduler.TripEstimate`); the serveur
+        staff use it to decide whether a table should wait for that robot.
+        """
+        from serveur.scheduler import TripEstimate
+
+        task = self.tasks.get(robot.get("current_task") or -1)
+        home = robot.get("home")
+        if task is None or not home:
+            return
+        stops = [(s["table"], len(s["orders"])) for s in task["stops"]]
+        self.eta[name] = self.now() + TripEstimate().trip(home, stops, self.distance)
+
+    def _busy(self, now: float) -> list[float]:
+        """Seconds until each busy robot is expected back (overdue ones: any moment now)."""
+        out = []
+        for name, r in self.robots.items():
+            if r["status"] == "Awaiting" and r["current_task"] is None:
+                continue
+            eta = self.eta.get(name)
+            # No trip to go by (manual control, error, going home after a rescue): a minute.
+            out.append(60.0 if eta is None else max(1.0, eta - now))
+        return out
+
+    def _origin(self) -> str:
+        """Where trips start: the free robots' home spots sit at the pass; the first one's."""
+        homes = [
+            r["home"]
+            for _, r in sorted(self.robots.items())
+            if r.get("home") and r["status"] == "Awaiting"
+        ]
+        homes = homes or [r["home"] for _, r in sorted(self.robots.items()) if r.get("home")]
+        return str(homes[0]) if homes else "pass"
 
     def _on_order(self, order: dict[str, Any]) -> None:
         """A dish back to ``pending`` after its trip was cancelled goes on a new cart."""
@@ -429,9 +471,11 @@ class _Service:
             free,
             self.distance,
             now=now,
+            origin=self._origin(),
             capacity=self.opts.capacity,
             coming=coming,
             hold=self.opts.hold,
+            busy=self._busy(now),
         )
 
     async def _staff(self) -> None:
