@@ -35,6 +35,7 @@ from serveur.clock import Clock
 from serveur.domain import Order, OrderStatus, Robot, Task, TaskStatus, WaypointKind, WaypointRecord
 from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurError
 from serveur.hub import Hub
+from serveur.memory import trim_heap
 from serveur.robot_link import RobotLink
 from serveur.scheduler import Candidate, Dispatcher, cart_order_trips, order_stops, plan_trips
 from serveur.status import Action, Event, RobotState, RobotStatus, apply, check_allowed
@@ -137,8 +138,10 @@ class Core:
             # Path distances between all waypoints, computed once before any robot is driven,
             # off the event loop: the scheduler's first cart must not stall every link.
             await asyncio.to_thread(self._distances.matrix, sorted(self._waypoints))
-            # Keep the distances, drop the fields they came from (~33 MB on the demo map).
+            # Keep the distances, drop the fields they came from (~33 MB on the demo map),
+            # and hand the worker thread's freed pages back to the OS (serveur.memory).
             self._distances.planner.clear_cache()
+            trim_heap()
         for robot in await self.store.list_robots():
             self._add_runtime(robot)
             # Every robot starts Offline and resumes what it was doing once its link is up.
@@ -195,6 +198,7 @@ class Core:
             ack_retries=self.config.ack_retries,
             want_map=self._map is None,
             ssl=self.robot_ssl,
+            pose_watched=self.hub.watched(f"pose:{rt.name}"),
         )
         rt.link.start()
 
@@ -706,10 +710,15 @@ class Core:
             log.warning("%s: unusable /map: %s", robot, exc)
 
     def _on_watch(self, topic: str, on: bool) -> None:
+        # Scans stream only while watched; poses slow to 1 Hz while unwatched and parked.
         if topic.startswith("scan:"):
             rt = self._rt.get(topic[5:])
             if rt is not None and rt.link is not None:
                 asyncio.get_running_loop().create_task(rt.link.want_scan(on))
+        elif topic.startswith("pose:"):
+            rt = self._rt.get(topic[5:])
+            if rt is not None and rt.link is not None:
+                asyncio.get_running_loop().create_task(rt.link.want_pose(on))
 
     async def _worker(self, rt: _Runtime) -> None:
         while True:

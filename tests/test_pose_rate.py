@@ -1,0 +1,52 @@
+"""The robot link asks for /amcl_pose at full rate only while someone watches or it moves.
+
+An idle server with ten parked robots spent most of its CPU decoding 10 Hz AMCL poses that
+nobody looked at; docs/performance.md has the figures. These tests read the throttle the
+simulated rosbridge applies to the server's subscription, so they break if the link stops
+slowing the stream down, or stops restoring full rate for a watcher or a moving robot.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable
+
+from serveur.robot_link import IDLE_POSE_MS
+from tests.conftest import WAIT, Restaurant
+from tests.test_e2e import activate, new_orders, staff
+
+
+def pose_throttle(r: Restaurant) -> float | None:
+    """Seconds between /amcl_pose messages the simulator grants the server (None: none)."""
+    subs = r.sim.robots[0]._subs.get("/amcl_pose", [])
+    return min(s.throttle for s in subs) if subs else None
+
+
+async def eventually(cond: Callable[[], bool], what: str) -> None:
+    for _ in range(int(WAIT / 0.02)):
+        if cond():
+            return
+        await asyncio.sleep(0.02)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+async def test_pose_is_throttled_while_parked_and_unwatched(one_robot: Restaurant) -> None:
+    c = await staff(one_robot)
+    await activate(c, "r1")
+    idle = IDLE_POSE_MS / 1000
+    await eventually(lambda: pose_throttle(one_robot) == idle, "idle pose rate")
+    await c.subscribe("pose:r1")
+    await eventually(lambda: pose_throttle(one_robot) == 0.0, "full rate for a watcher")
+    await c.ok("data", topics=["pose:r1"], unsubscribe=True)
+    await eventually(lambda: pose_throttle(one_robot) == idle, "idle rate again")
+
+
+async def test_pose_is_full_rate_while_the_robot_drives(one_robot: Restaurant) -> None:
+    c = await staff(one_robot)
+    await activate(c, "r1")
+    ids = await new_orders(c, ("Laksa", "T6"))
+    await c.ok("create", type="task", orders=ids)
+    await c.status("r1", "Delivering")
+    assert pose_throttle(one_robot) == 0.0  # set before the goal went out
+    await c.status("r1", "Delivered")  # arrived: parked at the table, nobody watching
+    await eventually(lambda: pose_throttle(one_robot) == IDLE_POSE_MS / 1000, "idle at table")
