@@ -580,12 +580,21 @@ class _Service:
         # they are kept at >= 2 s of wall time. Nothing here fails on purpose, so they only
         # need to never fire spuriously.
         scale = opts.time_scale
+        heartbeat = max(1.0, 2.0 * scale)
+        # Accelerated, the replay's cost is rosbridge traffic (~16 messages a robot-second,
+        # encoded by the simulator, decoded by the links): nobody watches poses (distances
+        # come from the simulator's true poses) and status is only a heartbeat and goal acks,
+        # so both are throttled (ms of simulated time) — 2 Hz poses leave the server's arrival
+        # checks a pose at most 0.35 m old; status keeps 4 beats per heartbeat period.
+        fast = scale >= 10.0
         cfg = CoreConfig(
             capacity=opts.capacity,
             policy=self.policy,
-            heartbeat=max(1.0, 2.0 * scale),
+            heartbeat=heartbeat,
             ack_timeout=max(2.0, 2.0 * scale),
             pose_persist_period=max(5.0, 0.5 * scale),
+            moving_pose_ms=500 if fast else 0,
+            status_ms=int(min(1000.0, 250.0 * heartbeat)) if fast else 0,
         )
         app = App(
             workdir / f"{self.policy}.db",

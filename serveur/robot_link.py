@@ -47,7 +47,7 @@ __all__ = ["LinkListener", "RobotLink"]
 
 log = logging.getLogger(__name__)
 
-_SUBSCRIPTIONS = ("/move_base/status", "/move_base/result", "/battery_state")
+_SUBSCRIPTIONS = ("/move_base/result", "/battery_state")
 #: /amcl_pose throttle (ms) while nobody watches the robot's pose and it is not moving: the
 #: server then only needs to know where the robot stands (a 10 Hz AMCL stream costs ~90 us a
 #: message to decode and apply, most of an idle server's CPU with ten robots).
@@ -109,6 +109,8 @@ class RobotLink:
         ssl: ssl_module.SSLContext | None = None,
         idle_pose_ms: int = IDLE_POSE_MS,
         pose_watched: bool = False,
+        moving_pose_ms: int = 0,
+        status_ms: int = 0,
     ) -> None:
         self.name = name
         self.url = url
@@ -133,7 +135,12 @@ class RobotLink:
         self._have_pose = False
         self._up = False
         self._scan_wanted = False
-        self._idle_pose_ms = idle_pose_ms
+        # Throttles (ms, robot clock) that accelerated replays raise to cut rosbridge traffic:
+        # the pose of an unwatched moving robot, and move_base status (heartbeat, goal acks;
+        # terminal goal states come unthrottled on /move_base/result). 0: every message.
+        self._idle_pose_ms = max(idle_pose_ms, moving_pose_ms)
+        self._moving_pose_ms = moving_pose_ms
+        self._status_ms = status_ms
         self._pose_watched = pose_watched
         self._teleop = False
         self._pose_ms: int | None = None  # the throttle of our /amcl_pose subscription
@@ -213,6 +220,10 @@ class RobotLink:
             await ws.send(rb.encode(rb.op_advertise(topic, rb.TOPIC_TYPES[topic])))
         for topic in _SUBSCRIPTIONS:
             await ws.send(rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic])))
+        status = rb.op_subscribe(
+            "/move_base/status", rb.TOPIC_TYPES["/move_base/status"], throttle_rate=self._status_ms
+        )
+        await ws.send(rb.encode(status))
         self._pose_ms = None
         await self._subscribe_pose(ws)
         if self._want_map:
@@ -408,8 +419,10 @@ class RobotLink:
 
     def _pose_throttle(self) -> int:
         """Full rate while watched or moving (arrival checks need a fresh pose), else idle."""
+        if self._pose_watched:
+            return 0
         moving = self._goal is not None or self._teleop
-        return 0 if self._pose_watched or moving else self._idle_pose_ms
+        return self._moving_pose_ms if moving else self._idle_pose_ms
 
     def _pose_rate_changed(self) -> None:
         """From a synchronous callback (a goal ended): re-subscribe soon if the rate changed."""
