@@ -321,14 +321,19 @@ class _Service:
         self.eta[name] = self.now() + TripEstimate().trip(home, stops, self.distance)
 
     def _busy(self, now: float) -> list[float]:
-        """Seconds until each busy robot is expected back (overdue ones: any moment now)."""
+        """Seconds until each robot out on a trip is expected back at the pass.
+
+        Only robots on a normal trip count, and only until they are 15 s late: one stuck,
+        in manual control or offline may be gone for minutes, and a table left on the pass
+        for it would wait while a free robot idles.
+        """
         out = []
         for name, r in self.robots.items():
-            if r["status"] == "Awaiting" and r["current_task"] is None:
-                continue
             eta = self.eta.get(name)
-            # No trip to go by (manual control, error, going home after a rescue): a minute.
-            out.append(60.0 if eta is None else max(1.0, eta - now))
+            if eta is None or r["status"] not in ("Delivering", "Delivered", "Transit"):
+                continue
+            if now - eta <= 15.0:
+                out.append(max(1.0, eta - now))
         return out
 
     def _origin(self) -> str:
