@@ -60,10 +60,11 @@ class CoreConfig:
     arrive_tolerance: float = 0.35  # a robot this close to its goal is "there" (reconciliation)
     far_tolerance: float = 0.6  # SUCCEEDED this far from the goal is an error, not an arrival
     pose_persist_period: float = 5.0
-    #: rosbridge throttles (ms) of a moving robot's unwatched pose and of move_base status;
-    #: 0 for real robots, raised by accelerated replays (serveur.replay) to spare the CPU.
+    #: rosbridge throttles (ms) of a moving robot's unwatched pose, move_base status and the
+    #: battery; 0 for real robots, raised by accelerated replays (serveur.replay).
     moving_pose_ms: int = 0
     status_ms: int = 0
+    battery_ms: int = 0
     robot_radius: float = 0.2
     #: "serveur": trips by area, stops in shortest-route order (scheduler.plan_trips);
     #: "baseline": the design report's behaviour, stops in the order of the cart (replay A/B).
@@ -205,6 +206,7 @@ class Core:
             pose_watched=self.hub.watched(f"pose:{rt.name}"),
             moving_pose_ms=self.config.moving_pose_ms,
             status_ms=self.config.status_ms,
+            battery_ms=self.config.battery_ms,
         )
         rt.link.start()
 

@@ -590,7 +590,8 @@ class _Service:
         # encoded by the simulator, decoded by the links): nobody watches poses (distances
         # come from the simulator's true poses) and status is only a heartbeat and goal acks,
         # so both are throttled (ms of simulated time) — 2 Hz poses leave the server's arrival
-        # checks a pose at most 0.35 m old; status keeps 4 beats per heartbeat period.
+        # checks a pose at most 0.35 m old; status keeps 4 beats per heartbeat period — and
+        # the battery, which the server only reports when it moves by 1 %, every 30 s.
         fast = scale >= 10.0
         cfg = CoreConfig(
             capacity=opts.capacity,
@@ -600,6 +601,7 @@ class _Service:
             pose_persist_period=max(5.0, 0.5 * scale),
             moving_pose_ms=500 if fast else 0,
             status_ms=int(min(1000.0, 250.0 * heartbeat)) if fast else 0,
+            battery_ms=30_000 if fast else 0,  # 1 % of charge takes minutes
         )
         app = App(
             workdir / f"{self.policy}.db",

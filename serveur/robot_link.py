@@ -47,7 +47,7 @@ __all__ = ["LinkListener", "RobotLink"]
 
 log = logging.getLogger(__name__)
 
-_SUBSCRIPTIONS = ("/move_base/result", "/battery_state")
+_SUBSCRIPTIONS = ("/move_base/result",)
 #: /amcl_pose throttle (ms) while nobody watches the robot's pose and it is not moving: the
 #: server then only needs to know where the robot stands (a 10 Hz AMCL stream costs ~90 us a
 #: message to decode and apply, most of an idle server's CPU with ten robots).
@@ -111,6 +111,7 @@ class RobotLink:
         pose_watched: bool = False,
         moving_pose_ms: int = 0,
         status_ms: int = 0,
+        battery_ms: int = 0,
     ) -> None:
         self.name = name
         self.url = url
@@ -136,11 +137,13 @@ class RobotLink:
         self._up = False
         self._scan_wanted = False
         # Throttles (ms, robot clock) that accelerated replays raise to cut rosbridge traffic:
-        # the pose of an unwatched moving robot, and move_base status (heartbeat, goal acks;
-        # terminal goal states come unthrottled on /move_base/result). 0: every message.
+        # the pose of an unwatched moving robot, move_base status (heartbeat, goal acks;
+        # terminal goal states come unthrottled on /move_base/result) and the battery.
+        # 0: every message.
         self._idle_pose_ms = max(idle_pose_ms, moving_pose_ms)
         self._moving_pose_ms = moving_pose_ms
         self._status_ms = status_ms
+        self._battery_ms = battery_ms
         self._pose_watched = pose_watched
         self._teleop = False
         self._pose_ms: int | None = None  # the throttle of our /amcl_pose subscription
@@ -220,10 +223,13 @@ class RobotLink:
             await ws.send(rb.encode(rb.op_advertise(topic, rb.TOPIC_TYPES[topic])))
         for topic in _SUBSCRIPTIONS:
             await ws.send(rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic])))
-        status = rb.op_subscribe(
-            "/move_base/status", rb.TOPIC_TYPES["/move_base/status"], throttle_rate=self._status_ms
-        )
-        await ws.send(rb.encode(status))
+        for topic, ms in (
+            ("/move_base/status", self._status_ms),
+            ("/battery_state", self._battery_ms),
+        ):
+            await ws.send(
+                rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic], throttle_rate=ms))
+            )
         self._pose_ms = None
         await self._subscribe_pose(ws)
         if self._want_map:

@@ -68,7 +68,9 @@ async def test_replay_throttles_reach_the_robot() -> None:
 
     clock = ScaledClock(10.0)
     sim = await start_simulation(1, port=0, map_path=demo_map_path(), clock=clock)
-    link = RobotLink("r1", sim.urls[0], _Quiet(), clock, moving_pose_ms=500, status_ms=1000)
+    link = RobotLink(
+        "r1", sim.urls[0], _Quiet(), clock, moving_pose_ms=500, status_ms=1000, battery_ms=30_000
+    )
     subs = sim.robots[0]._subs
 
     def throttle(topic: str) -> float | None:
@@ -78,6 +80,7 @@ async def test_replay_throttles_reach_the_robot() -> None:
         link.start()
         await eventually(lambda: link.up, "link up")
         assert throttle("/move_base/status") == 1.0
+        assert throttle("/battery_state") == 30.0
         assert throttle("/amcl_pose") == IDLE_POSE_MS / 1000
         await link.send_goal(6.1, 7.3, 0.0)
         await eventually(lambda: throttle("/amcl_pose") == 0.5, "2 Hz while moving")
