@@ -561,6 +561,7 @@ class _Service:
         from serveur.app import App, RobotSpec
         from serveur.core import CoreConfig
         from serveur.robot_sim import start_simulation
+        from serveur.sessions import SecurityConfig
 
         opts = self.opts
         nav_map, waypoints, map_path = _load_world(opts.map_path)
@@ -611,6 +612,10 @@ class _Service:
             waypoints=waypoints,
             robots=specs,
             config=cfg,
+            # The per-connection rate limit counts wall seconds, but the replay's one client
+            # speaks for a whole kitchen and staff in accelerated time: at 200x a rush is
+            # hundreds of requests a wall second. Scaled, the limit holds in simulated time.
+            security=SecurityConfig(rate=50.0 * max(1.0, scale), burst=200.0 * max(1.0, scale)),
         )
         result = PolicyResult(self.policy)
         bg: list[asyncio.Task[None]] = []
