@@ -147,6 +147,7 @@ class RobotLink:
         self._pose_watched = pose_watched
         self._teleop = False
         self._pose_ms: int | None = None  # the throttle of our /amcl_pose subscription
+        self._jobs: set[asyncio.Task[None]] = set()
         self.pose: tuple[float, float, float] | None = None
         self.battery: float | None = None
         self.connects = 0
@@ -434,7 +435,9 @@ class RobotLink:
         """From a synchronous callback (a goal ended): re-subscribe soon if the rate changed."""
         if self._ws is not None and self._pose_throttle() != self._pose_ms:
             with contextlib.suppress(RuntimeError):  # no running loop: the next session will
-                asyncio.get_running_loop().create_task(self._update_pose_rate())
+                task = asyncio.get_running_loop().create_task(self._update_pose_rate())
+                self._jobs.add(task)  # the loop keeps only a weak reference
+                task.add_done_callback(self._jobs.discard)
 
     async def _update_pose_rate(self) -> None:
         ws = self._ws
