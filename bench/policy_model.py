@@ -9,7 +9,7 @@ same guests (:func:`~serveur.replay.stop_dwell`) and path distances on the demo 
 move at an effective speed with a fixed cost per leg, calibrated against real replays
 (docs/performance.md). Its figures are estimates; the real replay has the last word.
 
-Run: ``python bench/policy_model.py LOG.csv [--robots 3] [--hold 0 10 25 40]``.
+Run: ``python bench/policy_model.py LOG.csv [--robots 3] [--hold 0 10 25]``.
 """
 
 from __future__ import annotations

@@ -292,15 +292,18 @@ def suggest_carts(
       is far off, neighbouring tables share a trip; when robots are about, each table gets
       its own and dishes are not dragged around the room behind other guests.
     * **The cost of a longer trip counts too.** Each option costs the table's plates times
-      its estimated collection time, plus ``return_weight`` times how much later the robot
-      gets back (seconds that every dish still to come would wait for it), so a far-off
-      table is not tacked on to a trip just because it is marginally sooner that way.
+      its estimated collection time; adding a stop to a trip also costs ``return_weight``
+      times how much later that robot gets back (seconds that dishes still to come would
+      wait for it), so a far-off table is not tacked on to a trip just because it is
+      marginally sooner that way. Opening a trip on an idle robot is not charged: a robot
+      left at the pass serves nobody.
     * **Hold for a table's next dish when robots are short.** A table whose next dish
       (``coming``: the kitchen's tickets being plated) is ready within ``hold`` seconds is
       left for that dish, unless one of its dishes already waited ``hold``: half a party's
       food now means a second trip for the rest, a whole round trip of a robot that other
       tables need. When more robots are free than tables are waiting or about to, nothing
-      is held. Replays put the best hold near 10 s (a party's dishes come out within 40 s).
+      is held. The policy model (bench/policy_model.py) puts the best hold near 10 s (a
+      party's dishes come out within 40 s).
 
     Estimates use ``estimate`` (speed, leg overhead, dwell per stop and plate); they are
     guesses of the future and only need to rank the options. Returns the carts (dish ids,
