@@ -9,7 +9,7 @@ same guests (:func:`~serveur.replay.stop_dwell`) and path distances on the demo 
 move at an effective speed with a fixed cost per leg, calibrated against real replays
 (docs/performance.md). Its figures are estimates; the real replay has the last word.
 
-Run: ``python bench/policy_model.py LOG.csv [--robots 3] [--hold 0 10 25 40]``.
+Run: ``python bench/policy_model.py LOG.csv [--robots 3] [--hold 0 10 25]``.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from collections.abc import Callable, Sequence
 from serveur.navigation import DistanceTable, Planner, load_demo
 from serveur.orders import LogOrder, demo_tables, read_orders
 from serveur.replay import stop_dwell
-from serveur.scheduler import Dish, fifo_cart, order_stops, suggest_carts
+from serveur.scheduler import Dish, TripEstimate, fifo_cart, order_stops, suggest_carts
 
 SPEED = 0.6  # m/s effective (0.7 m/s top speed, acceleration, corners)
 LEG = 2.5  # s per leg: planning, turning on the spot, settling at the goal
@@ -33,7 +33,7 @@ def model(
     robots: int,
     distance: Callable[[str, str], float],
     *,
-    hold: float = 25.0,
+    hold: float = 10.0,
     lookahead: float = 60.0,
     seed: int = 0,
     capacity: int = 4,
@@ -41,6 +41,7 @@ def model(
     """Waits (ready -> collected) of every dish of ``log`` under ``policy``."""
     homes = [f"home{i + 1}" for i in range(robots)]
     free_at = dict.fromkeys(homes, 0.0)  # robot (by home) -> when it is home again
+    eta = dict.fromkeys(homes, 0.0)  # ... and when the staff expect it (TripEstimate)
     idle_since = dict.fromkeys(homes, 0.0)
     pending: dict[int, Dish] = {}
     waits: list[float] = []
@@ -76,8 +77,17 @@ def model(
                 for i, o in enumerate(log[created:])
                 if o.ready_at <= t + lookahead
             ]
+            busy = [max(1.0, eta[h] - t) for h in homes if free_at[h] > t]
             carts = suggest_carts(
-                dishes, len(free), distance, now=t, capacity=capacity, coming=coming, hold=hold
+                dishes,
+                len(free),
+                distance,
+                now=t,
+                origin=free[0],
+                capacity=capacity,
+                coming=coming,
+                hold=hold,
+                busy=busy,
             )
             if not carts:
                 heapq.heappush(events, t + 1.0)  # a hold runs out: look again
@@ -86,6 +96,8 @@ def model(
             if policy != "baseline":
                 tables = order_stops(home, tables, distance, end=home)
             here, clock = home, t
+            plates = [(tb, sum(1 for i in cart if pending[i].table == tb)) for tb in tables]
+            eta[home] = t + TripEstimate().trip(home, plates, distance)
             for table in tables:
                 clock += leg(here, table)
                 ids = [i for i in cart if pending[i].table == table]
@@ -104,7 +116,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("logs", nargs="+")
     ap.add_argument("--robots", type=int, default=3)
-    ap.add_argument("--hold", type=float, nargs="+", default=[0.0, 10.0, 25.0, 40.0])
+    ap.add_argument("--hold", type=float, nargs="+", default=[0.0, 10.0, 25.0])
     ns = ap.parse_args()
     grid, wps = load_demo()
     table = DistanceTable(Planner(grid, robot_radius=0.2), wps)

@@ -54,6 +54,7 @@ from serveur.domain import (
 )
 from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurError
 from serveur.hub import Hub
+from serveur.memory import trim_heap
 from serveur.robot_link import RobotLink
 from serveur.scheduler import Candidate, Dispatcher, cart_order_trips, order_stops, plan_trips
 from serveur.status import Action, Event, RobotMode, RobotState, RobotStatus, apply, check_allowed
@@ -78,6 +79,11 @@ class CoreConfig:
     arrive_tolerance: float = 0.35  # a robot this close to its goal is "there" (reconciliation)
     far_tolerance: float = 0.6  # SUCCEEDED this far from the goal is an error, not an arrival
     pose_persist_period: float = 5.0
+    #: rosbridge throttles (ms) of a moving robot's unwatched pose, move_base status and the
+    #: battery; 0 for real robots, raised by accelerated replays (serveur.replay).
+    moving_pose_ms: int = 0
+    status_ms: int = 0
+    battery_ms: int = 0
     robot_radius: float = 0.2
     #: A robot Offline this long (simulated seconds) with a trip has the trip handed to another
     #: robot; ``None`` never hands over. Two minutes: long enough for a Wi-Fi dead spot or a
@@ -162,8 +168,10 @@ class Core:
             # Path distances between all waypoints, computed once before any robot is driven,
             # off the event loop: the scheduler's first cart must not stall every link.
             await asyncio.to_thread(self._distances.matrix, sorted(self._waypoints))
-            # Keep the distances, drop the fields they came from (~33 MB on the demo map).
+            # Keep the distances, drop the fields they came from (~33 MB on the demo map),
+            # and hand the worker thread's freed pages back to the OS (serveur.memory).
             self._distances.planner.clear_cache()
+            trim_heap()
         for robot in await self.store.list_robots():
             # Every robot starts Offline and resumes what it was doing once its link is up.
             resume = robot.resume if robot.status is S.OFFLINE else robot.status
@@ -276,6 +284,10 @@ class Core:
             ack_retries=self.config.ack_retries,
             want_map=self._map is None,
             ssl=self.robot_ssl,
+            pose_watched=self.hub.watched(f"pose:{rt.name}"),
+            moving_pose_ms=self.config.moving_pose_ms,
+            status_ms=self.config.status_ms,
+            battery_ms=self.config.battery_ms,
         )
         rt.link.start()
 
@@ -846,10 +858,15 @@ class Core:
             log.warning("%s: unusable /map: %s", robot, exc)
 
     def _on_watch(self, topic: str, on: bool) -> None:
+        # Scans stream only while watched; poses slow to 1 Hz while unwatched and parked.
         if topic.startswith("scan:"):
             rt = self._rt.get(topic[5:])
             if rt is not None and rt.link is not None:
                 asyncio.get_running_loop().create_task(rt.link.want_scan(on))
+        elif topic.startswith("pose:"):
+            rt = self._rt.get(topic[5:])
+            if rt is not None and rt.link is not None:
+                asyncio.get_running_loop().create_task(rt.link.want_pose(on))
 
     async def _worker(self, rt: _Runtime) -> None:
         while True:

@@ -12,6 +12,14 @@ classic rosbridge complaint). So every subscriber has its own writer task and bo
 * state topics (robots, orders, tasks, ...) are never dropped silently: a subscriber more than
   ``max_pending`` updates behind is disconnected with close code 4002, and resynchronises from
   a fresh snapshot when it reconnects (the ``seq`` numbers let it notice the gap).
+
+Stream frames to a client that has nothing queued are written straight to its socket from
+:meth:`Hub.publish` (``write_now``), not through its writer task: waking one task per
+subscriber for each 10 Hz pose made every AMCL tick a burst of ~100 task switches and
+``send`` calls (~36 us each), and a request arriving behind a burst waited for all of it —
+the server's p99 latency was 12-14x a raw echo server's (docs/performance.md). Anything that
+cannot go out at once (a state update queued, the socket's buffer full) takes the queued
+path, so order and back-pressure are as before.
 """
 
 from __future__ import annotations
@@ -48,9 +56,13 @@ class Subscriber:
         *,
         max_pending: int = 2000,
         name: str = "",
+        write_now: Callable[[str], bool] | None = None,
     ) -> None:
         self._send = send
         self._close = close
+        #: Writes a frame synchronously if the connection can take it now, else says False.
+        self._write_now = write_now
+        self._busy = False  # the writer task is between frames of a batch
         self._max_pending = max_pending
         self.name = name
         self.topics: set[str] = set()
@@ -97,6 +109,15 @@ class Subscriber:
         if self.view is not None and record is not None and not self.view(topic, record):
             return
         if is_stream_topic(topic):
+            if (
+                self._write_now is not None
+                and not self._busy
+                and not self._state
+                and not self._latest
+                and self._write_now(protocol.update_frame(topic, self.seq + 1, data_json))
+            ):
+                self.seq += 1
+                return
             if topic in self._latest:
                 self.dropped_stream_frames += 1
             self._latest[topic] = data_json
@@ -133,8 +154,10 @@ class Subscriber:
             while not self.closed:
                 await self._wake.wait()
                 self._wake.clear()
+                self._busy = True
                 while (frame := self._next_frame()) is not None:
                     await self._send(frame)
+                self._busy = False
                 if self._closing is not None and not any(t is _CLOSE for t, _ in self._state):
                     self.closed = True
                     await self._close(*self._closing)

@@ -9,8 +9,9 @@ server timeout scales with it. The replay itself is only a client of the websock
 * **the kitchen** creates each dish (``create order``) at its ``ready_at``;
 * **the staff** confirm a cart (``create task``) when robots are free — the ``baseline`` staff
   fill it first-in first-out up to the tray's tables (the design report); the ``serveur`` staff
-  follow :func:`serveur.scheduler.suggest_carts` (areas, longest wait first, spread over the
-  free robots, a short hold for a table's next dish seen on the kitchen display);
+  follow :func:`serveur.scheduler.suggest_carts` (each table, oldest first, on the trip that
+  collects it soonest: a free robot now, or one due back from its trip; a short hold for a
+  table's next dish seen on the kitchen display);
 * **the guests** press "Food collected" (``next``) a seeded dwell time after the robot stops.
 
 The server runs with ``CoreConfig(policy=...)``: ``baseline`` visits tables in cart order,
@@ -85,7 +86,7 @@ class ReplayOptions:
     seed: int = 0
     capacity: int = 4
     kinematics: str = "omni"
-    hold: float = 25.0  # serveur staff: wait this long at most for a table's next dish
+    hold: float = 10.0  # serveur staff: wait this long at most for a table's next dish
     lookahead: float = 60.0  # the kitchen display shows dishes this far ahead of ready
     overtime: float = 3600.0  # give up this long after the last dish was ready
     progress: bool = True
@@ -238,6 +239,7 @@ class _Service:
         self.tasks: dict[int, dict[str, Any]] = {}
         self.busy: dict[str, float] = {}
         self.busy_since: dict[str, float] = {}
+        self.eta: dict[str, float] = {}  # busy robot -> when staff expect it back (service s)
         self.served: set[tuple[int, int]] = set()
         self.nav_errors = 0
         self.recoveries = 0
@@ -285,8 +287,11 @@ class _Service:
         if self.t0:
             if old == "Awaiting":
                 self.busy_since[name] = self.now()
+                self._expect(name, robot)
             elif status == "Awaiting" and name in self.busy_since:
                 self.busy[name] = self.busy.get(name, 0.0) + self.now() - self.busy_since.pop(name)
+        if status == "Awaiting":
+            self.eta.pop(name, None)
         if status == "Delivered":
             task = self.tasks.get(robot["current_task"] or -1)
             if task is not None and task["current_stop"] < len(task["stops"]):
@@ -298,6 +303,48 @@ class _Service:
         elif status == "Error":
             self.nav_errors += 1
             self._spawn(self._retry(name))
+
+    def _expect(self, name: str, robot: dict[str, Any]) -> None:
+        """When staff expect a robot that just left to be back, from its trip's stops.
+
+        What a waiter sees on the console (the trip's tables and dishes) and a rule of
+        thumb per leg and per stop (:class:`serveur.scheduler.TripEstimate`); the serveur
+        staff use it to decide whether a table should wait for that robot.
+        """
+        from serveur.scheduler import TripEstimate
+
+        task = self.tasks.get(robot.get("current_task") or -1)
+        home = robot.get("home")
+        if task is None or not home:
+            return
+        stops = [(s["table"], len(s["orders"])) for s in task["stops"]]
+        self.eta[name] = self.now() + TripEstimate().trip(home, stops, self.distance)
+
+    def _busy(self, now: float) -> list[float]:
+        """Seconds until each robot out on a trip is expected back at the pass.
+
+        Only robots on a normal trip count, and only until they are 15 s late: one stuck,
+        in manual control or offline may be gone for minutes, and a table left on the pass
+        for it would wait while a free robot idles.
+        """
+        out = []
+        for name, r in self.robots.items():
+            eta = self.eta.get(name)
+            if eta is None or r["status"] not in ("Delivering", "Delivered", "Transit"):
+                continue
+            if now - eta <= 15.0:
+                out.append(max(1.0, eta - now))
+        return out
+
+    def _origin(self) -> str:
+        """Where trips start: the free robots' home spots sit at the pass; the first one's."""
+        homes = [
+            r["home"]
+            for _, r in sorted(self.robots.items())
+            if r.get("home") and r["status"] == "Awaiting"
+        ]
+        homes = homes or [r["home"] for _, r in sorted(self.robots.items()) if r.get("home")]
+        return str(homes[0]) if homes else "pass"
 
     def _on_order(self, order: dict[str, Any]) -> None:
         """A dish back to ``pending`` after its trip was cancelled goes on a new cart."""
@@ -429,9 +476,11 @@ class _Service:
             free,
             self.distance,
             now=now,
+            origin=self._origin(),
             capacity=self.opts.capacity,
             coming=coming,
             hold=self.opts.hold,
+            busy=self._busy(now),
         )
 
     async def _staff(self) -> None:
@@ -512,6 +561,7 @@ class _Service:
         from serveur.app import App, RobotSpec
         from serveur.core import CoreConfig
         from serveur.robot_sim import start_simulation
+        from serveur.sessions import SecurityConfig
 
         opts = self.opts
         nav_map, waypoints, map_path = _load_world(opts.map_path)
@@ -536,12 +586,23 @@ class _Service:
         # they are kept at >= 2 s of wall time. Nothing here fails on purpose, so they only
         # need to never fire spuriously.
         scale = opts.time_scale
+        heartbeat = max(1.0, 2.0 * scale)
+        # Accelerated, the replay's cost is rosbridge traffic (~16 messages a robot-second,
+        # encoded by the simulator, decoded by the links): nobody watches poses (distances
+        # come from the simulator's true poses) and status is only a heartbeat and goal acks,
+        # so both are throttled (ms of simulated time) — 2 Hz poses leave the server's arrival
+        # checks a pose at most 0.35 m old; status keeps 4 beats per heartbeat period — and
+        # the battery, which the server only reports when it moves by 1 %, every 30 s.
+        fast = scale >= 10.0
         cfg = CoreConfig(
             capacity=opts.capacity,
             policy=self.policy,
-            heartbeat=max(1.0, 2.0 * scale),
+            heartbeat=heartbeat,
             ack_timeout=max(2.0, 2.0 * scale),
             pose_persist_period=max(5.0, 0.5 * scale),
+            moving_pose_ms=500 if fast else 0,
+            status_ms=int(min(1000.0, 250.0 * heartbeat)) if fast else 0,
+            battery_ms=30_000 if fast else 0,  # 1 % of charge takes minutes
         )
         app = App(
             workdir / f"{self.policy}.db",
@@ -551,6 +612,10 @@ class _Service:
             waypoints=waypoints,
             robots=specs,
             config=cfg,
+            # The per-connection rate limit counts wall seconds, but the replay's one client
+            # speaks for a whole kitchen and staff in accelerated time: at 200x a rush is
+            # hundreds of requests a wall second. Scaled, the limit holds in simulated time.
+            security=SecurityConfig(rate=50.0 * max(1.0, scale), burst=200.0 * max(1.0, scale)),
         )
         result = PolicyResult(self.policy)
         bg: list[asyncio.Task[None]] = []

@@ -47,7 +47,11 @@ __all__ = ["LinkListener", "RobotLink"]
 
 log = logging.getLogger(__name__)
 
-_SUBSCRIPTIONS = ("/move_base/status", "/move_base/result", "/amcl_pose", "/battery_state")
+_SUBSCRIPTIONS = ("/move_base/result",)
+#: /amcl_pose throttle (ms) while nobody watches the robot's pose and it is not moving: the
+#: server then only needs to know where the robot stands (a 10 Hz AMCL stream costs ~90 us a
+#: message to decode and apply, most of an idle server's CPU with ten robots).
+IDLE_POSE_MS = 1000
 _PUBLICATIONS = ("/move_base/goal", "/move_base/cancel", "/cmd_vel", "/initialpose")
 
 
@@ -103,6 +107,11 @@ class RobotLink:
         backoff_max: float = 5.0,
         open_timeout: float = 5.0,
         ssl: ssl_module.SSLContext | None = None,
+        idle_pose_ms: int = IDLE_POSE_MS,
+        pose_watched: bool = False,
+        moving_pose_ms: int = 0,
+        status_ms: int = 0,
+        battery_ms: int = 0,
     ) -> None:
         self.name = name
         self.url = url
@@ -127,6 +136,18 @@ class RobotLink:
         self._have_pose = False
         self._up = False
         self._scan_wanted = False
+        # Throttles (ms, robot clock) that accelerated replays raise to cut rosbridge traffic:
+        # the pose of an unwatched moving robot, move_base status (heartbeat, goal acks;
+        # terminal goal states come unthrottled on /move_base/result) and the battery.
+        # 0: every message.
+        self._idle_pose_ms = max(idle_pose_ms, moving_pose_ms)
+        self._moving_pose_ms = moving_pose_ms
+        self._status_ms = status_ms
+        self._battery_ms = battery_ms
+        self._pose_watched = pose_watched
+        self._teleop = False
+        self._pose_ms: int | None = None  # the throttle of our /amcl_pose subscription
+        self._jobs: set[asyncio.Task[None]] = set()
         self.pose: tuple[float, float, float] | None = None
         self.battery: float | None = None
         self.connects = 0
@@ -203,6 +224,15 @@ class RobotLink:
             await ws.send(rb.encode(rb.op_advertise(topic, rb.TOPIC_TYPES[topic])))
         for topic in _SUBSCRIPTIONS:
             await ws.send(rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic])))
+        for topic, ms in (
+            ("/move_base/status", self._status_ms),
+            ("/battery_state", self._battery_ms),
+        ):
+            await ws.send(
+                rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic], throttle_rate=ms))
+            )
+        self._pose_ms = None
+        await self._subscribe_pose(ws)
         if self._want_map:
             await ws.send(rb.encode(rb.op_subscribe("/map", rb.TOPIC_TYPES["/map"])))
         if self._scan_wanted:
@@ -305,6 +335,7 @@ class RobotLink:
         if st in rb.TERMINAL_STATUSES:
             self._goal = None
             self._listener.goal_done(self.name, goal.handle, st, text)
+            self._pose_rate_changed()
 
     def _maybe_up(self) -> None:
         if self._have_status and self._have_pose and not self._up:
@@ -338,6 +369,7 @@ class RobotLink:
         gid = self._new_goal_id()
         goal = _Goal(gid, gid, x, y, yaw, self._clock.now())
         self._goal = goal
+        await self._update_pose_rate()  # full rate before the robot starts to move
         await self._send(
             rb.op_publish(
                 "/move_base/goal",
@@ -351,6 +383,7 @@ class RobotLink:
             self._goal = None
             reason = f"goal not acknowledged by the robot after {goal.attempts} attempts"
             self._listener.goal_lost(self.name, goal.handle, reason)
+            self._pose_rate_changed()
             return
         old = goal.id
         goal.id = self._new_goal_id()
@@ -371,8 +404,11 @@ class RobotLink:
         """Cancel every goal on the robot (empty id), as a stop button must."""
         self._goal = None
         await self._send(rb.op_publish("/move_base/cancel", {"stamp": rb.ros_time(0.0), "id": ""}))
+        self._pose_rate_changed()
 
     async def teleop(self, vx: float, vy: float, wz: float) -> None:
+        self._teleop = (vx, vy, wz) != (0.0, 0.0, 0.0)
+        await self._update_pose_rate()
         await self._send(rb.op_publish("/cmd_vel", rb.twist(vx, vy, wz)))
 
     async def initial_pose(self, x: float, y: float, yaw: float) -> None:
@@ -381,6 +417,40 @@ class RobotLink:
                 "/initialpose",
                 rb.pose_with_covariance_stamped(x, y, yaw, stamp=self._clock.epoch()),
             )
+        )
+
+    async def want_pose(self, on: bool) -> None:
+        """Someone watches this robot's pose (full AMCL rate) or nobody does any more."""
+        self._pose_watched = on
+        await self._update_pose_rate()
+
+    def _pose_throttle(self) -> int:
+        """Full rate while watched or moving (arrival checks need a fresh pose), else idle."""
+        if self._pose_watched:
+            return 0
+        moving = self._goal is not None or self._teleop
+        return self._moving_pose_ms if moving else self._idle_pose_ms
+
+    def _pose_rate_changed(self) -> None:
+        """From a synchronous callback (a goal ended): re-subscribe soon if the rate changed."""
+        if self._ws is not None and self._pose_throttle() != self._pose_ms:
+            with contextlib.suppress(RuntimeError):  # no running loop: the next session will
+                task = asyncio.get_running_loop().create_task(self._update_pose_rate())
+                self._jobs.add(task)  # the loop keeps only a weak reference
+                task.add_done_callback(self._jobs.discard)
+
+    async def _update_pose_rate(self) -> None:
+        ws = self._ws
+        if ws is not None and self._pose_throttle() != self._pose_ms:
+            with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+                await self._subscribe_pose(ws)
+
+    async def _subscribe_pose(self, ws: ClientConnection) -> None:
+        """(Re-)subscribe /amcl_pose at the wanted throttle; rosbridge replaces the old one."""
+        ms = self._pose_throttle()
+        self._pose_ms = ms
+        await ws.send(
+            rb.encode(rb.op_subscribe("/amcl_pose", rb.TOPIC_TYPES["/amcl_pose"], throttle_rate=ms))
         )
 
     async def want_scan(self, on: bool) -> None:

@@ -13,6 +13,10 @@ is decided by path distance on the map, not by the order staff tapped them in:
 * :func:`choose_robot` — the free robot that has waited longest (ties: most battery), so work
   spreads over the fleet instead of one robot doing everything while others idle.
 
+Staff choose which dishes go on a cart; :func:`suggest_carts` is the advice they (and the
+replay's staff) follow: each waiting table on the trip that collects it soonest, counting
+robots due back (:class:`TripEstimate`); :func:`fifo_cart` is the design report's staff.
+
 :class:`Dispatcher` is the loop (the design report's flowchart): whenever something changes it
 gives each queued trip, oldest first, to the best free robot. The I/O it needs is behind the
 small :class:`Fleet` protocol that the server core implements.
@@ -26,7 +30,7 @@ import itertools
 import logging
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 from serveur.domain import Order
@@ -38,6 +42,7 @@ __all__ = [
     "Dispatcher",
     "Distance",
     "Fleet",
+    "TripEstimate",
     "cart_order_trips",
     "choose_robot",
     "fifo_cart",
@@ -223,38 +228,91 @@ def fifo_cart(dishes: Iterable[Dish], capacity: int = DEFAULT_CAPACITY) -> list[
     return cart
 
 
+@dataclass(frozen=True, slots=True)
+class TripEstimate:
+    """How long trips take, as staff (and :func:`suggest_carts`) reckon it.
+
+    Fitted to replays on the demo room (docs/performance.md): robots average ``speed`` over a
+    leg once acceleration and corners count, plus ``per_leg`` for planning, turning on the
+    spot and settling at the goal; guests at a stop take ``stop`` seconds plus ``per_plate``
+    for each plate (the slowest of several guests sets the pace, so more plates, longer).
+    Only relative values matter to the planner: they decide whether a table is collected
+    sooner as one more stop of a trip leaving now or on a robot coming back later.
+    """
+
+    speed: float = 0.6
+    per_leg: float = 2.5
+    stop: float = 12.0
+    per_plate: float = 5.0
+
+    def leg(self, distance: Distance, a: str, b: str) -> float:
+        """Seconds to drive from ``a`` to ``b`` (0 when already there)."""
+        return 0.0 if a == b else distance(a, b) / self.speed + self.per_leg
+
+    def dwell(self, plates: int) -> float:
+        """Seconds a robot stands at a table where ``plates`` dishes are collected."""
+        return self.stop + self.per_plate * plates
+
+    def trip(self, origin: str, stops: Sequence[tuple[str, int]], distance: Distance) -> float:
+        """Seconds from leaving ``origin`` through ``(table, plates)`` stops and back."""
+        total, here = 0.0, origin
+        for table, plates in stops:
+            total += self.leg(distance, here, table) + self.dwell(plates)
+            here = table
+        return total + self.leg(distance, here, origin)
+
+
 def suggest_carts(
     dishes: Sequence[Dish],
     free_robots: int,
     distance: Distance,
     *,
     now: float,
+    origin: str,
     capacity: int = DEFAULT_CAPACITY,
     coming: Sequence[Dish] = (),
-    hold: float = 0.0,
+    hold: float = 10.0,
+    busy: Sequence[float] = (),
+    estimate: TripEstimate = TripEstimate(),
+    return_weight: float = 1.0,
 ) -> list[list[int]]:
-    """Carts for the robots free now: one per robot, each one area of the room.
+    """Carts for the robots free now, chosen so that dishes are collected soonest.
 
-    Why each rule, for the guests' mean wait (ready at the pass -> collected at the table):
+    A guest's wait (ready at the pass -> collected) is time on the pass, plus the ride
+    (including earlier stops' guests), plus the stop's own dwell. What really moves the
+    mean in a busy service is the first term: queueing for a robot in the rushes. So:
 
-    * **Longest-waiting table first.** Each cart is seeded with the table whose oldest dish
-      has waited longest, so no table starves behind a stream of new, closer ones.
-    * **Area grouping.** The seed's nearest waiting tables (path distance) join it, because a
-      neighbour costs one short hop and one dwell, while a far table drags every later stop.
-    * **Spread over free robots.** With ``k`` robots free and ``m`` tables waiting, each cart
-      takes about ``m / k`` tables (never more than ``capacity``): several short trips in
-      parallel deliver sooner than one long trip while other robots idle at home.
+    * **Each waiting table, oldest first, goes where it is collected soonest.** The options
+      are one more stop on a cart being filled for a robot free now, or a first stop for a
+      robot that is free now or due back (``busy``: seconds until each busy robot is back
+      at the pass, estimated by staff from its trip). A table is *left on the pass* for a
+      robot coming back when that robot would still collect it sooner than riding behind
+      another table's dwell; a free robot then leaves with a short trip (or none) instead of
+      a full tray. Batching thus happens only when it helps: in a rush, when the next robot
+      is far off, neighbouring tables share a trip; when robots are about, each table gets
+      its own and dishes are not dragged around the room behind other guests.
+    * **The cost of a longer trip counts too.** Each option costs the table's plates times
+      its estimated collection time; adding a stop to a trip also costs ``return_weight``
+      times how much later that robot gets back (seconds that dishes still to come would
+      wait for it), so a far-off table is not tacked on to a trip just because it is
+      marginally sooner that way. Opening a trip on an idle robot is not charged: a robot
+      left at the pass serves nobody.
     * **Hold for a table's next dish when robots are short.** A table whose next dish
       (``coming``: the kitchen's tickets being plated) is ready within ``hold`` seconds is
       left for that dish, unless one of its dishes already waited ``hold``: half a party's
       food now means a second trip for the rest, a whole round trip of a robot that other
-      tables need. When more robots are free than tables are waiting or about to, there is
-      no one to take the robot from, and everything goes at once.
+      tables need. When more robots are free than tables are waiting or about to, nothing
+      is held. The policy model (bench/policy_model.py) puts the best hold near 10 s (a
+      party's dishes come out within 40 s).
 
-    Returns the carts (dish ids, oldest table first); ``[]`` means wait.
+    Estimates use ``estimate`` (speed, leg overhead, dwell per stop and plate); they are
+    guesses of the future and only need to rank the options. Returns the carts (dish ids,
+    stops oldest table first; the server re-orders stops by route); ``[]`` means wait.
     """
     if free_robots < 1 or not dishes:
         return []
+    if capacity < 1:
+        raise ValueError("capacity must be >= 1")
     groups: dict[str, list[Dish]] = {}
     for d in sorted(dishes, key=lambda d: (d.ready_at, d.id)):
         groups.setdefault(d.table, []).append(d)
@@ -269,19 +327,40 @@ def suggest_carts(
         for t in sorted(groups, key=lambda t: (groups[t][0].ready_at, groups[t][0].id))
         if t not in soon or now - groups[t][0].ready_at >= hold
     ]
-    carts: list[list[int]] = []
-    trips = min(free_robots, len(tables))
-    for k in range(trips):
-        if not tables:
-            break
-        size = min(capacity, -(-len(tables) // (trips - k)))
-        trip = [tables.pop(0)]
-        while tables and len(trip) < size:
-            nxt = min(tables, key=lambda t: (min(distance(s, t) for s in trip), t))
-            trip.append(nxt)
-            tables.remove(nxt)
-        carts.append([d.id for t in trip for d in groups[t]])
-    return carts
+    # One plan per robot: free ones leave now, busy ones when they are back.
+    plans = [_Plan(0.0, origin, True) for _ in range(free_robots)]
+    plans += [_Plan(max(0.0, b), origin, False) for b in sorted(busy)]
+    for t in tables:
+        plates = len(groups[t])
+        best: tuple[float, int] | None = None
+        for i, p in enumerate(plans):
+            if len(p.stops) >= capacity:
+                continue
+            done = p.clock + estimate.leg(distance, p.here, t) + estimate.dwell(plates)
+            cost = plates * done
+            if p.stops:  # a longer trip: the robot is back later for everyone else
+                back_before = p.clock + estimate.leg(distance, p.here, origin)
+                back_after = done + estimate.leg(distance, t, origin)
+                cost += return_weight * (back_after - back_before)
+            if best is None or cost < best[0] - 1e-9:
+                best = (cost, i)
+        if best is None:  # every plan is full: the table waits for the next round
+            continue
+        p = plans[best[1]]
+        p.clock += estimate.leg(distance, p.here, t) + estimate.dwell(plates)
+        p.here = t
+        p.stops.append(t)
+    return [[d.id for t in p.stops for d in groups[t]] for p in plans if p.free and p.stops]
+
+
+@dataclass(slots=True)
+class _Plan:
+    """A robot's trip being filled by :func:`suggest_carts` (clock: seconds from now)."""
+
+    clock: float
+    here: str
+    free: bool
+    stops: list[str] = field(default_factory=list)
 
 
 @dataclass(frozen=True, slots=True)

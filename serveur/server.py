@@ -15,6 +15,7 @@ import json
 import logging
 import ssl as ssl_module
 from collections import Counter
+from collections.abc import Callable
 from typing import Any
 from urllib.parse import urlsplit
 
@@ -23,6 +24,7 @@ from websockets.asyncio.server import Server as WsServer
 from websockets.asyncio.server import ServerConnection, serve
 from websockets.datastructures import Headers
 from websockets.http11 import Request, Response
+from websockets.protocol import State
 
 from serveur import protocol as P
 from serveur.auth import Principal, RateLimiter, Role, authorize, visible
@@ -216,7 +218,7 @@ class Server:
         self.connections += 1
         host = _host_of(ws)
         self._per_address[host] += 1
-        sub = Subscriber(ws.send, ws.close, name=_peer(ws))
+        sub = Subscriber(ws.send, ws.close, name=_peer(ws), write_now=_writer_now(ws))
         conn = _Conn(
             ws, sub, RateLimiter(self.security.rate, self.security.burst, self.sessions.monotonic())
         )
@@ -393,3 +395,26 @@ class Server:
             last = await self.core.store.last_audit_id()
             return await self.core.store.list_audit(since_id=max(0, last - 100))
         return await self.core.snapshot(topic)
+
+
+def _writer_now(ws: ServerConnection) -> Callable[[str], bool]:
+    """A synchronous ``send`` of one text frame for the hub's stream fast path.
+
+    What ``ServerConnection.send`` does for a plain string, minus its coroutine and context
+    manager: frame it and hand it to the transport. It declines (False: the frame is queued
+    for the writer task instead) unless the connection is open, not flow-controlled (the
+    transport's buffer below its high-water mark) and not in the middle of a fragmented
+    message, so it never buffers without bound nor interleaves with another message.
+    """
+
+    def write(frame: str) -> bool:
+        if ws.protocol.state is not State.OPEN or ws.paused or ws.send_in_progress is not None:
+            return False
+        try:
+            ws.protocol.send_text(frame.encode())
+            ws.send_data()
+        except Exception:  # a dying socket: let the writer task's send report it
+            return False
+        return True
+
+    return write

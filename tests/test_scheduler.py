@@ -12,6 +12,7 @@ from serveur.scheduler import (
     Candidate,
     Dish,
     Dispatcher,
+    TripEstimate,
     cart_order_trips,
     choose_robot,
     fifo_cart,
@@ -143,28 +144,52 @@ def test_fifo_cart_stops_at_the_first_table_that_does_not_fit() -> None:
     assert fifo_cart([], capacity=4) == []
 
 
-def test_suggest_carts_spreads_areas_over_free_robots() -> None:
+def test_suggest_carts_spreads_tables_over_free_robots() -> None:
     d = euclid(POS)
     dishes = [Dish(i, t, float(i)) for i, t in enumerate(["T1", "T8", "T2", "T7", "T1"])]
-    # Two robots: the longest-waiting table (T1) with its neighbour, the far pair on the other.
-    assert suggest_carts(dishes, 2, d, now=10.0) == [[0, 4, 2], [1, 3]]
-    # One robot: one tray of at most `capacity` tables, seeded by the oldest.
-    [cart] = suggest_carts(dishes, 1, d, now=10.0, capacity=2)
-    assert cart == [0, 4, 2]
+    # Two robots and nobody else coming: each table is collected soonest on its own trip
+    # or as the next stop of a neighbour's, so the two robots split the room in two areas.
+    assert suggest_carts(dishes, 2, d, now=10.0, origin="pass") == [[0, 4, 2], [1, 3]]
     # More robots than tables: one table each, no empty carts.
-    assert len(suggest_carts(dishes, 9, d, now=10.0)) == 4
-    assert suggest_carts(dishes, 0, d, now=10.0) == []
-    assert suggest_carts([], 3, d, now=10.0) == []
+    assert len(suggest_carts(dishes, 9, d, now=10.0, origin="pass")) == 4
+    assert suggest_carts(dishes, 0, d, now=10.0, origin="pass") == []
+    assert suggest_carts([], 3, d, now=10.0, origin="pass") == []
+
+
+def test_suggest_carts_leaves_a_table_for_a_robot_due_back() -> None:
+    """The new policy's choice: a short trip now, the next table for the robot coming back.
+
+    One robot free, T1 and T8 waiting (8 m apart). On the free robot, T8 would be collected
+    after T1's guests and the drive across; a robot due back at the pass in 5 s collects it
+    sooner, so the free robot leaves with T1 alone. If that robot is 5 minutes away, T8
+    rides along (in a rush, the next robot is far off and the trip is shared).
+    """
+    d = euclid(POS)
+    dishes = [Dish(1, "T1", 0.0), Dish(2, "T8", 1.0)]
+    assert suggest_carts(dishes, 1, d, now=10.0, origin="pass", busy=[5.0]) == [[1]]
+    assert suggest_carts(dishes, 1, d, now=10.0, origin="pass", busy=[300.0]) == [[1, 2]]
+    # With no robot due back the old behaviour (one tray, capacity permitting) remains.
+    assert suggest_carts(dishes, 1, d, now=10.0, origin="pass") == [[1, 2]]
+    assert suggest_carts(dishes, 1, d, now=10.0, origin="pass", capacity=1) == [[1]]
 
 
 def test_suggest_carts_holds_for_a_tables_next_dish_but_not_forever() -> None:
     d = euclid(POS)
     dishes = [Dish(1, "T3", 100.0)]
     coming = [Dish(2, "T3", 110.0)]
-    assert suggest_carts(dishes, 1, d, now=105.0, coming=coming, hold=20.0) == []
+    kw = {"origin": "pass", "hold": 20.0}
+    assert suggest_carts(dishes, 1, d, now=105.0, coming=coming, **kw) == []
     # Past the hold time the dish goes anyway, and a far-off next dish never holds it.
-    assert suggest_carts(dishes, 1, d, now=121.0, coming=coming, hold=20.0) == [[1]]
+    assert suggest_carts(dishes, 1, d, now=121.0, coming=coming, **kw) == [[1]]
     late = [Dish(2, "T3", 500.0)]
-    assert suggest_carts(dishes, 1, d, now=105.0, coming=late, hold=20.0) == [[1]]
+    assert suggest_carts(dishes, 1, d, now=105.0, coming=late, **kw) == [[1]]
     # With a robot to spare nothing is held.
-    assert suggest_carts(dishes, 2, d, now=105.0, coming=coming, hold=20.0) == [[1]]
+    assert suggest_carts(dishes, 2, d, now=105.0, coming=coming, **kw) == [[1]]
+
+
+def test_trip_estimate_counts_legs_dwells_and_the_way_back() -> None:
+    d = euclid(POS)
+    est = TripEstimate(speed=1.0, per_leg=2.0, stop=10.0, per_plate=5.0)
+    # pass -> T2 (2 m) -> T5 (3 m) -> pass (5 m): 3 legs, 2 stops of 1 and 3 plates.
+    assert est.trip("pass", [("T2", 1), ("T5", 3)], d) == pytest.approx(10 + 6 + 15 + 25)
+    assert est.leg(d, "T3", "T3") == 0.0
