@@ -79,6 +79,8 @@ class Subscriber:
         #: with (topic, record) for each update that carries its record; None sees all.
         self.view: Callable[[str, Any], bool] | None = None
         self._closing: tuple[int, str] | None = None
+        # Updates held back while a snapshot is being taken (see hold()).
+        self._held: list[tuple[str, str]] | None = None
 
     def start(self) -> None:
         self._task = asyncio.create_task(self._writer(), name=f"writer-{self.name}")
@@ -103,10 +105,30 @@ class Subscriber:
             self._state.append((_CLOSE, ""))
             self._wake.set()
 
+    def hold(self) -> None:
+        """Hold this client's updates back until :meth:`release`.
+
+        A ``data`` reply's snapshot is read topic by topic, with awaits in between; an update
+        published meanwhile is newer than the snapshot read before it. Sent ahead of the
+        reply, it would be overwritten by the older snapshot on the client. Held, it goes out
+        right after the reply, so everything a client receives after a snapshot is newer.
+        """
+        if self._held is None:
+            self._held = []
+
+    def release(self) -> None:
+        """Queue the held updates (after the reply just queued); a no-op when not holding."""
+        held, self._held = self._held, None
+        for topic, data_json in held or ():
+            self.update(topic, data_json)
+
     def update(self, topic: str, data_json: str, record: Any = None) -> None:
         if self.closed:
             return
         if self.view is not None and record is not None and not self.view(topic, record):
+            return
+        if self._held is not None:
+            self._held.append((topic, data_json))  # bounded: one snapshot's worth of awaits
             return
         if is_stream_topic(topic):
             if (

@@ -309,6 +309,7 @@ class Server:
         else:
             await self._audit(conn, msg, "ok")
         conn.sub.reply(sub_reply)
+        conn.sub.release()  # updates held during a snapshot go out after its reply
         if conn.close_after is not None:
             conn.sub.close_after_replies(*conn.close_after)
 
@@ -380,6 +381,7 @@ class Server:
         if msg.unsubscribe:
             self.core.hub.unsubscribe(sub, topics)
             return {"data": {}}
+        sub.hold()  # released by _serve_one once the reply is queued
         self.core.hub.subscribe(sub, topics)
         snapshot = {t: await self._snapshot(t) for t in topics}
         view = sub.view

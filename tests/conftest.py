@@ -53,6 +53,10 @@ class Client:
                     self.seqs.append(msg["seq"])
                     self._apply(msg["topic"], msg["data"])
                 else:
+                    if msg["servermsg"] == "ok" and isinstance(msg.get("data"), dict):
+                        # A snapshot, applied here in frame order: updates after it are newer
+                        # (the server sends them after the reply), so none is overwritten.
+                        self._apply_snapshot(msg["data"])
                     fut = self._pending.pop(msg.get("id"), None)
                     if fut is not None and not fut.done():
                         fut.set_result(msg)
@@ -83,15 +87,16 @@ class Client:
         assert reply["servermsg"] == "error" and reply["code"] == code, reply
         return reply
 
-    async def subscribe(self, *topics: str) -> dict[str, Any]:
-        reply = await self.ok("data", topics=list(topics))
-        for topic, snap in reply["data"].items():
+    def _apply_snapshot(self, data: dict[str, Any]) -> None:
+        for topic, snap in data.items():
             if isinstance(snap, list):
                 for rec in snap:
                     self._apply(topic, rec)
             elif snap is not None:
                 self._apply(topic, snap)
-        return reply
+
+    async def subscribe(self, *topics: str) -> dict[str, Any]:
+        return await self.ok("data", topics=list(topics))  # the reader applies the snapshot
 
     def robot(self, name: str) -> dict[str, Any]:
         return self.records.get("robots", {}).get(name, {})

@@ -141,9 +141,6 @@ class Staff:
         reply = await call(c, "data", topics=["robots", "orders", "tasks"])
         if reply["servermsg"] != "ok":
             return False
-        for topic, snap in reply["data"].items():
-            for rec in snap:
-                c._apply(topic, rec)
         while True:
             seen = len(c.frames)
             for name in self.robots:

@@ -51,3 +51,27 @@ async def test_stream_frames_skip_the_writer_task_when_nothing_is_queued() -> No
     await asyncio.sleep(0.01)
     assert conn.sent[-1]["seq"] == 4 and conn.sent[-1]["data"] == {"x": 3}
     await sub.stop()
+
+
+async def test_updates_during_a_snapshot_go_out_after_its_reply() -> None:
+    """An update published while a data request reads its snapshot is newer than the snapshot:
+    it must reach the client after the reply, or the stale snapshot would overwrite it."""
+    conn = FakeConn()
+    sub = Subscriber(conn.send, conn.close, write_now=conn.write_now)
+    sub.start()
+    hub = Hub()
+    hub.add(sub)
+    sub.hold()
+    hub.subscribe(sub, ["robots", "pose:r1"])
+    hub.publish("robots", '{"name":"r1","status":"Delivered"}')
+    hub.publish("pose:r1", '{"x":2}')
+    sub.reply('{"servermsg":"ok","id":1,"data":{}}')
+    sub.release()
+    sub.release()  # harmless when not holding
+    for _ in range(20):
+        await asyncio.sleep(0)
+    frames = conn.direct + conn.sent
+    assert [f.get("servermsg") for f in frames] == ["ok", "update", "update"]
+    assert [f.get("seq") for f in frames[1:]] == [1, 2]
+    assert conn.direct == []  # nothing jumped the queue while held
+    await sub.stop()
