@@ -194,8 +194,7 @@ async def _token_revoke(ns: argparse.Namespace) -> int:
 
 async def _audit(ns: argparse.Namespace) -> int:
     async def work(store: Store) -> int:
-        last = await store.last_audit_id()
-        for a in await store.list_audit(since_id=max(0, last - ns.limit), limit=ns.limit):
+        for a in await store.recent_audit(ns.limit):
             extra = f"\t{a.data}" if a.data else ""
             print(
                 f"{_when(a.ts)}\t{a.actor}\t{a.role}\t{a.peer}\t{a.verb}\t"

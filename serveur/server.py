@@ -295,23 +295,22 @@ class Server:
                     "too many requests on this connection", retry_after=round(wait, 2)
                 )
             payload = await self._dispatch(conn, msg)
-            sub_reply = P.ok_frame(request_id, **payload)
+            sub_reply, outcome = P.ok_frame(request_id, **payload), "ok"
         except ServeurError as exc:
             if exc.request_id is None:
                 exc.request_id = request_id
-            sub_reply = P.error_frame(exc.request_id, exc)
-            await self._audit(conn, msg, exc.code)
+            sub_reply, outcome = P.error_frame(exc.request_id, exc), exc.code
         except Exception as exc:  # a bug must cost one request, not the connection
             log.exception("internal error handling a request")
             err = ServeurError(f"internal error: {type(exc).__name__}")
-            sub_reply = P.error_frame(request_id, err)
-            await self._audit(conn, msg, err.code)
-        else:
-            await self._audit(conn, msg, "ok")
+            sub_reply, outcome = P.error_frame(request_id, err), err.code
         conn.sub.reply(sub_reply)
         conn.sub.release()  # updates held during a snapshot go out after its reply
         if conn.close_after is not None:
             conn.sub.close_after_replies(*conn.close_after)
+        # After the reply is queued: the client need not wait for the audit row, and the
+        # connection's next request is read only once it is written.
+        await self._audit(conn, msg, outcome)
 
     async def _dispatch(self, conn: _Conn, msg: Any) -> dict[str, Any]:
         if msg.clientmsg == "login":
@@ -394,8 +393,7 @@ class Server:
 
     async def _snapshot(self, topic: str) -> Any:
         if topic == "audit":
-            last = await self.core.store.last_audit_id()
-            return await self.core.store.list_audit(since_id=max(0, last - 100))
+            return await self.core.store.recent_audit(100)
         return await self.core.snapshot(topic)
 
 

@@ -4,8 +4,7 @@ A connection becomes a :class:`~serveur.auth.Principal` by presenting a token (o
 websocket handshake as ``Authorization: Bearer``, or in a ``login`` message) or a user name
 and password (``login``; the reply carries a new session token the client keeps).
 
-Revocation reaches live connections two ways: at once for what this process does itself
-(logout, password change, a token revoked through :meth:`Sessions.revoke`), and within
+Revocation reaches live connections two ways: at once for a logout on this server, and within
 ``SecurityConfig.sweep_every`` seconds for what another process did to the database (the
 ``serveur token revoke`` / ``user passwd`` / ``user remove`` CLI) and for expiries: a sweep
 asks the store which of the live connections' tokens are still valid and closes the others'
@@ -199,10 +198,6 @@ class Sessions:
             expires_at=None if ttl is None else now + ttl,
         )
         return token, rec
-
-    async def revoke(self, token_id: int) -> None:
-        await self.store.revoke_token(token_id, now=self.clock.epoch())
-        self._kick([token_id], "token revoked")
 
     # -- logging in -------------------------------------------------------------------------
 

@@ -350,10 +350,14 @@ class AccountsMixin:
 
         return await self._portable(work, write=False)
 
-    async def last_audit_id(self) -> int:
-        async def work(db: SqlTx) -> int:
-            row = await _one(db, "SELECT MAX(id) AS n FROM audit", ())
-            return int(row["n"]) if row and row["n"] is not None else 0
+    async def recent_audit(self, limit: int = 100) -> list[AuditRecord]:
+        """The latest ``limit`` audit records, oldest first."""
+        if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
+            raise InvalidField("limit must be a positive integer", field="limit")
+
+        async def work(db: SqlTx) -> list[AuditRecord]:
+            rows = await db.all(f"{_AUDIT} ORDER BY id DESC LIMIT ?", (limit,))
+            return [_audit(r) for r in reversed(rows)]
 
         return await self._portable(work, write=False)
 
