@@ -385,6 +385,10 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                 "idle_seconds": ns.idle,
             }
             print("footprint", results["footprint"], flush=True)
+            if ns.footprint_only:
+                for c in clients:
+                    await c.ws.close()
+                return results
             await asyncio.gather(
                 *(
                     c.call("data", topics=[f"pose:r{1 + i % ns.robots}"])
@@ -437,6 +441,9 @@ if __name__ == "__main__":
     ap.add_argument("--fanout-seconds", type=float, default=20.0)
     ap.add_argument("--dispatches", type=int, default=150)
     ap.add_argument("--profile", action="store_true")
+    ap.add_argument(
+        "--footprint-only", action="store_true", help="stop after the RSS / idle CPU phase"
+    )
     ap.add_argument("--echo-server", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.echo_server:

@@ -94,18 +94,18 @@ class App:
 
     async def start(self) -> App:
         await self.store.open()
-        nav_map = self._nav_map
-        if nav_map is None and self._map_path is not None:
-            from serveur.navigation import load_map
-
-            nav_map = load_map(self._map_path)
         now = self.clock.epoch()
         if self._waypoints:
             await import_waypoints(self.store, self._waypoints.values(), now=now)
         for spec in self._robots:
             await self._register(spec, now)
         self.core = Core(
-            self.store, self.clock, config=self._config, nav_map=nav_map, robot_ssl=self._robot_ssl
+            self.store,
+            self.clock,
+            config=self._config,
+            nav_map=self._nav_map,
+            map_path=None if self._map_path is None else str(self._map_path),
+            robot_ssl=self._robot_ssl,
         )
         await self.core.start()
         self.sessions = Sessions(self.store, self.clock, self._security, hub=self.core.hub)

@@ -90,7 +90,7 @@ async def _run(ns: argparse.Namespace) -> int:
 
     waypoints = None
     if ns.waypoints:
-        from serveur.navigation import load_waypoints
+        from serveur.mapio import load_waypoints
 
         waypoints = load_waypoints(ns.waypoints)
     robots = [parse_robot_spec(s) for s in ns.robot]
@@ -240,7 +240,11 @@ def _add_tls_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _parser() -> argparse.ArgumentParser:
+_SIM_HELP = "simulated robots speaking rosbridge v2"
+_REPLAY_HELP = "replay an order log through the server and simulated robots"
+
+
+def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="serveur", description="Fleet server for restaurant waiter robots"
     )
@@ -286,18 +290,28 @@ def _parser() -> argparse.ArgumentParser:
     _add_tls_arguments(demo)
     demo.set_defaults(func=_demo, is_async=True)
 
-    sim = sub.add_parser("sim", help="simulated robots speaking rosbridge v2")
-    from serveur.robot_sim import add_sim_arguments, run_sim_from_args
+    # The simulator and the replay import numpy, Pillow and the whole simulator: their options
+    # are registered only when the command line names them, so that `serveur run` on a Pi never
+    # loads those (~20 MB of RSS, docs/performance.md). Otherwise a stub keeps them in --help.
+    wanted = set(sys.argv[1:] if argv is None else argv)
+    if "sim" in wanted:
+        from serveur.robot_sim import add_sim_arguments, run_sim_from_args
 
-    add_sim_arguments(sim)
-    sim.set_defaults(func=run_sim_from_args, is_async=True)
+        sim = sub.add_parser("sim", help=_SIM_HELP)
+        add_sim_arguments(sim)
+        sim.set_defaults(func=run_sim_from_args, is_async=True)
+    else:
+        sub.add_parser("sim", help=_SIM_HELP)
 
     from serveur.orders import add_orders_parser
 
     add_orders_parser(sub)
-    from serveur.replay import add_replay_parser
+    if "replay" in wanted:
+        from serveur.replay import add_replay_parser
 
-    add_replay_parser(sub)
+        add_replay_parser(sub)
+    else:
+        sub.add_parser("replay", help=_REPLAY_HELP)
     from serveur.accounts_cli import add_accounts_parsers
 
     add_accounts_parsers(sub)
@@ -311,7 +325,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = _parser()
+    parser = _parser(argv)
     ns = parser.parse_args(argv)
     if bool(getattr(ns, "certfile", None)) != bool(getattr(ns, "keyfile", None)):
         # Half a TLS configuration must not silently serve in the clear.

@@ -35,6 +35,8 @@ import json
 import logging
 import math
 import ssl
+import sys
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -42,6 +44,7 @@ from typing import Any
 from serveur import protocol as P
 from serveur import rosbridge as rb
 from serveur.clock import Clock
+from serveur.distances import Distances, MapData, PlanRequest, plan_async
 from serveur.domain import (
     Order,
     OrderStatus,
@@ -135,6 +138,8 @@ class Core:
         *,
         config: CoreConfig | None = None,
         nav_map: Any = None,
+        map_path: str | None = None,
+        plan_in_child: bool | None = None,
         robot_ssl: ssl.SSLContext | None = None,
     ) -> None:
         self.store = store
@@ -149,9 +154,19 @@ class Core:
         self._robots: dict[str, Robot] = {}
         self._task_robots: dict[int, str] = {}  # task id -> robot, for screens' views
         self._waypoints: dict[str, WaypointRecord] = {}
-        self._map = nav_map
+        # The map: a MapData (or an in-process OccupancyMap, converted), or a file the planner
+        # reads; path distances are planned off the event loop (serveur.distances), in a child
+        # process unless this process already holds numpy (then a thread is cheaper).
+        self._map: MapData | None = (
+            nav_map
+            if nav_map is None or isinstance(nav_map, MapData)
+            else MapData.from_occupancy(nav_map)
+        )
+        self._map_path = map_path
         self._map_json: str | None = None
-        self._distances: Any = None
+        self._plan_in_child = "numpy" not in sys.modules if plan_in_child is None else plan_in_child
+        self._distances = Distances()
+        self._planning: set[asyncio.Task[None]] = set()
         self._closing = False
         self._last_event: int = 0
         self._events_lock = asyncio.Lock()
@@ -163,15 +178,13 @@ class Core:
             self._last_event = batch[-1].id
         for wp in await self.store.list_waypoints():
             self._waypoints[wp.name] = wp
+        self._distances.set_spots(_spot(w) for w in self._waypoints.values())
         if self._map is not None:
             self._set_map(self._map)
-            # Path distances between all waypoints, computed once before any robot is driven,
-            # off the event loop: the scheduler's first cart must not stall every link.
-            await asyncio.to_thread(self._distances.matrix, sorted(self._waypoints))
-            # Keep the distances, drop the fields they came from (~33 MB on the demo map),
-            # and hand the worker thread's freed pages back to the OS (serveur.memory).
-            self._distances.planner.clear_cache()
-            trim_heap()
+        if self._map is not None or self._map_path is not None:
+            # Path distances between all waypoints, planned once before any robot is driven
+            # (a bad map file stops the start here, with its MapError).
+            await self._plan(None)
         for robot in await self.store.list_robots():
             # Every robot starts Offline and resumes what it was doing once its link is up.
             resume = robot.resume if robot.status is S.OFFLINE else robot.status
@@ -232,6 +245,8 @@ class Core:
         Their stored status is left as it was, so a restarted server resumes each trip.
         """
         self._closing = True
+        for job in list(self._planning):
+            job.cancel()
         await self.dispatcher.stop()
         for rt in self._rt.values():
             self._disarm_handover(rt)
@@ -293,24 +308,54 @@ class Core:
 
     # -- map and distances ------------------------------------------------------------------
 
-    def _set_map(self, m: Any) -> None:
-        from serveur import navigation as nav
-
+    def _set_map(self, m: MapData) -> None:
         self._map = m
-        self._map_json = P.dump(_map_snapshot(m))
-        planner = nav.Planner(m, robot_radius=self.config.robot_radius)
-        self._distances = nav.DistanceTable(
-            planner, {n: _nav_wp(w) for n, w in self._waypoints.items()}
-        )
+        self._map_json = P.dump(m.snapshot())
         self.hub.publish("map", self._map_json)
 
+    async def _plan(self, sources: list[str] | None) -> None:
+        """Plan the distances of every pair (``sources`` None) or of pairs touching ``sources``."""
+        req = PlanRequest(
+            spots=[_spot(w) for w in self._waypoints.values()],
+            robot_radius=self.config.robot_radius,
+            map=self._map,
+            map_path=self._map_path if self._map is None else None,
+            sources=sources,
+        )
+        started = time.monotonic()
+        result = await plan_async(req, in_child=self._plan_in_child)
+        log.info(
+            "planned %d path distances in %.1f s (%s)",
+            len(result.pairs),
+            time.monotonic() - started,
+            "child process" if self._plan_in_child else "worker thread",
+        )
+        if not self._plan_in_child:
+            trim_heap()  # the worker thread's freed distance fields (serveur.memory)
+        if self._map is None:
+            self._set_map(result.map)
+        self._distances.merge(req, result)
+
+    def _plan_later(self, sources: list[str] | None) -> None:
+        """Plan in the background; until then the scheduler uses straight lines."""
+
+        async def run() -> None:
+            try:
+                await self._plan(sources)
+            except ServeurError as exc:
+                log.warning("path distances not planned (straight lines used): %s", exc)
+
+        job = asyncio.get_running_loop().create_task(run())
+        self._planning.add(job)
+        job.add_done_callback(self._planning.discard)
+
     def distance(self, a: str, b: str) -> float:
-        """Path distance between two waypoints; straight line if there is no map or no path."""
+        """Path distance between two waypoints; straight line if not planned or no path."""
         if a == b:
             return 0.0
-        if self._distances is not None:
-            with contextlib.suppress(ServeurError):
-                return float(self._distances.distance(a, b))
+        planned = self._distances.planned(a, b)
+        if planned is not None:
+            return planned
         wa, wb = self._waypoints.get(a), self._waypoints.get(b)
         if wa is None or wb is None:
             return 1e6
@@ -696,8 +741,9 @@ class Core:
             wp = WaypointRecord(name=msg.name, x=x, y=y, yaw=yaw, kind=WaypointKind(msg.kind))
             wp = await self.store.put_waypoint(wp, replace=msg.replace, now=now)
             self._waypoints[wp.name] = wp
-            if self._distances is not None:
-                self._distances.add(_nav_wp(wp))
+            self._distances.set_spots([_spot(wp)])
+            if self._map is not None:
+                self._plan_later([wp.name])
             self._pub("waypoints", wp)
             return {"waypoint": wp}
         if kind == "robot":
@@ -852,9 +898,10 @@ class Core:
         if self._map is not None:
             return
         try:
-            self._set_map(_map_from_msg(msg))
+            self._set_map(MapData.from_grid_msg(msg))
             log.info("adopted the map published by %s", robot)
-        except (KeyError, TypeError, ValueError, ServeurError) as exc:
+            self._plan_later(None)
+        except ServeurError as exc:
             log.warning("%s: unusable /map: %s", robot, exc)
 
     def _on_watch(self, topic: str, on: bool) -> None:
@@ -939,37 +986,5 @@ def _pose_dict(pose: tuple[float, float, float], stamp: float) -> dict[str, floa
     return {"x": pose[0], "y": pose[1], "yaw": pose[2], "stamp": stamp}
 
 
-def _nav_wp(w: WaypointRecord) -> Any:
-    from serveur.navigation import Waypoint
-
-    return Waypoint(w.name, w.x, w.y, w.yaw, w.kind.value)
-
-
-def _map_snapshot(m: Any) -> dict[str, Any]:
-    import base64
-
-    import numpy as np
-
-    grid = np.ascontiguousarray(m.grid, dtype=np.int8)
-    return {
-        "resolution": float(m.resolution),
-        "origin": [float(v) for v in m.origin],
-        "width": int(m.width),
-        "height": int(m.height),
-        "encoding": "int8-base64",
-        "data": base64.b64encode(grid.tobytes()).decode("ascii"),
-    }
-
-
-def _map_from_msg(msg: Mapping[str, Any]) -> Any:
-    import numpy as np
-
-    from serveur.navigation import OccupancyMap
-
-    info = msg["info"]
-    w, h = int(info["width"]), int(info["height"])
-    data = np.asarray(msg["data"], dtype=np.int8)
-    if data.size != w * h:
-        raise ValueError("map data size does not match width x height")
-    x, y, yaw = rb.pose_from_msg(info["origin"])
-    return OccupancyMap(data.reshape(h, w), float(info["resolution"]), (x, y, yaw))
+def _spot(w: WaypointRecord) -> tuple[str, float, float]:
+    return (w.name, w.x, w.y)

@@ -19,13 +19,16 @@ import os
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
-
-import numpy as np
-import yaml
-from PIL import Image, UnidentifiedImageError
+from typing import TYPE_CHECKING, Any
 
 from serveur.errors import InvalidField, MapError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+# numpy, PyYAML and Pillow are imported by the functions that use them: the server process
+# reads waypoint files through this module but never a map (serveur.distances plans in a child
+# process), and must not carry those libraries' ~20 MB for nothing.
 
 __all__ = [
     "WAYPOINT_KINDS",
@@ -103,6 +106,8 @@ class OccupancyMap:
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
+        import numpy as np
+
         grid = np.asarray(self.grid)
         if grid.ndim != 2 or grid.shape[0] == 0 or grid.shape[1] == 0:
             raise MapError(f"occupancy grid must be a non-empty 2-D array, got shape {grid.shape}")
@@ -187,6 +192,8 @@ def _number(meta: dict[str, Any], key: str, where: Path) -> float:
 
 
 def _read_meta(yaml_path: Path) -> dict[str, Any]:
+    import yaml
+
     try:
         text = yaml_path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -203,6 +210,9 @@ def _read_meta(yaml_path: Path) -> dict[str, Any]:
 def _read_image(image_path: Path) -> tuple[np.ndarray, np.ndarray | None]:
     """Grey level (float, 0..255, mean of the colour channels as map_server computes it) and
     the alpha channel if the image has one."""
+    import numpy as np
+    from PIL import Image, UnidentifiedImageError
+
     try:
         with Image.open(image_path) as img:
             img.load()
@@ -242,6 +252,8 @@ def load_map(yaml_path: str | Path) -> OccupancyMap:
     Deviation: in trinary mode ROS 1 averages alpha into the grey level (a quirk that turns
     opaque unknown grey into free); here alpha never changes the grey level.
     """
+    import numpy as np
+
     yaml_path = Path(yaml_path)
     meta = _read_meta(yaml_path)
     if not isinstance(meta.get("image"), str) or not meta["image"]:
@@ -308,6 +320,10 @@ def save_map(m: OccupancyMap, yaml_path: str | Path, image_format: str = "pgm") 
     :func:`load_map` read a trinary grid (-1/0/100) back identically. Graded cells (1..99)
     are thresholded like map_saver: <= 25 free, >= 65 occupied, else unknown.
     """
+    import numpy as np
+    import yaml
+    from PIL import Image
+
     yaml_path = Path(yaml_path)
     fmt = image_format.lower()
     if fmt not in ("pgm", "png"):

@@ -27,13 +27,14 @@ import sys
 from array import array
 from collections.abc import Mapping, Sequence
 from enum import IntEnum
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
 import cbor2
-import numpy as np
-import numpy.typing as npt
 
 from serveur.errors import RosbridgeError
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
 
 __all__ = [
     "TERMINAL_STATUSES",
@@ -149,7 +150,19 @@ def normalize_type(type_name: str) -> str:
 _SEPARATORS: Final = (",", ":")
 
 
+def _numpy() -> Any:
+    """numpy if this process has imported it, else None.
+
+    The server's own process never imports numpy (its robot links only move JSON; see
+    serveur.distances), so the encoders test for numpy values only where numpy is loaded:
+    without it there can be no numpy value to encode.
+    """
+    return sys.modules.get("numpy")
+
+
 def _float_array_to_list(a: npt.NDArray[Any]) -> list[float | None]:
+    import numpy as np
+
     values: list[float | None] = a.tolist()
     finite = np.isfinite(a)
     if not finite.all():
@@ -160,7 +173,8 @@ def _float_array_to_list(a: npt.NDArray[Any]) -> list[float | None]:
 
 def _json_default(o: object) -> object:
     """Called by ``json`` for what it cannot encode: numpy arrays/scalars and bytes."""
-    if isinstance(o, np.ndarray):
+    np = _numpy()
+    if np is not None and isinstance(o, np.ndarray):
         if o.dtype == np.uint8:
             return base64.b64encode(o.tobytes()).decode("ascii")
         if o.dtype.kind == "f":
@@ -168,7 +182,7 @@ def _json_default(o: object) -> object:
         return o.ravel().tolist()
     if isinstance(o, bytes | bytearray | memoryview):
         return base64.b64encode(o).decode("ascii")
-    if isinstance(o, np.generic):
+    if np is not None and isinstance(o, np.generic):
         value = o.item()
         if isinstance(value, float) and not math.isfinite(value):
             return None
@@ -265,7 +279,8 @@ def _cbor_tree(v: object) -> object:
                 packed.byteswap()
             return cbor2.CBORTag(86, packed.tobytes())
         return [_cbor_tree(x) for x in seq]
-    if isinstance(v, np.ndarray):
+    np = _numpy()
+    if np is not None and isinstance(v, np.ndarray):
         a = v.ravel()
         if a.dtype == np.uint8:
             return a.tobytes()
@@ -276,7 +291,7 @@ def _cbor_tree(v: object) -> object:
         if tag is None:
             return a.tolist()
         return cbor2.CBORTag(tag, a.astype(a.dtype.newbyteorder("<"), copy=False).tobytes())
-    if isinstance(v, np.generic):
+    if np is not None and isinstance(v, np.generic):
         return v.item()
     if isinstance(v, bytearray | memoryview):
         return bytes(v)
@@ -667,6 +682,8 @@ def occupancy_grid(m: Any, *, stamp: float, seq: int, frame_id: str = "map") -> 
     (tag 72) after :func:`encode_cbor`.
     """
     ox, oy, oyaw = (float(v) for v in m.origin)
+    import numpy as np
+
     data = np.ascontiguousarray(m.grid, dtype=np.int8).ravel()
     return {
         "header": header(seq, stamp, frame_id),
@@ -696,6 +713,8 @@ def laser_scan(
     intensities: Sequence[float] | npt.NDArray[Any] | None = None,
 ) -> dict[str, Any]:
     """sensor_msgs/LaserScan; ``ranges`` become float32 (no return = +Inf -> ``null`` in JSON)."""
+    import numpy as np
+
     r = np.asarray(ranges, dtype=np.float32)
     n = int(r.shape[0])
     return {

@@ -15,7 +15,7 @@ import os
 import signal
 import socket
 import sys
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Sequence
 from pathlib import Path
 
 from websockets.asyncio.client import connect
@@ -36,9 +36,16 @@ class ServerProcess:
     """One ``serveur run`` on a fixed database and port; start it again after it stopped."""
 
     def __init__(
-        self, db: Path, robots: dict[str, str], *, time_scale: float, port: int = 0
+        self,
+        db: Path,
+        robots: dict[str, str],
+        *,
+        time_scale: float,
+        port: int = 0,
+        extra: Sequence[str] = (),
     ) -> None:
         self.db = db
+        self.extra = list(extra)  # more `serveur run` options, e.g. ["--map", PATH]
         self.port = port or free_port()
         self.time_scale = time_scale
         self.robots = robots  # name -> rosbridge url; homes are home1, home2, ... in order
@@ -66,7 +73,7 @@ class ServerProcess:
         ]
         for i, (name, url) in enumerate(self.robots.items()):
             args += ["--robot", f"{name}={url},home=home{i + 1}"]
-        return args
+        return args + self.extra
 
     async def start(self) -> None:
         """Start the server and return once it listens (its database is open and the robots'
