@@ -26,6 +26,7 @@ from typing import Any, TypeAlias, TypeVar
 from hypothesis import strategies as st
 
 from serveur import protocol as P
+from serveur.status import RobotStatus
 
 __all__ = [
     "ROBOTS",
@@ -163,17 +164,7 @@ NEW_ROBOTS = ("r3", "r4")
 DEAD_URL = "ws://127.0.0.1:9/"
 KEYS = ("k1", "k2", "k3", "pos-123")
 DISHES = ("Laksa", "Pho", "Satay", "Teh tarik", "Nasi lemak", "Roti", "Kaya toast")
-STATUSES = (
-    "Offline",
-    "Ready",
-    "Awaiting",
-    "Delivering",
-    "Delivered",
-    "Stopped",
-    "Transit",
-    "Manual",
-    "Error",
-)
+STATUSES = tuple(s.value for s in RobotStatus)
 #: Demo-room poses where a robot can stand (the waypoints'): calibration and goals mostly
 #: land there, so the simulated robots stay useful for the rest of the run.
 GOOD_POSES: tuple[tuple[float, float, float], ...] = (

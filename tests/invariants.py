@@ -41,6 +41,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from serveur.domain import OrderStatus, StopStatus, TaskStatus
+from serveur.status import RobotStatus
+
 __all__ = [
     "InvariantViolation",
     "Snapshot",
@@ -148,20 +151,11 @@ def integrity(db: str | Path) -> str:
 
 # --------------------------------------------------------------------------- the fuzzer's checks
 
-ORDER_STATUSES = ("pending", "assigned", "delivered", "cancelled")
-TASK_STATUSES = ("queued", "active", "done", "cancelled")
-STOP_STATUSES = ("pending", "arrived", "done", "skipped")
-ROBOT_STATUSES = (
-    "Offline",
-    "Ready",
-    "Awaiting",
-    "Delivering",
-    "Delivered",
-    "Stopped",
-    "Transit",
-    "Manual",
-    "Error",
-)
+# The stored values must be the enums' values (the store writes nothing else).
+ORDER_STATUSES = tuple(v.value for v in OrderStatus)
+TASK_STATUSES = tuple(v.value for v in TaskStatus)
+STOP_STATUSES = tuple(v.value for v in StopStatus)
+ROBOT_STATUSES = tuple(v.value for v in RobotStatus)
 #: Which statuses each mode allows (status.py: auto/manual/ready set the mode with the status).
 MODE_STATUSES = {
     "off": ("Ready", "Offline"),
