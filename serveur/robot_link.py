@@ -52,6 +52,14 @@ _SUBSCRIPTIONS = ("/move_base/result",)
 #: server then only needs to know where the robot stands (a 10 Hz AMCL stream costs ~90 us a
 #: message to decode and apply, most of an idle server's CPU with ten robots).
 IDLE_POSE_MS = 1000
+#: /move_base/status throttle (ms) while the robot has no goal and no joystick command, capped
+#: at half the heartbeat: an idle move_base repeats an empty status list 5 times a second, which
+#: is only a heartbeat then, and half of those prove life as well (goal acks need the full rate,
+#: restored before a goal goes out).
+IDLE_STATUS_MS = 500
+#: /battery_state throttle floor (ms): staff see whole percent, which takes minutes to change;
+#: a robot's 1 Hz battery stream would be a tenth of an idle server's messages for nothing.
+BATTERY_MS = 5000
 _PUBLICATIONS = ("/move_base/goal", "/move_base/cancel", "/cmd_vel", "/initialpose")
 
 
@@ -143,10 +151,12 @@ class RobotLink:
         self._idle_pose_ms = max(idle_pose_ms, moving_pose_ms)
         self._moving_pose_ms = moving_pose_ms
         self._status_ms = status_ms
-        self._battery_ms = battery_ms
+        self._battery_ms = max(battery_ms, BATTERY_MS)
         self._pose_watched = pose_watched
         self._teleop = False
         self._pose_ms: int | None = None  # the throttle of our /amcl_pose subscription
+        self._idle_status_ms = max(status_ms, min(IDLE_STATUS_MS, int(heartbeat * 500)))
+        self._status_sub_ms: int | None = None  # ... and of our /move_base/status one
         self._jobs: set[asyncio.Task[None]] = set()
         self.pose: tuple[float, float, float] | None = None
         self.battery: float | None = None
@@ -224,15 +234,17 @@ class RobotLink:
             await ws.send(rb.encode(rb.op_advertise(topic, rb.TOPIC_TYPES[topic])))
         for topic in _SUBSCRIPTIONS:
             await ws.send(rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic])))
-        for topic, ms in (
-            ("/move_base/status", self._status_ms),
-            ("/battery_state", self._battery_ms),
-        ):
-            await ws.send(
-                rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic], throttle_rate=ms))
+        await ws.send(
+            rb.encode(
+                rb.op_subscribe(
+                    "/battery_state",
+                    rb.TOPIC_TYPES["/battery_state"],
+                    throttle_rate=self._battery_ms,
+                )
             )
-        self._pose_ms = None
-        await self._subscribe_pose(ws)
+        )
+        self._pose_ms = self._status_sub_ms = None
+        await self._update_rates(ws)
         if self._want_map:
             await ws.send(rb.encode(rb.op_subscribe("/map", rb.TOPIC_TYPES["/map"])))
         if self._scan_wanted:
@@ -249,8 +261,12 @@ class RobotLink:
                 await watchdog
 
     async def _watchdog(self, ws: ClientConnection) -> None:
-        tick = min(self._heartbeat, self._ack_timeout) / 4
         while True:
+            # A goal's ack is checked every quarter of ack_timeout; a parked robot is only
+            # checked for life, every half heartbeat (down within 1.5 heartbeats).
+            tick = (
+                min(self._heartbeat, self._ack_timeout) / 4 if self._goal else self._heartbeat / 2
+            )
             due = self._clock.now() + tick
             await self._clock.sleep(tick)
             now = self._clock.now()
@@ -335,7 +351,7 @@ class RobotLink:
         if st in rb.TERMINAL_STATUSES:
             self._goal = None
             self._listener.goal_done(self.name, goal.handle, st, text)
-            self._pose_rate_changed()
+            self._rates_changed()
 
     def _maybe_up(self) -> None:
         if self._have_status and self._have_pose and not self._up:
@@ -369,7 +385,7 @@ class RobotLink:
         gid = self._new_goal_id()
         goal = _Goal(gid, gid, x, y, yaw, self._clock.now())
         self._goal = goal
-        await self._update_pose_rate()  # full rate before the robot starts to move
+        await self._update_rates()  # full rates before the robot starts to move
         await self._send(
             rb.op_publish(
                 "/move_base/goal",
@@ -383,7 +399,7 @@ class RobotLink:
             self._goal = None
             reason = f"goal not acknowledged by the robot after {goal.attempts} attempts"
             self._listener.goal_lost(self.name, goal.handle, reason)
-            self._pose_rate_changed()
+            self._rates_changed()
             return
         old = goal.id
         goal.id = self._new_goal_id()
@@ -404,11 +420,11 @@ class RobotLink:
         """Cancel every goal on the robot (empty id), as a stop button must."""
         self._goal = None
         await self._send(rb.op_publish("/move_base/cancel", {"stamp": rb.ros_time(0.0), "id": ""}))
-        self._pose_rate_changed()
+        self._rates_changed()
 
     async def teleop(self, vx: float, vy: float, wz: float) -> None:
         self._teleop = (vx, vy, wz) != (0.0, 0.0, 0.0)
-        await self._update_pose_rate()
+        await self._update_rates()
         await self._send(rb.op_publish("/cmd_vel", rb.twist(vx, vy, wz)))
 
     async def initial_pose(self, x: float, y: float, yaw: float) -> None:
@@ -422,36 +438,50 @@ class RobotLink:
     async def want_pose(self, on: bool) -> None:
         """Someone watches this robot's pose (full AMCL rate) or nobody does any more."""
         self._pose_watched = on
-        await self._update_pose_rate()
+        await self._update_rates()
+
+    def _moving(self) -> bool:
+        return self._goal is not None or self._teleop
 
     def _pose_throttle(self) -> int:
         """Full rate while watched or moving (arrival checks need a fresh pose), else idle."""
         if self._pose_watched:
             return 0
-        moving = self._goal is not None or self._teleop
-        return self._moving_pose_ms if moving else self._idle_pose_ms
+        return self._moving_pose_ms if self._moving() else self._idle_pose_ms
 
-    def _pose_rate_changed(self) -> None:
-        """From a synchronous callback (a goal ended): re-subscribe soon if the rate changed."""
-        if self._ws is not None and self._pose_throttle() != self._pose_ms:
+    def _status_throttle(self) -> int:
+        """Full rate while a goal needs its ack and end (or teleop), else heartbeat only."""
+        return self._status_ms if self._moving() else self._idle_status_ms
+
+    def _rates_changed(self) -> None:
+        """From a synchronous callback (a goal ended): re-subscribe soon if a rate changed."""
+        if self._ws is not None and self._rates_stale():
             with contextlib.suppress(RuntimeError):  # no running loop: the next session will
-                task = asyncio.get_running_loop().create_task(self._update_pose_rate())
+                task = asyncio.get_running_loop().create_task(self._update_rates())
                 self._jobs.add(task)  # the loop keeps only a weak reference
                 task.add_done_callback(self._jobs.discard)
 
-    async def _update_pose_rate(self) -> None:
-        ws = self._ws
-        if ws is not None and self._pose_throttle() != self._pose_ms:
-            with contextlib.suppress(websockets.exceptions.ConnectionClosed):
-                await self._subscribe_pose(ws)
-
-    async def _subscribe_pose(self, ws: ClientConnection) -> None:
-        """(Re-)subscribe /amcl_pose at the wanted throttle; rosbridge replaces the old one."""
-        ms = self._pose_throttle()
-        self._pose_ms = ms
-        await ws.send(
-            rb.encode(rb.op_subscribe("/amcl_pose", rb.TOPIC_TYPES["/amcl_pose"], throttle_rate=ms))
+    def _rates_stale(self) -> bool:
+        return (
+            self._pose_throttle() != self._pose_ms or self._status_throttle() != self._status_sub_ms
         )
+
+    async def _update_rates(self, ws: ClientConnection | None = None) -> None:
+        """(Re-)subscribe /amcl_pose and /move_base/status at the wanted throttles; rosbridge
+        replaces a client's earlier subscription to the same topic."""
+        ws = ws or self._ws
+        if ws is None:
+            return
+        with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+            for topic, ms, attr in (
+                ("/move_base/status", self._status_throttle(), "_status_sub_ms"),
+                ("/amcl_pose", self._pose_throttle(), "_pose_ms"),
+            ):
+                if getattr(self, attr) != ms:
+                    setattr(self, attr, ms)
+                    await ws.send(
+                        rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic], throttle_rate=ms))
+                    )
 
     async def want_scan(self, on: bool) -> None:
         """Stream /scan only while someone looks at it (it is the heaviest topic)."""

@@ -1,4 +1,5 @@
-"""The robot link asks for /amcl_pose at full rate only while someone watches or it moves.
+"""The robot link asks for /amcl_pose at full rate only while someone watches or it moves,
+and for /move_base/status at full rate only while the robot has a goal.
 
 An idle server with ten parked robots spent most of its CPU decoding 10 Hz AMCL poses that
 nobody looked at; docs/performance.md has the figures. These tests read the throttle the
@@ -11,15 +12,19 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Callable
 
-from serveur.robot_link import IDLE_POSE_MS
+from serveur.robot_link import IDLE_POSE_MS, IDLE_STATUS_MS
 from tests.conftest import WAIT, Restaurant
 from tests.test_e2e import activate, new_orders, staff
 
 
-def pose_throttle(r: Restaurant) -> float | None:
-    """Seconds between /amcl_pose messages the simulator grants the server (None: none)."""
-    subs = r.sim.robots[0]._subs.get("/amcl_pose", [])
+def pose_throttle(r: Restaurant, topic: str = "/amcl_pose") -> float | None:
+    """Seconds between ``topic`` messages the simulator grants the server (None: none)."""
+    subs = r.sim.robots[0]._subs.get(topic, [])
     return min(s.throttle for s in subs) if subs else None
+
+
+def status_throttle(r: Restaurant) -> float | None:
+    return pose_throttle(r, "/move_base/status")
 
 
 async def eventually(cond: Callable[[], bool], what: str) -> None:
@@ -46,10 +51,13 @@ async def test_pose_is_full_rate_while_the_robot_drives(one_robot: Restaurant) -
     await activate(c, "r1")
     ids = await new_orders(c, ("Laksa", "T6"))
     await c.ok("create", type="task", orders=ids)
+    assert status_throttle(one_robot) == IDLE_STATUS_MS / 1000  # parked: heartbeat only
     await c.status("r1", "Delivering")
     await eventually(lambda: pose_throttle(one_robot) == 0.0, "full rate while driving")
+    assert status_throttle(one_robot) == 0.0  # set before the goal went out
     await c.status("r1", "Delivered")  # arrived: parked at the table, nobody watching
     await eventually(lambda: pose_throttle(one_robot) == IDLE_POSE_MS / 1000, "idle at table")
+    await eventually(lambda: status_throttle(one_robot) == IDLE_STATUS_MS / 1000, "idle status")
 
 
 class _Quiet:
