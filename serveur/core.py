@@ -17,7 +17,9 @@ A robot Offline for longer than ``CoreConfig.handover_after`` has its trip hande
 task goes back to the queue (its orders stay on it) and the next free robot takes it; the
 away robot, when it returns, goes home instead of continuing a trip that is no longer its own.
 
-Server restarts are the same case: every robot starts Offline and resumes on link-up. Before
+Server restarts are the same case: every robot starts Offline and resumes on link-up (one
+that was already Offline before the restart keeps counting its hand-over limit from when it
+was last seen, with a short grace to reconnect). Before
 that, :meth:`Core.start` reconciles what a crash may have left half-done between two
 transactions (a trip taken but the robot not yet Delivering, the last stop served but the
 trip not closed, a trip handed over but the robot still meant to deliver it).
@@ -63,7 +65,11 @@ from serveur.scheduler import Candidate, Dispatcher, cart_order_trips, order_sto
 from serveur.status import Action, Event, RobotMode, RobotState, RobotStatus, apply, check_allowed
 from serveur.store import Store
 
-__all__ = ["Core", "CoreConfig", "Destination"]
+__all__ = ["HANDOVER_GRACE", "Core", "CoreConfig", "Destination"]
+
+#: Seconds a robot restored Offline at start is given to connect before a hand-over, however
+#: long it was away before the restart (its link needs a connection and a first status).
+HANDOVER_GRACE = 10.0
 
 log = logging.getLogger(__name__)
 
@@ -122,6 +128,7 @@ class _Runtime:
     battery: float | None = None
     pose_saved_at: float = -1e9
     handover: asyncio.Task[None] | None = None  # the hand-over timer while Offline with a trip
+    offline_since: float | None = None  # epoch (clock) the robot was last seen, while Offline
 
 
 def _fingerprint(payload: Mapping[str, Any]) -> str:
@@ -188,8 +195,12 @@ class Core:
         for robot in await self.store.list_robots():
             # Every robot starts Offline and resumes what it was doing once its link is up.
             resume = robot.resume if robot.status is S.OFFLINE else robot.status
+            # A robot already Offline before the restart has been away since its last state
+            # change: its hand-over limit counts from then, not from this start.
+            away_since = robot.status_since if robot.status is S.OFFLINE else None
             robot, resume = await self._reconcile(robot, resume)
             self._add_runtime(robot)
+            self._rt[robot.name].offline_since = away_since
             st = RobotState(S.OFFLINE, robot.mode, resume)
             self._rt[robot.name].state = st
             await self._save_state(robot.name, st, event="robot.restored")
@@ -428,6 +439,10 @@ class Core:
         )
         self._robots[name] = robot
         self._pub("robots", self._robot_view(name))
+        if st.status is not S.OFFLINE:
+            rt.offline_since = None
+        elif rt.offline_since is None:
+            rt.offline_since = self.clock.epoch()
         if st.status is S.OFFLINE and robot.current_task is not None:
             self._arm_handover(rt)
         else:
@@ -450,8 +465,14 @@ class Core:
             timer.cancel()
 
     async def _handover_timer(self, rt: _Runtime) -> None:
-        assert self.config.handover_after is not None
-        await self.clock.sleep(self.config.handover_after)
+        limit = self.config.handover_after
+        assert limit is not None
+        away = self.clock.epoch() - (rt.offline_since or self.clock.epoch())
+        # What is left of the limit, but never less than a short grace (a robot restored at
+        # start needs a moment to connect before its trip can be judged), nor more than the
+        # limit (a stored time ahead of this clock: an accelerated run, restarted).
+        grace = min(limit, HANDOVER_GRACE)
+        await self.clock.sleep(min(limit, max(grace, limit - away)))
         rt.handover = None
         # Through the robot's queue, like a link report: a link-up already queued is handled
         # first, and the hand-over then sees the robot back and does nothing.

@@ -87,6 +87,7 @@ class Robot(_Record):
     yaw: float | None = None
     last_error: str | None = None
     updated_at: float = 0.0
+    status_since: float = Field(default=0.0, description="when it entered its status (epoch s)")
 
 
 class WaypointRecord(_Record):

@@ -38,7 +38,7 @@ MAX_NAME = 255
 
 ROBOT = (
     "SELECT name, url, home, kinematics, mode, status, resume, current_task, battery, x, y, yaw,"
-    " last_error, updated_at FROM robot_info"
+    " last_error, updated_at, status_since FROM robot_info"
 )
 WAYPOINT = "SELECT name, x, y, yaw, kind FROM waypoints"
 ORDER = (

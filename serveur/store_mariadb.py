@@ -127,9 +127,9 @@ class MariaDBStore(MariaDBTasks):
             if home is not None:
                 await self._waypoint(db, home)
             await db.run(
-                "INSERT INTO robot_info (name, url, home, kinematics, updated_at)"
-                " VALUES (%s, %s, %s, %s, %s)",
-                (name, url, home, kinematics, now),
+                "INSERT INTO robot_info (name, url, home, kinematics, updated_at, status_since)"
+                " VALUES (%s, %s, %s, %s, %s, %s)",
+                (name, url, home, kinematics, now, now),
             )
             data = {"url": url, "home": home, "kinematics": kinematics}
             await self._event(db, "robot.added", now, robot=name, data=data)
@@ -212,9 +212,13 @@ class MariaDBStore(MariaDBTasks):
 
         async def work(db: Tx) -> Robot:
             changed = await db.run(
-                "UPDATE robot_info SET status = %s, mode = %s, resume = %s, last_error = %s,"
+                # status_since first: MariaDB assigns left to right, so it must still see
+                # the old status (SQLite always does).
+                "UPDATE robot_info SET"
+                " status_since = CASE WHEN status = %s THEN status_since ELSE %s END,"
+                " status = %s, mode = %s, resume = %s, last_error = %s,"
                 " updated_at = %s WHERE name = %s",
-                (*values, last_error, now, name),
+                (values[0], now, *values, last_error, now, name),
             )
             if changed != 1:
                 raise NotFound(f"no robot named {name!r}", robot=name)

@@ -65,7 +65,7 @@ _MIN_SQLITE = (3, 37, 0)
 
 _ROBOT = (
     "SELECT name, url, home, kinematics, mode, status, resume, current_task, battery, x, y, yaw,"
-    " last_error, updated_at FROM robot_info"
+    " last_error, updated_at, status_since FROM robot_info"
 )
 _WAYPOINT = "SELECT name, x, y, yaw, kind FROM waypoints"
 _ORDER = (
@@ -386,9 +386,9 @@ class SQLiteStore(Store):
                 await self._waypoint(db, home)
             await _run(
                 db,
-                "INSERT INTO robot_info (name, url, home, kinematics, updated_at)"
-                " VALUES (?, ?, ?, ?, ?)",
-                (name, url, home, kinematics, now),
+                "INSERT INTO robot_info (name, url, home, kinematics, updated_at, status_since)"
+                " VALUES (?, ?, ?, ?, ?, ?)",
+                (name, url, home, kinematics, now, now),
             )
             data = {"url": url, "home": home, "kinematics": kinematics}
             await self._event(db, "robot.added", now, robot=name, data=data)
@@ -460,9 +460,13 @@ class SQLiteStore(Store):
         async with self._tx("write") as db:
             changed = await _run(
                 db,
-                "UPDATE robot_info SET status = ?, mode = ?, resume = ?, last_error = ?,"
+                # status_since first: MariaDB assigns left to right, so it must still see
+                # the old status (SQLite always does).
+                "UPDATE robot_info SET"
+                " status_since = CASE WHEN status = ? THEN status_since ELSE ? END,"
+                " status = ?, mode = ?, resume = ?, last_error = ?,"
                 " updated_at = ? WHERE name = ?",
-                (*values, last_error, now, name),
+                (values[0], now, *values, last_error, now, name),
             )
             if changed != 1:
                 raise NotFound(f"no robot named {name!r}", robot=name)

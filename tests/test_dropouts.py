@@ -189,3 +189,50 @@ async def test_silent_robot_is_offline_within_two_simulated_seconds(tmp_path: Pa
             await cl.close()
         await app.close()
         await sim.close()
+
+
+async def test_hand_over_limit_counts_from_the_drop_across_a_restart(tmp_path: Path) -> None:
+    """A robot that dropped before a server restart is handed over ``handover_after`` after
+    the drop, not ``handover_after`` after the restart."""
+    from serveur.core import HANDOVER_GRACE
+    from tests.conftest import restaurant
+
+    limit = 30.0
+    assert limit - 12.0 > HANDOVER_GRACE  # the grace must not hide the difference
+
+    def make(db: Path | str, clock: ScaledClock, specs: list[RobotSpec], port: int) -> App:
+        nav_map, waypoints = load_demo()
+        cfg = CoreConfig(heartbeat=2.0, ack_timeout=3.0, handover_after=limit)
+        return App(
+            db,
+            port=port,
+            clock=clock,
+            nav_map=nav_map,
+            waypoints=waypoints,
+            robots=specs,
+            config=cfg,
+        )
+
+    async with restaurant(tmp_path, robots=2, time_scale=10.0) as r:
+        r.make = make
+        core_of(r).config.handover_after = limit
+        c = await staff(r)
+        await activate(c, "r1")
+        await activate(c, "r2")
+        ids = await new_orders(c, ("Laksa", "T16"))
+        [task] = (await c.ok("create", type="task", orders=ids))["tasks"]
+        await c.until(lambda: c.task(task["id"]).get("robot") is not None, what="dispatched")
+        robot = c.task(task["id"])["robot"]
+        await c.status(robot, "Delivering")
+        await r.sim.stop_endpoint(int(robot[1:]) - 1)
+        await c.status(robot, "Offline")
+        t0 = r.clock.now()
+        await r.clock.sleep(12.0)  # part of the limit passes before the restart
+        await r.restart_server()
+        c = await staff(r)
+        other = "r2" if robot == "r1" else "r1"
+        await c.until(
+            lambda: c.task(task["id"]).get("robot") == other, what="hand-over", timeout=60
+        )
+        # From the drop: ~30 s (plus observation lag); from the restart it would be >= 42 s.
+        assert limit - 2.0 <= r.clock.now() - t0 < limit + 9.0

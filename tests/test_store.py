@@ -281,6 +281,23 @@ async def test_save_robot_state_writes_its_event(store: Store) -> None:
         )
 
 
+async def test_status_since_moves_only_when_the_status_changes(store: Store) -> None:
+    await seed(store)
+    assert (await store.get_robot("r1")).status_since == T0  # added Offline at T0
+
+    async def save(status: RobotStatus, now: float) -> float:
+        robot = await store.save_robot_state(
+            "r1", status=status, mode=RobotMode.AUTO, resume=None, last_error=None, now=now
+        )
+        return robot.status_since
+
+    assert await save(RobotStatus.AWAITING, T0 + 5) == T0 + 5
+    assert await save(RobotStatus.AWAITING, T0 + 9) == T0 + 5  # same status: still since T0+5
+    await store.save_robot_pose("r1", x=1.0, y=2.0, yaw=0.0, battery=None, now=T0 + 10)
+    assert (await store.get_robot("r1")).status_since == T0 + 5  # poses do not move it
+    assert await save(RobotStatus.OFFLINE, T0 + 12) == T0 + 12
+
+
 async def test_save_robot_pose(store: Store) -> None:
     await seed(store)
     before = await event_kinds(store)
