@@ -410,6 +410,10 @@ class Dispatcher:
         """One round: assign as many queued trips as there are free robots. Returns the count."""
         self.rounds += 1
         assigned = 0
+        if not self._fleet.free_robots():
+            # Every robot busy: most rounds in a rush (each new trip kicks one). Reading the
+            # whole queue for nothing made each of them cost more as the backlog grew.
+            return 0
         for task_id in await self._fleet.queued_task_ids():
             robot = choose_robot(self._fleet.free_robots())
             if robot is None:

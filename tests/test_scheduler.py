@@ -106,8 +106,10 @@ class FakeFleet:
         self.tasks = tasks
         self.free = {r: float(i) for i, r in enumerate(robots)}
         self.started: list[tuple[int, str]] = []
+        self.queue_reads = 0
 
     async def queued_task_ids(self) -> list[int]:
+        self.queue_reads += 1
         return [t for t in self.tasks if t not in {s for s, _ in self.started}]
 
     def free_robots(self) -> list[Candidate]:
@@ -124,7 +126,9 @@ async def test_dispatch_gives_each_trip_to_one_robot() -> None:
     d = Dispatcher(fleet)
     assert await d.dispatch_once() == 2
     assert fleet.started == [(1, "r1"), (2, "r2")]
+    reads = fleet.queue_reads
     assert await d.dispatch_once() == 0  # no robot left for trip 3
+    assert fleet.queue_reads == reads  # ... and the queue is not even read
     fleet.free["r3"] = 9.0
     assert await d.dispatch_once() == 1
     assert fleet.started[-1] == (3, "r3")
