@@ -55,8 +55,18 @@ async def test_planned_distances_equal_the_planner(in_child: bool) -> None:
 
 async def test_sources_plan_only_their_rows() -> None:
     m = MapData.from_occupancy(load_demo()[0])
-    result = await plan_async(_request(map=m, sources=["T7"]), in_child=True)
+    result = await plan_async(_request(map=m, sources=["T7"]), in_child=True, reuse=False)
     assert sorted(result.pairs) == sorted((min(a, "T7"), max(a, "T7")) for a in SPOTS if a != "T7")
+
+
+async def test_an_identical_request_is_answered_from_memory() -> None:
+    m = MapData.from_occupancy(load_demo()[0])
+    first = await plan_async(_request(map=m, sources=["T1"]), in_child=False)
+    assert await plan_async(_request(map=m, sources=["T1"]), in_child=True) is first
+    fresh = await plan_async(_request(map=m, sources=["T1"]), in_child=True, reuse=False)
+    assert fresh is not first and fresh.pairs == first.pairs
+    other = await plan_async(_request(map=m, sources=["T7"]), in_child=False)
+    assert other is not first
 
 
 async def test_a_bad_map_file_is_a_map_error(tmp_path: Path) -> None:
