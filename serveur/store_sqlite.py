@@ -187,6 +187,10 @@ class SQLiteStore(Store):
         if sqlite3.sqlite_version_info < _MIN_SQLITE:
             raise StoreError(f"SQLite {sqlite3.sqlite_version} is too old: 3.37 or newer needed")
         try:
+            # Probe first, in a plain thread: after a failed connect aiosqlite still reports
+            # its own clean-up to the event loop, which may be closed by then (an unopenable
+            # path at start would end in a thread traceback instead of one clear error).
+            await asyncio.to_thread(_probe, self.path)
             db = await aiosqlite.connect(self.path, isolation_level=None)
         except sqlite3.Error as exc:
             raise StoreError(f"cannot open {self.path}: {exc}", path=self.path) from exc
@@ -1077,3 +1081,8 @@ class SQLiteStore(Store):
 
 def _same_path(a: Path, b: str) -> bool:
     return b != ":memory:" and a.resolve() == Path(b).resolve()
+
+
+def _probe(path: str) -> None:
+    """Raise sqlite3.Error if ``path`` cannot be opened (creating the file, as connect would)."""
+    sqlite3.connect(path).close()
