@@ -41,7 +41,7 @@ from serveur.domain import OrderStatus, TaskStatus
 from serveur.errors import Conflict
 from tests import invariants
 from tests.conftest import Restaurant, restaurant
-from tests.fuzz_strategies import Live, Obj, Ref, Send, Step, Wait, encode
+from tests.fuzz_strategies import Live, Obj, Ref, Relog, Send, Step, Wait, encode
 
 __all__ = ["ERROR_CODES", "FuzzFailure", "LiveRestaurant", "Stats", "open_connection"]
 
@@ -91,6 +91,7 @@ class Stats:
     statuses: Counter[str] = field(default_factory=Counter)  # robot statuses seen on updates
     checks: int = 0
     failures: list[str] = field(default_factory=list)
+    last_code: str = ""  # the code of the latest reply checked
 
     def summary(self) -> str:
         lines = [
@@ -114,6 +115,7 @@ class Expect:
     id: Any  # the exact id the reply must carry (None: none), or _MISSING when unknown
     ids: tuple[Any, ...]  # ids the reply may carry when ``id`` is _MISSING (besides none)
     text: str
+    code: str | None = None  # the one reply code allowed ("ok" or an error code), if known
 
 
 class _Conn:
@@ -452,6 +454,8 @@ class LiveRestaurant:
                 timeout = step.timeout * self.wait_scale
                 reached = await self.observer.wait(step.robot, step.statuses, timeout)
                 self.stats.waits["reached" if reached else "timed out"] += 1
+            elif isinstance(step, Relog):
+                await self._relog(step)
             else:
                 await self._send(step)
         # Every connection still open and answering.
@@ -496,6 +500,54 @@ class LiveRestaurant:
         except websockets.exceptions.ConnectionClosed as exc:
             raise FuzzFailure(f"connection closed by the server before {text[:300]!r}") from exc
 
+    async def _relog(self, step: Relog) -> None:
+        """Logout, a refused probe, login again (see :class:`Relog`).
+
+        The fuzzer's wrong-credential logins may have locked this address by then; a login
+        refused as ``rate_limited`` (documented: even the right token waits) is answered by
+        reconnecting with the token on the handshake, which the lock does not cover.
+        """
+        assert self.r is not None
+        index = step.conn % len(self.conns)
+        conn = self.conns[index]
+        await self._drain(conn, index)  # ids of earlier creates known before the probe
+        ids: list[int] = []
+        probe = encode(step.probe, self.live, ids)
+        exact, loose = _expected_id(probe, ids, step.probe)
+        login = json.dumps({"clientmsg": "login", "id": "in", "token": self.r.token})
+        frames = [
+            (
+                Expect("logout", "logout", True, "out", (), "logout", code="ok"),
+                json.dumps({"clientmsg": "logout", "id": "out"}),
+            ),
+            (
+                Expect(
+                    f"{step.label} (logged out)",
+                    step.label,
+                    True,
+                    exact,
+                    loose,
+                    probe,
+                    code="unauthorized",
+                ),
+                probe,
+            ),
+            (Expect("login", "login", True, "in", (), login), login),
+        ]
+        for expect, text in frames:
+            conn.pending.append(expect)
+            self.stats.frames += 1
+            try:
+                await conn.ws.send(text)
+            except websockets.exceptions.ConnectionClosed as exc:
+                raise FuzzFailure(f"connection closed by the server before {text[:300]!r}") from exc
+            await self._drain(conn, index)
+        if self.stats.last_code == "rate_limited":
+            await conn.close()
+            self.conns[index] = _Conn(await open_connection(self.r))
+        elif self.stats.last_code != "ok":
+            raise FuzzFailure(f"login with the connection's own token: {self.stats.last_code}")
+
     async def _drain(self, conn: _Conn, index: int) -> None:
         while conn.pending:
             expect = conn.pending.popleft()
@@ -538,6 +590,7 @@ class LiveRestaurant:
             raise fail("a reply must be ok or error")
         code = "ok" if kind == "ok" else reply["code"]
         self.stats.replies[code] += 1
+        self.stats.last_code = code
         if code != "ok" and code not in ERROR_CODES:
             raise fail(f"undocumented error code {code!r}")
         if code == "internal_error":
@@ -548,6 +601,8 @@ class LiveRestaurant:
                 raise fail(f"the reply's id is {got!r}, expected {expect.id!r}")
         elif got is not None and got not in expect.ids:
             raise fail(f"the reply's id {got!r} is none of the frame's ids {expect.ids!r}")
+        if expect.code is not None and code != expect.code:
+            raise fail(f"expected {expect.code!r}, got {code!r}")
         if expect.valid is True and code in PARSE_ERRORS:
             raise fail(f"a valid frame was refused as malformed ({code})")
         if expect.valid is False and code == "ok":
@@ -555,7 +610,10 @@ class LiveRestaurant:
         if code == "ok" and expect.valid is True:
             self.stats.labels[expect.label] += 1
             want = PAYLOAD.get(expect.verb, "robot")
-            if reply.get(want) is None:
+            if expect.verb == "logout":
+                if "session" not in reply or reply["session"] is not None:
+                    raise fail("an ok reply to logout must carry session: null")
+            elif reply.get(want) is None:
                 raise fail(f"an ok reply to {expect.verb} lacks its {want!r} payload")
         if code == "ok" and isinstance(reply.get("order"), dict):
             self.live.saw_order(reply["order"]["id"])

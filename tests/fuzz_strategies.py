@@ -146,7 +146,17 @@ class Wait:
     timeout: float
 
 
-Step: TypeAlias = Send | Wait
+@dataclass(frozen=True)
+class Relog:
+    """On connection ``conn``: ``logout``, then ``probe`` (a valid request) must be refused as
+    ``unauthorized`` and change nothing, then ``login`` with the connection's token again."""
+
+    probe: Node
+    label: str
+    conn: int = 0
+
+
+Step: TypeAlias = Send | Wait | Relog
 
 
 # --------------------------------------------------------------------------- live names
@@ -858,6 +868,13 @@ def _wait(conns: int) -> st.SearchStrategy[list[Step]]:
     )
 
 
+def _relog(conns: int) -> st.SearchStrategy[list[Step]]:
+    probes = valid_messages([lb for lb in VERB_STRATEGIES if lb != "login"])
+    return st.builds(
+        lambda c, probe: [Relog(probe[1], probe[0], c)], st.integers(0, conns - 1), probes
+    )
+
+
 def examples(conns: int = 2, max_groups: int = 8) -> st.SearchStrategy[list[Step]]:
     """One fuzz example: a few groups of steps (single frames, or short flows), flattened."""
     groups: list[tuple[int, st.SearchStrategy[list[Step]]]] = [
@@ -868,6 +885,7 @@ def examples(conns: int = 2, max_groups: int = 8) -> st.SearchStrategy[list[Step
         (1, interrupt(conns)),
         (1, manual_session(conns)),
         (1, _wait(conns)),
+        (1, _relog(conns)),
     ]
     weighted = [strat for weight, strat in groups for _ in range(weight)]
     group = st.integers(0, len(weighted) - 1).flatmap(lambda i: weighted[i])

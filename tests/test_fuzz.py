@@ -98,6 +98,8 @@ def test_fuzz_live(live: LiveRestaurant) -> None:
         stats.replies
     ), stats.replies
     assert {"not_allowed_in_status", "conflict"} <= set(stats.replies), stats.replies
+    # ...logged out and in again, refused in between (Relog steps).
+    assert stats.labels["logout"] > 0 and "unauthorized" in stats.replies, stats.replies
     # ...and robots that went through the delivery statuses while it ran.
     assert {"Ready", "Awaiting", "Delivering", "Delivered", "Transit"} <= set(stats.statuses), (
         stats.statuses
