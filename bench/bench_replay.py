@@ -15,7 +15,6 @@ gives up one hour of simulated time after the last dish).
 from __future__ import annotations
 
 import argparse
-import asyncio
 import math
 import tempfile
 import time
@@ -25,7 +24,7 @@ import numpy as np
 
 from serveur.mapio import OccupancyMap, Waypoint, save_map, save_waypoints
 from serveur.orders import format_orders, generate_orders
-from serveur.replay import ReplayOptions, replay
+from serveur.replay import ReplayOptions, run_replay
 from serveur.replay_report import summary_text
 
 RES = 0.05
@@ -72,7 +71,7 @@ def write_room(out: Path) -> Path:
     return out / "room30.yaml"
 
 
-async def run(ns: argparse.Namespace) -> None:
+def run(ns: argparse.Namespace) -> None:
     with tempfile.TemporaryDirectory(prefix="serveur-bench-replay-") as tmp:
         yaml = write_room(Path(tmp))
         tables = [f"T{i}" for i in range(1, 31)]
@@ -85,7 +84,7 @@ async def run(ns: argparse.Namespace) -> None:
             robots=ns.robots, time_scale=ns.time_scale, map_path=str(yaml), progress=True
         )
         t0 = time.perf_counter()
-        res = await replay(orders, opts, [ns.policy])
+        res = run_replay(orders, opts, [ns.policy])
         wall = time.perf_counter() - t0
         r = res[ns.policy]
         print(summary_text(res, f"{len(orders)} dishes (log seed {seed})", opts))
@@ -97,7 +96,9 @@ async def run(ns: argparse.Namespace) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description="replay speed benchmark")
-    ap.add_argument("--time-scale", type=float, default=300.0)
+    ap.add_argument(
+        "--time-scale", type=float, default=None, help="wall-clock mode (default: virtual time)"
+    )
     ap.add_argument("--robots", type=int, default=5)
     ap.add_argument("--orders", type=int, default=1000)
     ap.add_argument("--rate", type=float, default=260.0, help="dishes an hour for the generator")
@@ -108,10 +109,10 @@ def main() -> None:
         from pyinstrument import Profiler
 
         with Profiler(async_mode="disabled", interval=0.002) as prof:
-            asyncio.run(run(ns))
+            run(ns)
         Path("bench-replay-profile.txt").write_text(prof.output_text(show_all=False))
     else:
-        asyncio.run(run(ns))
+        run(ns)
 
 
 if __name__ == "__main__":

@@ -1,10 +1,14 @@
-"""Replay an order log through the real server and simulated robots, in accelerated time.
+"""Replay an order log through the real server and simulated robots, in virtual time.
 
 "How many robots do I need, and how long do guests wait?" is answered by running the service:
 the real :class:`~serveur.app.App` (store, core, dispatcher, websocket endpoint) and N robots
 of :mod:`serveur.robot_sim` speaking rosbridge over real loopback sockets, all in one process
-on one :class:`~serveur.clock.ScaledClock`, so a 4-hour dinner takes minutes and every
-server timeout scales with it. The replay itself is only a client of the websocket protocol:
+on one event loop whose clock is virtual (:mod:`serveur.vtime`): time stands still while
+anything can run and jumps to the next timer when nothing can, so a 4-hour dinner takes as
+long as the CPU needs to compute it (about half a minute) and every server timeout means what
+it means in a restaurant. With ``time_scale`` set, the loop follows the wall clock instead,
+``time_scale`` times faster (:class:`~serveur.clock.ScaledClock`), e.g. to watch a replay in
+the staff console. The replay itself is only a client of the websocket protocol:
 
 * **the kitchen** creates each dish (``create order``) at its ``ready_at``;
 * **the staff** confirm a cart (``create task``) when robots are free — the ``baseline`` staff
@@ -20,12 +24,11 @@ from the server's own records afterwards, so they are what the restaurant's data
 
 Determinism. The simulated world is seeded (robots: ``seed + i``; dwell per dish from
 ``(seed, line)``, independent of which trip the dish rides), staff act on protocol updates,
-never on wall-clock polling, and physics steps are fixed 50 ms of simulated time. What cannot
-be removed is scheduling jitter: a goal reaches a robot a few ms of *wall* time after it was
-sent, which is ``time_scale`` times more simulated time, and moves a start by a physics tick;
-on a busy service such a tick can flip which robot frees first and cascade. The summary
-therefore reports times in whole seconds and distances in metres, and ``report.json`` keeps
-the raw figures. See docs/performance.md for the measured spread across repeated runs.
+never on wall-clock polling, and physics steps are fixed 50 ms of simulated time. In virtual
+time nothing depends on the host's speed or load either: the same log, seed and options give
+the same report, to the last digit. With ``time_scale`` set, scheduling jitter remains: a goal
+reaches a robot a few ms of *wall* time after it was sent, which is ``time_scale`` times more
+simulated time, and on a busy service such a tick can flip which robot frees first.
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ import websockets
 from websockets.asyncio.client import ClientConnection, connect
 
 from serveur.orders import LogOrder, OrderLogError, read_orders
+from serveur.vtime import LoopClock, VirtualTimeLoop
 
 __all__ = [
     "POLICIES",
@@ -62,12 +66,15 @@ __all__ = [
     "percentile",
     "replay",
     "replay_policy",
+    "run_replay",
     "stop_dwell",
 ]
 
 log = logging.getLogger(__name__)
 
 POLICIES = ("baseline", "serveur")
+#: When a virtual-time service opens: 2026-01-01 00:00 UTC.
+VIRTUAL_EPOCH = 1_767_225_600.0
 _MAX_CART = 50  # dishes in one ``create task`` (protocol limit)
 _WAIT = 60.0  # wall seconds any single protocol round trip may take before the replay gives up
 
@@ -81,7 +88,7 @@ class ReplayOptions:
     """How to replay. Times are simulated seconds unless said otherwise."""
 
     robots: int = 3
-    time_scale: float = 30.0
+    time_scale: float | None = None  # None: virtual time (deterministic, as fast as the CPU)
     map_path: str | None = None  # ROS map YAML; waypoints from <stem>_waypoints.json beside it
     seed: int = 0
     capacity: int = 4
@@ -228,6 +235,8 @@ class _Service:
         self.opts = opts
         self.policy = policy
         self.clock = clock
+        # Timeouts are sized for wall-clock jitter times the scale; virtual time has none.
+        self._scale = opts.time_scale or 1.0
         self.client: _Client | None = None
         self.distance: Callable[[str, str], float] = lambda a, b: 0.0
         self.t0 = 0.0
@@ -522,7 +531,7 @@ class _Service:
         service: a robot covers 0.7 m, and paths are straight between corners, so distances
         come out within a percent or two while the sampler stays cheap).
         """
-        period = min(1.0, max(0.25, 0.005 * self.opts.time_scale))
+        period = min(1.0, max(0.25, 0.005 * self._scale)) if self.opts.time_scale else 0.5
         while True:
             for r in sim.robots:
                 x, y, _ = r.pose
@@ -553,7 +562,9 @@ class _Service:
                 shown = int(frac * 10)
                 sys.stderr.write(line + "\n")
             sys.stderr.flush()
-            await asyncio.sleep(0.5)
+            # Half a wall second on a scaled clock; in virtual time a wall pause would stop
+            # nothing, so the bar is redrawn every 30 s of service (a few hundred times).
+            await (asyncio.sleep(0.5) if self.opts.time_scale else self.clock.sleep(30.0))
 
     # the whole run -----------------------------------------------------------------------
 
@@ -585,7 +596,7 @@ class _Service:
         # loop (or of the whole process, on a shared machine) is many simulated seconds, so
         # they are kept at >= 2 s of wall time. Nothing here fails on purpose, so they only
         # need to never fire spuriously.
-        scale = opts.time_scale
+        scale = self._scale
         heartbeat = max(1.0, 2.0 * scale)
         # Accelerated, the replay's cost is rosbridge traffic (~16 messages a robot-second,
         # encoded by the simulator, decoded by the links): nobody watches poses (distances
@@ -593,7 +604,7 @@ class _Service:
         # so both are throttled (ms of simulated time) — 2 Hz poses leave the server's arrival
         # checks a pose at most 0.35 m old; status keeps 4 beats per heartbeat period — and
         # the battery, which the server only reports when it moves by 1 %, every 30 s.
-        fast = scale >= 10.0
+        fast = scale >= 10.0 or opts.time_scale is None
         cfg = CoreConfig(
             capacity=opts.capacity,
             policy=self.policy,
@@ -615,11 +626,19 @@ class _Service:
             # The per-connection rate limit counts wall seconds, but the replay's one client
             # speaks for a whole kitchen and staff in accelerated time: at 200x a rush is
             # hundreds of requests a wall second. Scaled, the limit holds in simulated time.
-            security=SecurityConfig(rate=50.0 * max(1.0, scale), burst=200.0 * max(1.0, scale)),
+            # In virtual time a whole service's requests come in half a minute of wall time.
+            security=SecurityConfig(
+                rate=50.0 * (max(1.0, scale) if opts.time_scale else 1000.0),
+                burst=200.0 * (max(1.0, scale) if opts.time_scale else 1000.0),
+            ),
         )
         result = PolicyResult(self.policy)
         bg: list[asyncio.Task[None]] = []
         try:
+            loop = asyncio.get_running_loop()
+            if isinstance(loop, VirtualTimeLoop):
+                # SQLite runs in aiosqlite's thread: no time may pass while a query runs.
+                loop.add_busy(app.store.busy)
             await app.start()
             core = app.core
             assert core is not None
@@ -748,7 +767,15 @@ async def replay_policy(
         raise ValueError(f"policy must be one of {POLICIES}")
     if not orders:
         raise ReplayError("the order log is empty")
-    clock = ScaledClock(opts.time_scale)
+    clock: Any
+    if opts.time_scale is None:
+        if not isinstance(asyncio.get_running_loop(), VirtualTimeLoop):
+            raise ReplayError("a virtual-time replay runs on serveur.vtime.VirtualTimeLoop")
+        # A fixed date, too: stamps are epoch floats, and their rounding would otherwise
+        # differ with the wall-clock second the replay started at.
+        clock = LoopClock(start_epoch=VIRTUAL_EPOCH)
+    else:
+        clock = ScaledClock(opts.time_scale)
     return await _Service(_numbered(orders), opts, policy, clock).run(workdir)
 
 
@@ -774,18 +801,36 @@ async def replay(
 # -- command line ------------------------------------------------------------------------------
 
 
-async def _cmd_replay(ns: argparse.Namespace) -> int:
+def run_replay(
+    orders: Sequence[LogOrder], opts: ReplayOptions, policies: Sequence[str]
+) -> dict[str, PolicyResult]:
+    """Each policy in turn, each on a fresh event loop of the kind ``opts`` needs.
+
+    Virtual time unless ``time_scale`` is set. A fresh loop per policy starts each service at
+    loop time 0, so a policy's report does not depend on which ran before it (float rounding
+    of a larger clock would move its stamps in the last digits).
+    """
+    factory = VirtualTimeLoop if opts.time_scale is None else None
+    out: dict[str, PolicyResult] = {}
+    with tempfile.TemporaryDirectory(prefix="serveur-replay-") as tmp:
+        for p in policies:
+            with asyncio.Runner(loop_factory=factory) as runner:
+                out[p] = runner.run(replay_policy(orders, opts, p, Path(tmp)))
+    return out
+
+
+def _cmd_replay(ns: argparse.Namespace) -> int:
     root = logging.getLogger()
     level = root.level
     if not ns.verbose:  # every status change is logged at INFO: too much for a whole service
         root.setLevel(logging.ERROR)
     try:
-        return await _replay_command(ns)
+        return _replay_command(ns)
     finally:
         root.setLevel(level)
 
 
-async def _replay_command(ns: argparse.Namespace) -> int:
+def _replay_command(ns: argparse.Namespace) -> int:
     opts = ReplayOptions(
         robots=ns.robots,
         time_scale=ns.time_scale,
@@ -804,7 +849,7 @@ async def _replay_command(ns: argparse.Namespace) -> int:
         return 2
     policies = list(POLICIES) if ns.policy == "both" else [ns.policy]
     try:
-        results = await replay(orders, opts, policies)
+        results = run_replay(orders, opts, policies)
     except ReplayError as exc:
         print(f"serveur replay: {exc}", file=sys.stderr)
         return 1
@@ -828,7 +873,11 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("log", help="order log CSV (ready_at,table,dish)")
     p.add_argument("--robots", type=int, default=3, help="simulated robots (default 3)")
     p.add_argument(
-        "--time-scale", type=float, default=30.0, help="simulated s per wall s (default 30)"
+        "--time-scale",
+        type=float,
+        default=None,
+        help="follow the wall clock, this many times faster (default: virtual time, as fast "
+        "as the CPU allows and deterministic)",
     )
     p.add_argument("--policy", choices=[*POLICIES, "both"], default="serveur")
     p.add_argument("--map", default=None, help="map YAML (waypoints: <stem>_waypoints.json)")
@@ -837,4 +886,4 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--kinematics", choices=["omni", "diff"], default="omni")
     p.add_argument("--out", default="replay-out", help="output directory (default replay-out)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=_cmd_replay, is_async=True)
+    p.set_defaults(func=_cmd_replay, is_async=False)

@@ -195,6 +195,10 @@ class SQLiteRows(Store):
             raise
         return db
 
+    def busy(self) -> bool:
+        # Every statement runs under the lock, on aiosqlite's thread.
+        return self._lock.locked()
+
     async def close(self) -> None:
         async with self._lock:
             db, self._db = self._db, None

@@ -160,6 +160,14 @@ class Store(AccountsMixin, ABC):
     async def open(self) -> None:
         """Connect and apply the migrations not applied yet."""
 
+    def busy(self) -> bool:
+        """True while a query may be running outside the event loop (in a worker thread).
+
+        A virtual-time loop (serveur.vtime) must not let time jump meanwhile: the query's
+        result would arrive "later" than it did. False for a backend that cannot tell.
+        """
+        return False
+
     @abstractmethod
     async def close(self) -> None:
         """Close the connection; safe to call twice."""
