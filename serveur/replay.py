@@ -610,7 +610,8 @@ class _Service:
             policy=self.policy,
             heartbeat=heartbeat,
             ack_timeout=max(2.0, 2.0 * scale),
-            pose_persist_period=max(5.0, 0.5 * scale),
+            # Saved poses are for a crash restart, which a replay never does: every 5 min.
+            pose_persist_period=300.0 if opts.time_scale is None else max(5.0, 0.5 * scale),
             moving_pose_ms=500 if fast else 0,
             status_ms=int(min(1000.0, 250.0 * heartbeat)) if fast else 0,
             battery_ms=30_000 if fast else 0,  # 1 % of charge takes minutes
@@ -628,6 +629,8 @@ class _Service:
             # hundreds of requests a wall second. Scaled, the limit holds in simulated time.
             # In virtual time a whole service's requests come in half a minute of wall time.
             security=SecurityConfig(
+                # Nobody revokes the replay's token from another process: look every 5 min.
+                sweep_every=300.0,
                 rate=50.0 * (max(1.0, scale) if opts.time_scale else 1000.0),
                 burst=200.0 * (max(1.0, scale) if opts.time_scale else 1000.0),
             ),

@@ -146,3 +146,31 @@ def test_odometry_follows_a_turning_base() -> None:
         odom.update(0.5, 0.0, wz, DT)
     assert math.hypot(odom.x, odom.y) < 0.01
     assert abs(wrap_angle(odom.yaw)) < 1e-6
+
+
+def test_the_follower_drives_between_every_pair_of_demo_waypoints_without_clipping() -> None:
+    """Every waypoint to every other on the demo map, with the simulator's bumper: no drive may
+    end stuck against a table corner (a longer carrot cut corners: docs/performance.md)."""
+    grid, wps = load_demo()
+    planner = Planner(grid, robot_radius=0.2)
+    stuck: list[tuple[str, str]] = []
+    for a, wa in wps.items():
+        for b, wb in wps.items():
+            if a == b:
+                continue
+            base = MotionModel("omni", Limits(), wa.x, wa.y, wa.yaw)
+            follower = PathFollower(
+                planner.plan((wa.x, wa.y), (wb.x, wb.y)), wb.yaw, "omni", Limits()
+            )
+            blocked = 0
+            for _ in range(20 * 120):
+                cmd = follower.command(base.x, base.y, base.yaw)
+                if follower.done:
+                    break
+                blocked = 0 if base.step(*cmd, 0.05, planner.is_traversable) else blocked + 1
+                if blocked >= 40:  # 2 s against an obstacle: the simulator aborts the goal
+                    stuck.append((a, b))
+                    break
+            else:
+                stuck.append((a, b))
+    assert stuck == []
