@@ -151,13 +151,14 @@ class PathFollower:
     """Follows a smoothed path (list of (x, y)) then turns to the goal heading.
 
     A carrot-on-a-stick controller: aim at the point ``lookahead`` metres further along the path
-    than the base's projection (0.3 m: a carrot further ahead cuts the corner where the path
-    turns round a table, and the planner's paths turn right at the edge of the robot's
-    inflated footprint; at 0.5 m the omni base clipped table corners on 21 of the demo room's
-    506 waypoint-to-waypoint drives, at 0.3 m on none, for 4 % longer drives), at the speed from which it can still brake before the end. Once
-    within a fraction of the xy tolerance the position is latched (as move_base's
-    ``latch_xy_goal_tolerance``) and only the heading is corrected. ``done`` turns True when both
-    are well within tolerance, so that the pose at rest is inside the tolerances.
+    than the base's projection, at the speed from which it can still brake before the end. The
+    carrot is 0.3 m ahead: further ahead it cuts the corner where a path turns round a table,
+    and the planner's paths turn right at the edge of the robot's inflated footprint (at 0.5 m
+    the omni base clipped table corners on 21 of the demo room's 506 waypoint-to-waypoint
+    drives; at 0.3 m on none, for drives 4 % longer). Once within a fraction of the xy
+    tolerance the position is latched (as move_base's ``latch_xy_goal_tolerance``) and only the
+    heading is corrected. ``done`` turns True when both are well within tolerance, so that the
+    pose at rest is inside the tolerances.
     """
 
     def __init__(

@@ -390,8 +390,9 @@ class CreateWaypoint(_ClientMsg):
     @model_validator(mode="before")
     @classmethod
     def _default_yaw(cls, data: Any) -> Any:
-        # An explicit pose without yaw faces along +x, like WaypointRecord's default.
-        if isinstance(data, dict) and data.get("robot") is None and "yaw" not in data:
+        # An explicit pose without yaw (absent or null) faces along +x, like WaypointRecord's
+        # default. (A null yaw once reached the record and failed there: internal_error.)
+        if isinstance(data, dict) and data.get("robot") is None and data.get("yaw") is None:
             return {**data, "yaw": 0.0}
         return data
 

@@ -308,6 +308,11 @@ def test_defaults() -> None:
     wp = P.parse_client('{"clientmsg":"create","type":"waypoint","name":"T1","x":1,"y":2}')
     assert isinstance(wp, P.CreateWaypoint)
     assert (wp.x, wp.y, wp.yaw, wp.kind.value, wp.replace) == (1.0, 2.0, 0.0, "other", False)
+    # A null yaw is no yaw (the fuzz bench found it reaching the record: internal_error).
+    wp = P.parse_client(
+        '{"clientmsg":"create","type":"waypoint","name":"T1","x":1,"y":2,"yaw":null}'
+    )
+    assert isinstance(wp, P.CreateWaypoint) and wp.yaw == 0.0
     tele = P.parse_client('{"clientmsg":"control","robot":"r1","action":"teleop","vx":0,"wz":0}')
     assert isinstance(tele, P.ControlTeleop) and tele.vy == 0.0
     data = P.parse_client('{"clientmsg":"data","topics":["robots","robots","map"]}')
