@@ -251,9 +251,7 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
             tables = sorted(
                 w["name"]
                 for w in (await staff.call("data", topics=["waypoints"]))["data"]["waypoints"]
-                # T13 is left out: the simulator's omni robots clip T9 leaving it, every time
-                # (docs/performance.md, "Simulator"), and "continue" cannot free them.
-                if w["kind"] == "table" and w["name"] != "T13"
+                if w["kind"] == "table"
             )
             watchers: list[Watcher] = []
             for i in range(ns.clients):
