@@ -23,42 +23,76 @@ Design choices, and why:
 from __future__ import annotations
 
 import json
-import math
 import re
-from collections.abc import Callable
 from typing import Annotated, Any, Final, Literal, TypeAlias
-from urllib.parse import urlsplit
 
-import pydantic_core
 from pydantic import (
     AfterValidator,
     BaseModel,
     ConfigDict,
     Field,
-    PlainValidator,
-    StringConstraints,
     TypeAdapter,
     ValidationError,
-    WithJsonSchema,
     model_validator,
 )
 from pydantic_core import PydanticCustomError
 
 from serveur.domain import (
-    AuditRecord,
-    EventRecord,
-    Order,
-    Robot,
-    Task,
     WaypointKind,
-    WaypointRecord,
 )
 from serveur.errors import BadJson, InvalidField, ServeurError, UnknownMessage
+from serveur.protocol_fields import (
+    MAX_ANGULAR,
+    MAX_COORD,
+    MAX_DEPTH,
+    MAX_FRAME_BYTES,
+    MAX_LINEAR,
+    MAX_NAME,
+    MAX_ORDERS_PER_TASK,
+    MAX_TOPICS,
+    REQUEST_ID_ADAPTER,
+    ROBOT_TOPICS,
+    STATE_TOPICS,
+    VERBS,
+    AngularSpeed,
+    Coord,
+    LinearSpeed,
+    Name,
+    OrderId,
+    RequestId,
+    Topic,
+    WsUrl,
+    Yaw,
+    dedupe,
+    split_topic,
+    unique_orders,
+)
+from serveur.protocol_server import (
+    SERVER_ADAPTER,
+    ErrorCode,
+    ErrorReply,
+    MapSnapshot,
+    OkReply,
+    PoseData,
+    ScanData,
+    ServerMessage,
+    Session,
+    Snapshot,
+    UpdateData,
+    UpdateMsg,
+    dump,
+    error_frame,
+    ok_frame,
+    update_frame,
+)
 from serveur.status import Action
 
 __all__ = [
+    "MAX_ANGULAR",
+    "MAX_COORD",
     "MAX_DEPTH",
     "MAX_FRAME_BYTES",
+    "MAX_LINEAR",
     "MAX_NAME",
     "MAX_ORDERS_PER_TASK",
     "MAX_PASSWORD",
@@ -111,205 +145,6 @@ __all__ = [
     "split_topic",
     "update_frame",
 ]
-
-#: Largest client frame the server accepts (the websocket layer enforces it too).
-MAX_FRAME_BYTES: Final = 64 * 1024
-#: Deepest JSON nesting accepted; real messages nest at most 2 levels.
-MAX_DEPTH: Final = 20
-#: Longest name (robot, table, waypoint, dish, idempotency key, request id).
-MAX_NAME: Final = 64
-#: Most orders one confirmed cart may carry.
-MAX_ORDERS_PER_TASK: Final = 50
-#: Most topics one ``data`` request may name.
-MAX_TOPICS: Final = 64
-#: Topics whose updates carry one upserted record (``map`` carries the map snapshot).
-STATE_TOPICS: Final = ("robots", "orders", "tasks", "waypoints", "map", "events", "audit")
-#: Per-robot topic prefixes: ``pose:<robot>`` and ``scan:<robot>``.
-ROBOT_TOPICS: Final = ("pose", "scan")
-#: Every ``clientmsg`` verb, in the order the documentation lists them.
-VERBS: Final = (
-    "login",
-    "logout",
-    "data",
-    "create",
-    "control",
-    "ready",
-    "next",
-    "stop",
-    "continue",
-    "cancel",
-    "order",
-)
-
-#: Limits of the work area: far beyond any restaurant, close enough to catch unit mistakes.
-MAX_COORD: Final = 10_000.0
-MAX_LINEAR: Final = 2.0  # m/s, teleop |vx|, |vy|
-MAX_ANGULAR: Final = 4.0  # rad/s, teleop |wz|
-
-_CONTROL_CHARS = re.compile(r"[\x00-\x1f\x7f]")
-
-
-# --------------------------------------------------------------------------- field types
-
-
-def _no_control_chars(value: str) -> str:
-    # Names end up on screens, in logs and in topic names: control characters are never meant.
-    if _CONTROL_CHARS.search(value):
-        raise PydanticCustomError("name_chars", "must not contain control characters")
-    return value
-
-
-def _normalise_yaw(value: float) -> float:
-    """Map any finite angle to (-pi, pi], so equal headings compare equal downstream."""
-    out = math.remainder(value, math.tau)
-    return math.pi if out <= -math.pi else out
-
-
-def _check_ws_url(value: str) -> str:
-    # A robot is reached over rosbridge, a websocket: anything else is a configuration mistake
-    # best caught when the robot is created rather than at the first connection attempt.
-    try:
-        parts = urlsplit(value)
-        _ = parts.port  # raises ValueError for a non-numeric or out-of-range port
-    except ValueError as exc:
-        raise PydanticCustomError(
-            "ws_url", "not a valid URL: {reason}", {"reason": str(exc)}
-        ) from None
-    if parts.scheme not in ("ws", "wss"):
-        raise PydanticCustomError("ws_url", "must start with ws:// or wss://")
-    if not parts.hostname or any(c.isspace() for c in value):
-        raise PydanticCustomError("ws_url", "must name a host and contain no spaces")
-    return value
-
-
-Name: TypeAlias = Annotated[
-    str,
-    StringConstraints(strip_whitespace=True, min_length=1, max_length=MAX_NAME),
-    AfterValidator(_no_control_chars),
-    Field(json_schema_extra={"pattern": r"^[^\x00-\x1f\x7f]+$"}),
-]
-Coord: TypeAlias = Annotated[
-    float,
-    Field(ge=-MAX_COORD, le=MAX_COORD, allow_inf_nan=False, description="metres, map frame"),
-]
-Yaw: TypeAlias = Annotated[
-    float,
-    Field(allow_inf_nan=False, description="radians; any finite value, normalised to (-pi, pi]"),
-    AfterValidator(_normalise_yaw),
-]
-LinearSpeed: TypeAlias = Annotated[
-    float, Field(ge=-MAX_LINEAR, le=MAX_LINEAR, allow_inf_nan=False, description="m/s")
-]
-AngularSpeed: TypeAlias = Annotated[
-    float, Field(ge=-MAX_ANGULAR, le=MAX_ANGULAR, allow_inf_nan=False, description="rad/s")
-]
-WsUrl: TypeAlias = Annotated[
-    str,
-    StringConstraints(strip_whitespace=True, max_length=256),
-    AfterValidator(_check_ws_url),
-    Field(json_schema_extra={"pattern": r"^wss?://\S+$"}),
-]
-OrderId: TypeAlias = Annotated[int, Field(ge=1, le=2**53)]
-
-_ID_INT_BOUND: Final = 10**63
-
-
-def _is_utf8(value: str) -> bool:
-    """False for text with a lone surrogate (JSON can write one as ``"\\ud800"``): it cannot
-    be echoed in a UTF-8 frame, so it is neither a readable id nor a robot name."""
-    try:
-        value.encode("utf-8")
-    except UnicodeEncodeError:
-        return False
-    return True
-
-
-def _check_request_id(value: object) -> str | int:
-    # One validator instead of a str|int union so that a bad id gets one clear error, not one
-    # per union branch. Ints are bounded so their decimal form, like a str id, is <= 64 chars;
-    # bool is refused although Python counts it as an int.
-    if type(value) is str and len(value) <= MAX_NAME and _is_utf8(value):
-        return value
-    if type(value) is int and -_ID_INT_BOUND < value < 10 * _ID_INT_BOUND:
-        return value
-    raise PydanticCustomError(
-        "request_id", "must be a string of at most 64 characters or an integer of at most 64 digits"
-    )
-
-
-#: The request ``id`` a client may attach; echoed verbatim in the reply.
-RequestId: TypeAlias = Annotated[
-    str | int,
-    PlainValidator(_check_request_id),
-    WithJsonSchema(
-        {
-            "anyOf": [
-                {"type": "string", "maxLength": MAX_NAME},
-                {
-                    "type": "integer",
-                    "exclusiveMinimum": -_ID_INT_BOUND,
-                    "exclusiveMaximum": 10 * _ID_INT_BOUND,
-                },
-            ]
-        }
-    ),
-]
-_REQUEST_ID: TypeAdapter[str | int] = TypeAdapter(RequestId)
-
-
-def split_topic(topic: str) -> tuple[str, str | None]:
-    """``"pose:r1"`` -> ``("pose", "r1")``; ``"robots"`` -> ``("robots", None)``.
-
-    Assumes a topic that already passed validation (a :class:`DataMsg` or :class:`UpdateMsg`).
-    """
-    kind, sep, robot = topic.partition(":")
-    return (kind, robot) if sep else (kind, None)
-
-
-def _check_topic(value: str) -> str:
-    kind, robot = split_topic(value)
-    if robot is None and kind in STATE_TOPICS:
-        return value
-    if (
-        robot is not None
-        and kind in ROBOT_TOPICS
-        and 0 < len(robot) <= MAX_NAME
-        and robot == robot.strip()
-        and not _CONTROL_CHARS.search(robot)
-        and _is_utf8(robot)
-    ):
-        return value
-    raise PydanticCustomError(
-        "topic",
-        "unknown topic {topic}: expected one of {known}, or pose:<robot>, scan:<robot>",
-        {"topic": repr(value[:80]), "known": ", ".join(STATE_TOPICS)},
-    )
-
-
-_TOPIC_PATTERN = (
-    r"^(?:" + "|".join(STATE_TOPICS) + r"|(?:" + "|".join(ROBOT_TOPICS) + r"):[^\x00-\x1f\x7f]+)$"
-)
-Topic: TypeAlias = Annotated[
-    str,
-    AfterValidator(_check_topic),
-    Field(json_schema_extra={"pattern": _TOPIC_PATTERN}, max_length=MAX_NAME + 5),
-]
-
-
-def _dedupe(values: list[str]) -> list[str]:
-    # Subscribing twice to a topic means subscribing once; keep the client's order.
-    return list(dict.fromkeys(values))
-
-
-def _unique_orders(values: list[int]) -> list[int]:
-    # The same dish twice in one cart is a client bug (a double tap), not a bigger trip.
-    if len(set(values)) != len(values):
-        dupes = sorted({v for v in values if values.count(v) > 1})
-        raise PydanticCustomError(
-            "duplicate_orders", "order ids must be unique; repeated: {dupes}", {"dupes": dupes}
-        )
-    return values
-
 
 # --------------------------------------------------------------------------- client messages
 
@@ -365,7 +200,7 @@ class DataMsg(_ClientMsg):
 
     clientmsg: Literal["data"]
     topics: Annotated[
-        list[Topic], Field(min_length=1, max_length=MAX_TOPICS), AfterValidator(_dedupe)
+        list[Topic], Field(min_length=1, max_length=MAX_TOPICS), AfterValidator(dedupe)
     ]
     unsubscribe: bool = False
 
@@ -429,7 +264,7 @@ class CreateTask(_ClientMsg):
     orders: Annotated[
         list[OrderId],
         Field(min_length=1, max_length=MAX_ORDERS_PER_TASK),
-        AfterValidator(_unique_orders),
+        AfterValidator(unique_orders),
     ]
     key: Name | None = Field(default=None, description="Client-chosen idempotency key")
 
@@ -644,7 +479,7 @@ def _read_id(value: object) -> str | int | None:
     if value is None:
         return None
     try:
-        return _REQUEST_ID.validate_python(value)
+        return REQUEST_ID_ADAPTER.validate_python(value)
     except ValidationError:
         return None
 
@@ -800,243 +635,9 @@ def _parse(frame: str | bytes) -> ClientMessage:
         raise err from exc
 
 
-# --------------------------------------------------------------------------- server messages
-
-
-class _ServerModel(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class PoseData(_ServerModel):
-    """A robot's map pose, as pushed on ``pose:<robot>``."""
-
-    x: float
-    y: float
-    yaw: float = Field(description="radians, (-pi, pi]")
-    stamp: float = Field(description="Unix time of the measurement, seconds")
-
-
-class ScanData(_ServerModel):
-    """One laser scan in the map frame, as pushed on ``scan:<robot>``.
-
-    Beam ``i`` points at ``yaw + angle_min + i * angle_increment`` from ``(x, y)``; ``None``
-    means no hit within ``range_max`` (ROS sends inf or NaN, which JSON cannot carry).
-    """
-
-    stamp: float
-    x: float
-    y: float
-    yaw: float
-    angle_min: float
-    angle_increment: float
-    range_max: float
-    ranges: list[float | None]
-
-
-class MapSnapshot(_ServerModel):
-    """The occupancy grid: ``data`` is base64 of ``width * height`` int8 cells, row-major.
-
-    Row 0 is the lowest y (ROS OccupancyGrid order); -1 unknown, 0 free .. 100 occupied. The
-    cell at column ``i``, row ``j`` covers ``origin + (i, j) * resolution`` (origin yaw is 0 for
-    maps made by ROS map_server).
-    """
-
-    resolution: float = Field(gt=0, description="metres per cell")
-    origin: tuple[float, float, float] = Field(description="map pose of cell (0, 0): x, y, yaw")
-    width: int = Field(ge=0)
-    height: int = Field(ge=0)
-    encoding: Literal["int8-base64"] = "int8-base64"
-    data: str
-
-
-#: What one ``data`` snapshot holds per topic: a list of records for state topics, the map,
-#: or the latest pose/scan (null until the robot has reported one).
-Snapshot: TypeAlias = (
-    list[Robot]
-    | list[Order]
-    | list[Task]
-    | list[WaypointRecord]
-    | list[EventRecord]
-    | list[AuditRecord]
-    | MapSnapshot
-    | PoseData
-    | ScanData
-    | None
-)
-
-#: What one ``update`` carries: one upserted record, the map, a pose or a scan.
-UpdateData: TypeAlias = (
-    Robot
-    | Order
-    | Task
-    | WaypointRecord
-    | EventRecord
-    | AuditRecord
-    | MapSnapshot
-    | PoseData
-    | ScanData
-)
-
-ErrorCode: TypeAlias = Literal[
-    "unauthorized",
-    "forbidden",
-    "rate_limited",
-    "bad_json",
-    "unknown_message",
-    "invalid_field",
-    "not_found",
-    "not_allowed_in_status",
-    "conflict",
-    "store_error",
-    "map_error",
-    "navigation_error",
-    "unreachable",
-    "rosbridge_error",
-    "link_error",
-    "internal_error",
-]
-
-
-class OkReply(_ServerModel):
-    """The success reply to one request; which payload field is present depends on the verb."""
-
-    servermsg: Literal["ok"]
-    id: RequestId | None = None
-    data: dict[str, Snapshot] | None = Field(default=None, description="data: topic -> snapshot")
-    waypoint: WaypointRecord | None = Field(default=None, description="create waypoint")
-    order: Order | None = Field(default=None, description="create order")
-    tasks: list[Task] | None = Field(default=None, description="create task: the trips made")
-    robot: Robot | None = Field(
-        default=None, description="create robot, control, ready, next, stop, continue, cancel"
-    )
-    orders: list[Order] | None = Field(default=None, description="order")
-    session: Session | None = Field(default=None, description="login, logout")
-
-
-class Session(_ServerModel):
-    """Who this connection is. ``token`` only in the reply to a password login."""
-
-    user: str | None = None
-    role: Literal["owner", "staff", "robot-screen", "table-screen", "integration"]
-    robot: str | None = None
-    table: str | None = None
-    scopes: list[str]
-    expires: float | None = Field(default=None, description="epoch seconds; null: never")
-    token: str | None = None
-
-
-class ErrorReply(_ServerModel):
-    """The failure reply to one request (or to a frame that could not be read)."""
-
-    servermsg: Literal["error"]
-    id: RequestId | None = None
-    code: ErrorCode
-    message: str
-    details: dict[str, Any] | None = None
-
-
-class UpdateMsg(_ServerModel):
-    """A pushed change on a subscribed topic. ``seq`` is +1 per update on this connection."""
-
-    servermsg: Literal["update"]
-    topic: Topic
-    seq: int = Field(ge=1)
-    data: UpdateData
-
-
-ServerMessage: TypeAlias = Annotated[
-    OkReply | ErrorReply | UpdateMsg, Field(discriminator="servermsg")
-]
-_SERVER: TypeAdapter[ServerMessage] = TypeAdapter(ServerMessage)
-_OK_PAYLOAD: Final = frozenset(OkReply.model_fields) - {"servermsg", "id"}
-
-
-# --------------------------------------------------------------------------- serialising
-
-
-def _to_json(obj: object, fallback: Callable[[Any], Any] | None = None) -> str:
-    return pydantic_core.to_json(obj, inf_nan_mode="null", fallback=fallback).decode()
-
-
-def dump(obj: object) -> str:
-    """Compact JSON of a model, a list of them or a dict; NaN and ±inf become ``null``.
-
-    Enums become their values, tuples arrays. Non-ASCII text is kept as UTF-8, not escaped.
-    """
-    return _to_json(obj)
-
-
-def ok_frame(request_id: str | int | None, **payload: object) -> str:
-    """The success reply. ``payload`` keys must be :class:`OkReply` fields (else TypeError),
-    so that what the server sends cannot drift from the documented schema."""
-    unknown = payload.keys() - _OK_PAYLOAD
-    if unknown:
-        raise TypeError(f"not an OkReply field: {', '.join(sorted(unknown))}")
-    frame: dict[str, object] = {"servermsg": "ok"}
-    if request_id is not None:
-        frame["id"] = request_id
-    frame.update(payload)
-    return _to_json(frame)
-
-
-def error_frame(request_id: str | int | None, exc: ServeurError) -> str:
-    """The error reply for ``exc``; ``request_id`` defaults to ``exc.request_id``.
-
-    Never raises: details that are not JSON-able are sent as their ``str``, and text that UTF-8
-    cannot carry (a lone surrogate a client sent as ``"\\ud800"``) with ``?`` in its place.
-    """
-    rid = request_id if request_id is not None else exc.request_id
-    frame: dict[str, object] = {"servermsg": "error"}
-    if rid is not None:
-        frame["id"] = rid
-    frame.update(exc.to_dict())
-    try:
-        return _to_json(frame, fallback=str)
-    except ValueError:  # text that UTF-8 cannot carry (a lone surrogate from a \ud800 escape)
-        return _to_json(_scrub(frame), fallback=str)
-
-
-def _scrub(value: Any) -> Any:
-    """``value`` with every string made UTF-8-safe (lone surrogates become ``?``)."""
-    if isinstance(value, str):
-        return value.encode("utf-8", "replace").decode("utf-8")
-    if isinstance(value, dict):
-        return {_scrub(k): _scrub(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_scrub(v) for v in value]
-    return value
-
-
-_topic_json: dict[str, str] = {}
-
-
-def update_frame(topic: str, seq: int, data_json: str) -> str:
-    """One update frame, from data serialised once per fan-out (``dump``).
-
-    Equal to the compact ``json.dumps`` of ``{"servermsg": "update", "topic": topic, "seq":
-    seq, "data": data}``; built by concatenation because it runs once per subscriber.
-    """
-    if type(seq) is not int:
-        raise TypeError(f"seq must be an int, not {type(seq).__name__}")
-    quoted = _topic_json.get(topic)
-    if quoted is None:
-        quoted = json.dumps(topic, ensure_ascii=False)
-        if len(_topic_json) < 4096:
-            _topic_json[topic] = quoted
-    return (
-        '{"servermsg":"update","topic":'
-        + quoted
-        + ',"seq":'
-        + str(seq)
-        + ',"data":'
-        + data_json
-        + "}"
-    )
-
-
 def schema() -> dict[str, Any]:
     """JSON Schema (draft 2020-12) of every client and every server message."""
     dialect = "https://json-schema.org/draft/2020-12/schema"
     client = {"$schema": dialect, "title": "ClientMessage", **_CLIENT.json_schema()}
-    server = {"$schema": dialect, "title": "ServerMessage", **_SERVER.json_schema()}
+    server = {"$schema": dialect, "title": "ServerMessage", **SERVER_ADAPTER.json_schema()}
     return {"client": client, "server": server}
