@@ -63,6 +63,7 @@ __all__ = [
     "ReplayOptions",
     "add_replay_parser",
     "dish_dwell",
+    "peak_utilisation",
     "percentile",
     "replay",
     "replay_policy",
@@ -116,6 +117,31 @@ def stop_dwell(seed: int, lines: Sequence[int]) -> float:
     return max(dish_dwell(seed, n) for n in lines) + 2.0 * (len(lines) - 1)
 
 
+def peak_utilisation(
+    spans: Sequence[Sequence[tuple[float, float]]], window: float = 3600.0, step: float = 60.0
+) -> float:
+    """The fleet's busiest ``window``: the largest fraction of robot-time spent away on trips.
+
+    ``spans`` holds each robot's (left the pass, back and Awaiting) intervals. Windows start
+    every ``step`` seconds; a service shorter than ``window`` is one window over all of it.
+    It is how "busy" is measured for the baseline-vs-serveur comparison: near 1.0 the fleet
+    is out the whole peak hour and dishes queue on the pass.
+    """
+    if not spans or not any(spans):
+        return 0.0
+    end = max(b for robot in spans for _, b in robot)
+    window = min(window, end) or 1.0
+    best = 0.0
+    start = 0.0
+    while True:
+        lo, hi = start, start + window
+        used = sum(max(0.0, min(b, hi) - max(a, lo)) for robot in spans for a, b in robot)
+        best = max(best, used / (window * len(spans)))
+        if hi >= end:
+            return best
+        start += step
+
+
 def percentile(values: Sequence[float], q: float) -> float:
     """Nearest-rank percentile (no interpolation: the value one order actually had)."""
     if not values:
@@ -164,6 +190,9 @@ class PolicyResult:
             "tables_per_trip": sum(t["tables"] for t in trips) / len(trips) if trips else 0.0,
             "nav_errors": self.nav_errors,
             "recoveries": self.recoveries,
+            "peak_utilisation": peak_utilisation(
+                [[(a, b) for a, b in r.get("busy_spans", [])] for r in self.robots]
+            ),
         }
 
 
@@ -248,6 +277,7 @@ class _Service:
         self.tasks: dict[int, dict[str, Any]] = {}
         self.busy: dict[str, float] = {}
         self.busy_since: dict[str, float] = {}
+        self.spans: dict[str, list[tuple[float, float]]] = {}  # robot -> (left, back) spans
         self.eta: dict[str, float] = {}  # busy robot -> when staff expect it back (service s)
         self.served: set[tuple[int, int]] = set()
         self.nav_errors = 0
@@ -298,7 +328,9 @@ class _Service:
                 self.busy_since[name] = self.now()
                 self._expect(name, robot)
             elif status == "Awaiting" and name in self.busy_since:
-                self.busy[name] = self.busy.get(name, 0.0) + self.now() - self.busy_since.pop(name)
+                since = self.busy_since.pop(name)
+                self.busy[name] = self.busy.get(name, 0.0) + self.now() - since
+                self.spans.setdefault(name, []).append((since, self.now()))
         if status == "Awaiting":
             self.eta.pop(name, None)
         if status == "Delivered":
@@ -757,10 +789,20 @@ class _Service:
             pts = result.paths.get(name, [])
             dist = sum(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in itertools.pairwise(pts))
             busy = self.busy.get(name, 0.0)
+            spans = list(self.spans.get(name, []))
             if name in self.busy_since:
                 busy += self.now() - self.busy_since[name]
+                spans.append((self.busy_since[name], self.now()))
             trips = sum(1 for t in result.trips if t["robot"] == name and t["status"] == "done")
-            result.robots.append({"name": name, "distance": dist, "busy": busy, "trips": trips})
+            result.robots.append(
+                {
+                    "name": name,
+                    "distance": dist,
+                    "busy": busy,
+                    "trips": trips,
+                    "busy_spans": [[round(a, 1), round(b, 1)] for a, b in spans],
+                }
+            )
 
 
 async def replay_policy(
