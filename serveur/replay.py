@@ -94,7 +94,8 @@ class ReplayOptions:
     seed: int = 0
     capacity: int = 4
     kinematics: str = "omni"
-    hold: float = 10.0  # serveur staff: wait this long at most for a table's next dish
+    hold: float = 10.0  # serveur staff: wait this long at most for a table's next dish ...
+    hold_max: float = 60.0  # ... growing to this as tables queue (scheduler.adaptive_hold)
     lookahead: float = 60.0  # the kitchen display shows dishes this far ahead of ready
     overtime: float = 3600.0  # give up this long after the last dish was ready
     progress: bool = True
@@ -521,6 +522,7 @@ class _Service:
             capacity=self.opts.capacity,
             coming=coming,
             hold=self.opts.hold,
+            hold_max=self.opts.hold_max,
             busy=self._busy(now),
         )
 
