@@ -13,9 +13,10 @@ the staff console. The replay itself is only a client of the websocket protocol:
 * **the kitchen** creates each dish (``create order``) at its ``ready_at``;
 * **the staff** confirm a cart (``create task``) when robots are free — the ``baseline`` staff
   fill it first-in first-out up to the tray's tables (the design report); the ``serveur`` staff
-  follow :func:`serveur.scheduler.suggest_carts` (each table, oldest first, on the trip that
-  collects it soonest: a free robot now, or one due back from its trip; a short hold for a
-  table's next dish seen on the kitchen display);
+  follow :func:`serveur.scheduler.suggest_carts` (each table on the trip that collects it
+  soonest: a free robot now, or one due back from its trip; tables with the most plates per
+  robot-second choose first; a hold for a table's next dish seen on the kitchen display,
+  10 s growing to 60 s as tables queue);
 * **the guests** press "Food collected" (``next``) a seeded dwell time after the robot stops.
 
 The server runs with ``CoreConfig(policy=...)``: ``baseline`` visits tables in cart order,
