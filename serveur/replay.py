@@ -97,6 +97,7 @@ class ReplayOptions:
     kinematics: str = "omni"
     hold: float = 10.0  # serveur staff: wait this long at most for a table's next dish ...
     hold_max: float = 60.0  # ... growing to this as tables queue (scheduler.adaptive_hold)
+    rank: str = "best"  # serveur staff: how tables are ranked (scheduler.RANKS)
     lookahead: float = 60.0  # the kitchen display shows dishes this far ahead of ready
     overtime: float = 3600.0  # give up this long after the last dish was ready
     progress: bool = True
@@ -525,6 +526,7 @@ class _Service:
             hold=self.opts.hold,
             hold_max=self.opts.hold_max,
             busy=self._busy(now),
+            rank=self.opts.rank,
         )
 
     async def _staff(self) -> None:
@@ -889,6 +891,9 @@ def _replay_command(ns: argparse.Namespace) -> int:
         seed=ns.seed,
         capacity=ns.capacity,
         kinematics=ns.kinematics,
+        hold=ns.hold,
+        hold_max=ns.hold_max,
+        rank=ns.rank,
         progress=not ns.quiet,
     )
     try:
@@ -935,6 +940,25 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--seed", type=int, default=0, help="robots' and guests' seed (default 0)")
     p.add_argument("--capacity", type=int, default=4, help="tables per tray (default 4)")
     p.add_argument("--kinematics", choices=["omni", "diff"], default="omni")
+    p.add_argument(
+        "--hold",
+        type=float,
+        default=10.0,
+        help="serveur staff: seconds a table may wait for its next dish (default 10)",
+    )
+    p.add_argument(
+        "--hold-max",
+        type=float,
+        default=60.0,
+        help="serveur staff: ... growing to this as tables queue (default 60; = --hold: fixed)",
+    )
+    p.add_argument(
+        "--rank",
+        choices=["fifo", "wspt", "best"],
+        default="best",
+        help="serveur staff: tables first-ready, by plates per robot-second, or the better "
+        "(default best)",
+    )
     p.add_argument("--out", default="replay-out", help="output directory (default replay-out)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_replay, is_async=False)

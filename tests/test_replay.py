@@ -115,6 +115,15 @@ def test_short_replay_both_policies_and_again(tmp_path: Path) -> None:
     assert again["orders"] == serveur["orders"] and again["trips"] == serveur["trips"]
     assert again["summary"] == serveur["summary"]
 
+    # The previous serveur staff (first-ready ranking, fixed hold), as the options say.
+    out4 = tmp_path / "fifo"
+    fifo_args = [*ARGS, "--policy", "serveur", "--rank", "fifo", "--hold-max", "10"]
+    assert main(["replay", str(log), *fifo_args, "--out", str(out4)]) == 0
+    fifo = json.loads((out4 / "report.json").read_text())
+    assert fifo["options"]["rank"] == "fifo" and fifo["options"]["hold_max"] == 10.0
+    assert report["options"]["rank"] == "best" and report["options"]["hold_max"] == 60.0
+    assert fifo["policies"]["serveur"]["summary"]["undelivered"] == 0
+
     # On the wall clock at 60x: every dish delivered, similar waits (jitter moves a tick).
     out3 = tmp_path / "scaled"
     scaled_args = [*ARGS, "--time-scale", "60", "--policy", "serveur", "--out", str(out3)]
