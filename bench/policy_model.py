@@ -9,19 +9,21 @@ same guests (:func:`~serveur.replay.stop_dwell`) and path distances on the demo 
 move at an effective speed with a fixed cost per leg, calibrated against real replays
 (docs/performance.md). Its figures are estimates; the real replay has the last word.
 
-Run: ``python bench/policy_model.py LOG.csv [--robots 3] [--hold 0 10 25]``.
+Run: ``python bench/policy_model.py LOG.csv [--robots 3] [--hold 0 10 25] [--hold-max 60]
+[--rank fifo wspt best]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import heapq
+import itertools
 from collections.abc import Callable, Sequence
 
 from serveur.navigation import DistanceTable, Planner, load_demo
 from serveur.orders import LogOrder, demo_tables, read_orders
 from serveur.replay import stop_dwell
-from serveur.scheduler import Dish, TripEstimate, fifo_cart, order_stops, suggest_carts
+from serveur.scheduler import RANKS, Dish, TripEstimate, fifo_cart, order_stops, suggest_carts
 
 SPEED = 0.6  # m/s effective (0.7 m/s top speed, acceleration, corners)
 LEG = 2.5  # s per leg: planning, turning on the spot, settling at the goal
@@ -34,6 +36,8 @@ def model(
     distance: Callable[[str, str], float],
     *,
     hold: float = 10.0,
+    hold_max: float = 60.0,
+    rank: str = "best",
     lookahead: float = 60.0,
     seed: int = 0,
     capacity: int = 4,
@@ -87,7 +91,9 @@ def model(
                 capacity=capacity,
                 coming=coming,
                 hold=hold,
+                hold_max=hold_max,
                 busy=busy,
+                rank=rank,
             )
             if not carts:
                 heapq.heappush(events, t + 1.0)  # a hold runs out: look again
@@ -116,7 +122,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("logs", nargs="+")
     ap.add_argument("--robots", type=int, default=3)
-    ap.add_argument("--hold", type=float, nargs="+", default=[0.0, 10.0, 25.0])
+    ap.add_argument("--hold", type=float, nargs="+", default=[10.0])
+    ap.add_argument("--hold-max", type=float, nargs="+", default=[60.0])
+    ap.add_argument("--rank", nargs="+", default=["best"], choices=RANKS)
     ns = ap.parse_args()
     grid, wps = load_demo()
     table = DistanceTable(Planner(grid, robot_radius=0.2), wps)
@@ -127,10 +135,15 @@ def main() -> None:
         base = model(log, "baseline", ns.robots, table.distance)
         b = sum(base) / len(base)
         print(f"{path}: {len(log)} dishes, baseline mean {b:.1f} s")
-        for hold in ns.hold:
-            w = model(log, "serveur", ns.robots, table.distance, hold=hold)
+        for hold, hold_max, rank in itertools.product(ns.hold, ns.hold_max, ns.rank):
+            w = model(
+                log, "serveur", ns.robots, table.distance, hold=hold, hold_max=hold_max, rank=rank
+            )
             m = sum(w) / len(w)
-            print(f"  serveur hold {hold:>4.0f} s: mean {m:.1f} s ({100 * (m - b) / b:+.0f} %)")
+            print(
+                f"  serveur {rank:>4} hold {hold:>3.0f}-{max(hold, hold_max):.0f} s: "
+                f"mean {m:.1f} s ({100 * (m - b) / b:+.0f} %)"
+            )
 
 
 if __name__ == "__main__":

@@ -13,9 +13,10 @@ the staff console. The replay itself is only a client of the websocket protocol:
 * **the kitchen** creates each dish (``create order``) at its ``ready_at``;
 * **the staff** confirm a cart (``create task``) when robots are free — the ``baseline`` staff
   fill it first-in first-out up to the tray's tables (the design report); the ``serveur`` staff
-  follow :func:`serveur.scheduler.suggest_carts` (each table, oldest first, on the trip that
-  collects it soonest: a free robot now, or one due back from its trip; a short hold for a
-  table's next dish seen on the kitchen display);
+  follow :func:`serveur.scheduler.suggest_carts` (each table on the trip that collects it
+  soonest: a free robot now, or one due back from its trip; tables with the most plates per
+  robot-second choose first; a hold for a table's next dish seen on the kitchen display,
+  10 s growing to 60 s as tables queue);
 * **the guests** press "Food collected" (``next``) a seeded dwell time after the robot stops.
 
 The server runs with ``CoreConfig(policy=...)``: ``baseline`` visits tables in cart order,
@@ -63,6 +64,7 @@ __all__ = [
     "ReplayOptions",
     "add_replay_parser",
     "dish_dwell",
+    "peak_utilisation",
     "percentile",
     "replay",
     "replay_policy",
@@ -93,7 +95,9 @@ class ReplayOptions:
     seed: int = 0
     capacity: int = 4
     kinematics: str = "omni"
-    hold: float = 10.0  # serveur staff: wait this long at most for a table's next dish
+    hold: float = 10.0  # serveur staff: wait this long at most for a table's next dish ...
+    hold_max: float = 60.0  # ... growing to this as tables queue (scheduler.adaptive_hold)
+    rank: str = "best"  # serveur staff: how tables are ranked (scheduler.RANKS)
     lookahead: float = 60.0  # the kitchen display shows dishes this far ahead of ready
     overtime: float = 3600.0  # give up this long after the last dish was ready
     progress: bool = True
@@ -114,6 +118,31 @@ def stop_dwell(seed: int, lines: Sequence[int]) -> float:
     if not lines:
         return 0.0
     return max(dish_dwell(seed, n) for n in lines) + 2.0 * (len(lines) - 1)
+
+
+def peak_utilisation(
+    spans: Sequence[Sequence[tuple[float, float]]], window: float = 3600.0, step: float = 60.0
+) -> float:
+    """The fleet's busiest ``window``: the largest fraction of robot-time spent away on trips.
+
+    ``spans`` holds each robot's (left the pass, back and Awaiting) intervals. Windows start
+    every ``step`` seconds; a service shorter than ``window`` is one window over all of it.
+    It is how "busy" is measured for the baseline-vs-serveur comparison: near 1.0 the fleet
+    is out the whole peak hour and dishes queue on the pass.
+    """
+    if not spans or not any(spans):
+        return 0.0
+    end = max(b for robot in spans for _, b in robot)
+    window = min(window, end) or 1.0
+    best = 0.0
+    start = 0.0
+    while True:
+        lo, hi = start, start + window
+        used = sum(max(0.0, min(b, hi) - max(a, lo)) for robot in spans for a, b in robot)
+        best = max(best, used / (window * len(spans)))
+        if hi >= end:
+            return best
+        start += step
 
 
 def percentile(values: Sequence[float], q: float) -> float:
@@ -164,6 +193,9 @@ class PolicyResult:
             "tables_per_trip": sum(t["tables"] for t in trips) / len(trips) if trips else 0.0,
             "nav_errors": self.nav_errors,
             "recoveries": self.recoveries,
+            "peak_utilisation": peak_utilisation(
+                [[(a, b) for a, b in r.get("busy_spans", [])] for r in self.robots]
+            ),
         }
 
 
@@ -248,6 +280,7 @@ class _Service:
         self.tasks: dict[int, dict[str, Any]] = {}
         self.busy: dict[str, float] = {}
         self.busy_since: dict[str, float] = {}
+        self.spans: dict[str, list[tuple[float, float]]] = {}  # robot -> (left, back) spans
         self.eta: dict[str, float] = {}  # busy robot -> when staff expect it back (service s)
         self.served: set[tuple[int, int]] = set()
         self.nav_errors = 0
@@ -298,7 +331,9 @@ class _Service:
                 self.busy_since[name] = self.now()
                 self._expect(name, robot)
             elif status == "Awaiting" and name in self.busy_since:
-                self.busy[name] = self.busy.get(name, 0.0) + self.now() - self.busy_since.pop(name)
+                since = self.busy_since.pop(name)
+                self.busy[name] = self.busy.get(name, 0.0) + self.now() - since
+                self.spans.setdefault(name, []).append((since, self.now()))
         if status == "Awaiting":
             self.eta.pop(name, None)
         if status == "Delivered":
@@ -489,7 +524,9 @@ class _Service:
             capacity=self.opts.capacity,
             coming=coming,
             hold=self.opts.hold,
+            hold_max=self.opts.hold_max,
             busy=self._busy(now),
+            rank=self.opts.rank,
         )
 
     async def _staff(self) -> None:
@@ -757,10 +794,20 @@ class _Service:
             pts = result.paths.get(name, [])
             dist = sum(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in itertools.pairwise(pts))
             busy = self.busy.get(name, 0.0)
+            spans = list(self.spans.get(name, []))
             if name in self.busy_since:
                 busy += self.now() - self.busy_since[name]
+                spans.append((self.busy_since[name], self.now()))
             trips = sum(1 for t in result.trips if t["robot"] == name and t["status"] == "done")
-            result.robots.append({"name": name, "distance": dist, "busy": busy, "trips": trips})
+            result.robots.append(
+                {
+                    "name": name,
+                    "distance": dist,
+                    "busy": busy,
+                    "trips": trips,
+                    "busy_spans": [[round(a, 1), round(b, 1)] for a, b in spans],
+                }
+            )
 
 
 async def replay_policy(
@@ -844,6 +891,9 @@ def _replay_command(ns: argparse.Namespace) -> int:
         seed=ns.seed,
         capacity=ns.capacity,
         kinematics=ns.kinematics,
+        hold=ns.hold,
+        hold_max=ns.hold_max,
+        rank=ns.rank,
         progress=not ns.quiet,
     )
     try:
@@ -890,6 +940,25 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--seed", type=int, default=0, help="robots' and guests' seed (default 0)")
     p.add_argument("--capacity", type=int, default=4, help="tables per tray (default 4)")
     p.add_argument("--kinematics", choices=["omni", "diff"], default="omni")
+    p.add_argument(
+        "--hold",
+        type=float,
+        default=10.0,
+        help="serveur staff: seconds a table may wait for its next dish (default 10)",
+    )
+    p.add_argument(
+        "--hold-max",
+        type=float,
+        default=60.0,
+        help="serveur staff: ... growing to this as tables queue (default 60; = --hold: fixed)",
+    )
+    p.add_argument(
+        "--rank",
+        choices=["fifo", "wspt", "best"],
+        default="best",
+        help="serveur staff: tables first-ready, by plates per robot-second, or the better "
+        "(default best)",
+    )
     p.add_argument("--out", default="replay-out", help="output directory (default replay-out)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_replay, is_async=False)

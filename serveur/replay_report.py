@@ -224,6 +224,10 @@ def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOpti
             "nav errors / staff rescues",
             [f"{stats[n]['nav_errors']} / {stats[n]['recoveries']}" for n in names],
         ),
+        (
+            "peak-hour fleet utilisation",
+            [f"{100 * stats[n]['peak_utilisation']:.0f} %" for n in names],
+        ),
         ("dishes per trip", [f"{stats[n]['dishes_per_trip']:.1f}" for n in names]),
         ("tables per trip", [f"{stats[n]['tables_per_trip']:.1f}" for n in names]),
     ]

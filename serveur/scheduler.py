@@ -15,7 +15,9 @@ is decided by path distance on the map, not by the order staff tapped them in:
 
 Staff choose which dishes go on a cart; :func:`suggest_carts` is the advice they (and the
 replay's staff) follow: each waiting table on the trip that collects it soonest, counting
-robots due back (:class:`TripEstimate`); :func:`fifo_cart` is the design report's staff.
+robots due back (:class:`TripEstimate`), tables handed their slots most plates per robot-second
+first (:func:`rank_tables`), a hold for a party's next dish that grows as tables queue
+(:func:`adaptive_hold`); :func:`fifo_cart` is the design report's staff.
 
 :class:`Dispatcher` is the loop (the design report's flowchart): whenever something changes it
 gives each queued trip, oldest first, to the best free robot. The I/O it needs is behind the
@@ -37,18 +39,21 @@ from serveur.domain import Order
 
 __all__ = [
     "DEFAULT_CAPACITY",
+    "RANKS",
     "Candidate",
     "Dish",
     "Dispatcher",
     "Distance",
     "Fleet",
     "TripEstimate",
+    "adaptive_hold",
     "cart_order_trips",
     "choose_robot",
     "fifo_cart",
     "group_by_table",
     "order_stops",
     "plan_trips",
+    "rank_tables",
     "route_length",
     "split_trips",
     "suggest_carts",
@@ -262,6 +267,10 @@ class TripEstimate:
         return total + self.leg(distance, here, origin)
 
 
+#: How :func:`suggest_carts` may rank the waiting tables before giving each its trip.
+RANKS = ("fifo", "wspt", "best")
+
+
 def suggest_carts(
     dishes: Sequence[Dish],
     free_robots: int,
@@ -272,9 +281,12 @@ def suggest_carts(
     capacity: int = DEFAULT_CAPACITY,
     coming: Sequence[Dish] = (),
     hold: float = 10.0,
+    hold_max: float = 60.0,
     busy: Sequence[float] = (),
     estimate: TripEstimate = TripEstimate(),
     return_weight: float = 1.0,
+    starve: float = 120.0,
+    rank: str = "best",
 ) -> list[list[int]]:
     """Carts for the robots free now, chosen so that dishes are collected soonest.
 
@@ -282,75 +294,176 @@ def suggest_carts(
     (including earlier stops' guests), plus the stop's own dwell. What really moves the
     mean in a busy service is the first term: queueing for a robot in the rushes. So:
 
-    * **Each waiting table, oldest first, goes where it is collected soonest.** The options
-      are one more stop on a cart being filled for a robot free now, or a first stop for a
-      robot that is free now or due back (``busy``: seconds until each busy robot is back
-      at the pass, estimated by staff from its trip). A table is *left on the pass* for a
-      robot coming back when that robot would still collect it sooner than riding behind
-      another table's dwell; a free robot then leaves with a short trip (or none) instead of
-      a full tray. Batching thus happens only when it helps: in a rush, when the next robot
-      is far off, neighbouring tables share a trip; when robots are about, each table gets
-      its own and dishes are not dragged around the room behind other guests.
+    * **Each waiting table goes where it is collected soonest.** The options are one more
+      stop on a cart being filled for a robot free now, or a first stop for a robot that is
+      free now or due back (``busy``: seconds until each busy robot is back at the pass,
+      estimated by staff from its trip). A table is *left on the pass* for a robot coming
+      back when that robot would still collect it sooner than riding behind another table's
+      dwell; a free robot then leaves with a short trip (or none) instead of a full tray.
+      Batching thus happens only when it helps: in a rush, when the next robot is far off,
+      neighbouring tables share a trip; when robots are about, each table gets its own.
+    * **Tables choose in the order that serves the most plates soonest.** Tables choose
+      their slot one after the other, so the first ones get the soonest robots. Besides
+      first-ready order, the tables are ranked by plates per second of robot time
+      (:func:`rank_tables`: Smith's rule, which minimises the plate-weighted completion
+      time on one machine), tables that waited ``starve`` seconds first so that a one-plate
+      table at the far end is not passed over for ever. Of the two assignments the one with
+      the lower estimated plate-weighted collection time wins (``rank="best"``; ``"fifo"``
+      or ``"wspt"`` force one).
     * **The cost of a longer trip counts too.** Each option costs the table's plates times
       its estimated collection time; adding a stop to a trip also costs ``return_weight``
       times how much later that robot gets back (seconds that dishes still to come would
-      wait for it), so a far-off table is not tacked on to a trip just because it is
-      marginally sooner that way. Opening a trip on an idle robot is not charged: a robot
-      left at the pass serves nobody.
-    * **Hold for a table's next dish when robots are short.** A table whose next dish
-      (``coming``: the kitchen's tickets being plated) is ready within ``hold`` seconds is
-      left for that dish, unless one of its dishes already waited ``hold``: half a party's
-      food now means a second trip for the rest, a whole round trip of a robot that other
-      tables need. When more robots are free than tables are waiting or about to, nothing
-      is held. The policy model (bench/policy_model.py) puts the best hold near 10 s (a
-      party's dishes come out within 40 s).
+      wait for it). Opening a trip on an idle robot is not charged: a robot left at the pass
+      serves nobody.
+    * **Hold for a table's next dish when robots are short, longer the shorter they are.**
+      A table whose next dish (``coming``: the kitchen's tickets being plated) is ready
+      within the hold is left for that dish, unless one of its dishes already waited that
+      long: half a party's food now means a second trip for the rest, a whole round trip
+      of a robot that other tables need. The hold grows from ``hold`` to ``hold_max`` as
+      tables queue beyond the robots (:func:`adaptive_hold`): in a rush a robot's round trip
+      is worth more than a few seconds on the pass. When more robots are free than tables
+      are waiting or about to, nothing is held.
 
     Estimates use ``estimate`` (speed, leg overhead, dwell per stop and plate); they are
     guesses of the future and only need to rank the options. Returns the carts (dish ids,
-    stops oldest table first; the server re-orders stops by route); ``[]`` means wait.
+    stops in choosing order; the server re-orders stops by route); ``[]`` means wait.
     """
     if free_robots < 1 or not dishes:
         return []
     if capacity < 1:
         raise ValueError("capacity must be >= 1")
+    if rank not in RANKS:
+        raise ValueError(f"rank must be one of {RANKS}")
     groups: dict[str, list[Dish]] = {}
     for d in sorted(dishes, key=lambda d: (d.ready_at, d.id)):
         groups.setdefault(d.table, []).append(d)
+    wait = adaptive_hold(hold, hold_max, len(groups), free_robots + len(busy), capacity)
     soon: dict[str, float] = {}
     for d in coming:
-        if d.ready_at - now <= hold:
+        if d.ready_at - now <= wait:
             soon[d.table] = min(soon.get(d.table, math.inf), d.ready_at)
     if free_robots > len(groups.keys() | soon.keys()):
         soon.clear()  # robots to spare: holding a table would only make it wait
     tables = [
         t
         for t in sorted(groups, key=lambda t: (groups[t][0].ready_at, groups[t][0].id))
-        if t not in soon or now - groups[t][0].ready_at >= hold
+        if t not in soon or now - groups[t][0].ready_at >= wait
     ]
-    # One plan per robot: free ones leave now, busy ones when they are back.
-    plans = [_Plan(0.0, origin, True) for _ in range(free_robots)]
-    plans += [_Plan(max(0.0, b), origin, False) for b in sorted(busy)]
-    for t in tables:
-        plates = len(groups[t])
+    plates = {t: len(groups[t]) for t in tables}
+    rankings: list[list[str]] = []
+    if rank in ("fifo", "best"):
+        rankings.append(tables)
+    if rank in ("wspt", "best"):
+        oldest = {t: groups[t][0].ready_at for t in tables}
+        ranked = rank_tables(
+            plates,
+            oldest,
+            now=now,
+            origin=origin,
+            distance=distance,
+            estimate=estimate,
+            starve=starve,
+        )
+        if ranked not in rankings:
+            rankings.append(ranked)
+    chosen: list[_Plan] = []
+    lowest = math.inf
+    for ranking in rankings:
+        plans = [_Plan(0.0, origin, True) for _ in range(free_robots)]
+        plans += [_Plan(max(0.0, b), origin, False) for b in sorted(busy)]
+        cost = _assign(ranking, plates, plans, distance, origin, capacity, estimate, return_weight)
+        if cost < lowest - 1e-9:  # ties: the first ranking (first-ready) stays
+            chosen, lowest = plans, cost
+    return [[d.id for t in p.stops for d in groups[t]] for p in chosen if p.free and p.stops]
+
+
+def adaptive_hold(hold: float, hold_max: float, waiting: int, robots: int, capacity: int) -> float:
+    """How long a table may wait for its next dish, from ``hold`` up to ``hold_max``.
+
+    ``waiting`` tables on the pass, ``robots`` free or due back: while every table can have
+    a robot of its own, ``hold`` (a party's dishes come out a few seconds apart). Beyond
+    that, the hold grows linearly with the tables queued per robot and reaches ``hold_max``
+    when every robot's tray would be full: a trip saved then is a whole round trip (about a
+    minute) that the queued tables get back, worth far more than the held dish's seconds.
+    """
+    if hold_max <= hold or robots < 1:
+        return hold
+    queued = max(0, waiting - robots)
+    full = max(1, robots * (capacity - 1))
+    return hold + (hold_max - hold) * min(1.0, queued / full)
+
+
+def rank_tables(
+    plates: dict[str, int],
+    oldest: dict[str, float],
+    *,
+    now: float,
+    origin: str,
+    distance: Distance,
+    estimate: TripEstimate = TripEstimate(),
+    starve: float = 120.0,
+) -> list[str]:
+    """Tables by plates per second of robot time (Smith's rule), the long-waiting first.
+
+    A table's robot time is a trip of its own (``estimate``: out, its dwell, back). Serving
+    first the tables with the most plates per second of robot time minimises the sum of the
+    plates' collection times on one robot (weighted shortest processing time); with a
+    few robots it is a good order to hand out the soonest slots in. Tables whose oldest
+    dish (``oldest``) has waited ``starve`` seconds come first, oldest first, else a far,
+    one-plate table could wait as long as the rush lasts. Ties: older first, then name.
+    """
+
+    def key(t: str) -> tuple[int, float, float, str]:
+        if now - oldest[t] >= starve:
+            return (0, oldest[t], 0.0, t)
+        work = estimate.trip(origin, [(t, plates[t])], distance)
+        return (1, -plates[t] / work, oldest[t], t)
+
+    return sorted(plates, key=key)
+
+
+def _assign(
+    ranking: Sequence[str],
+    plates: dict[str, int],
+    plans: list[_Plan],
+    distance: Distance,
+    origin: str,
+    capacity: int,
+    estimate: TripEstimate,
+    return_weight: float,
+) -> float:
+    """Give each table of ``ranking``, in turn, its cheapest slot; the total cost (estimated).
+
+    The cost is the one the slots are compared by (plates x collection time, plus the
+    return delay of a longer trip). A table that finds every tray full is charged a trip of
+    its own after the last robot is back, so that rankings leaving tables over compare
+    fairly with those that do not.
+    """
+    total = 0.0
+    for t in ranking:
+        n = plates[t]
         best: tuple[float, int] | None = None
         for i, p in enumerate(plans):
             if len(p.stops) >= capacity:
                 continue
-            done = p.clock + estimate.leg(distance, p.here, t) + estimate.dwell(plates)
-            cost = plates * done
+            done = p.clock + estimate.leg(distance, p.here, t) + estimate.dwell(n)
+            cost = n * done
             if p.stops:  # a longer trip: the robot is back later for everyone else
                 back_before = p.clock + estimate.leg(distance, p.here, origin)
                 back_after = done + estimate.leg(distance, t, origin)
                 cost += return_weight * (back_after - back_before)
             if best is None or cost < best[0] - 1e-9:
                 best = (cost, i)
-        if best is None:  # every plan is full: the table waits for the next round
+        if best is None:  # every tray is full: the table waits for the next round
+            late = max(p.clock + estimate.leg(distance, p.here, origin) for p in plans)
+            total += n * (late + estimate.trip(origin, [(t, n)], distance))
             continue
         p = plans[best[1]]
-        p.clock += estimate.leg(distance, p.here, t) + estimate.dwell(plates)
+        p.clock += estimate.leg(distance, p.here, t) + estimate.dwell(n)
         p.here = t
         p.stops.append(t)
-    return [[d.id for t in p.stops for d in groups[t]] for p in plans if p.free and p.stops]
+        total += best[0]
+    return total
 
 
 @dataclass(slots=True)

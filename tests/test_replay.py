@@ -17,7 +17,7 @@ import pytest
 from PIL import Image
 
 from serveur.cli import main
-from serveur.replay import dish_dwell, percentile, stop_dwell
+from serveur.replay import dish_dwell, peak_utilisation, percentile, stop_dwell
 
 pytestmark = pytest.mark.slow
 
@@ -56,6 +56,17 @@ def test_dwell_is_seeded_per_dish() -> None:
     assert percentile([5.0, 1.0, 3.0, 2.0], 95) == 5.0
 
 
+def test_peak_utilisation_is_the_busiest_hour() -> None:
+    # One robot out the first hour, the other half of it: 75 %.
+    assert peak_utilisation([[(0.0, 3600.0)], [(0.0, 1800.0)]]) == pytest.approx(0.75)
+    # A quiet start, then both robots out from 2 h on: the busiest hour, not the average.
+    spans = [[(0.0, 100.0), (7200.0, 10800.0)], [(7300.0, 10900.0)]]
+    assert peak_utilisation(spans) == pytest.approx((3600 + 3500) / 7200)
+    assert peak_utilisation([[], []]) == 0.0
+    # A short service is one window over all of it.
+    assert peak_utilisation([[(0.0, 50.0)], [(50.0, 100.0)]]) == pytest.approx(0.5)
+
+
 def test_a_bad_log_is_refused_before_anything_starts(tmp_path: Path) -> None:
     log = tmp_path / "bad.csv"
     log.write_text("ready_at,table,dish\n5,T2,Laksa\n6,Nowhere,Satay\n")
@@ -84,6 +95,9 @@ def test_short_replay_both_policies_and_again(tmp_path: Path) -> None:
         assert s["dishes_per_trip"] >= s["tables_per_trip"] >= 1
         assert sum(r["trips"] for r in pol["robots"]) == s["trips"]
         assert all(r["distance"] > 0 and r["busy"] > 0 for r in pol["robots"])
+        for r in pol["robots"]:  # the spans add up to the busy time
+            assert sum(b - a for a, b in r["busy_spans"]) == pytest.approx(r["busy"], abs=0.5)
+        assert 0 < s["peak_utilisation"] <= 1
         assert all(o["wait"] >= o["lower_bound"] for o in pol["orders"])
         assert sorted(o["line"] for o in pol["orders"]) == list(range(2, 22))
         for plot in ("wait-hist", "waits", "paths"):
@@ -100,6 +114,15 @@ def test_short_replay_both_policies_and_again(tmp_path: Path) -> None:
     again = json.loads((out2 / "report.json").read_text())["policies"]["serveur"]
     assert again["orders"] == serveur["orders"] and again["trips"] == serveur["trips"]
     assert again["summary"] == serveur["summary"]
+
+    # The previous serveur staff (first-ready ranking, fixed hold), as the options say.
+    out4 = tmp_path / "fifo"
+    fifo_args = [*ARGS, "--policy", "serveur", "--rank", "fifo", "--hold-max", "10"]
+    assert main(["replay", str(log), *fifo_args, "--out", str(out4)]) == 0
+    fifo = json.loads((out4 / "report.json").read_text())
+    assert fifo["options"]["rank"] == "fifo" and fifo["options"]["hold_max"] == 10.0
+    assert report["options"]["rank"] == "best" and report["options"]["hold_max"] == 60.0
+    assert fifo["policies"]["serveur"]["summary"]["undelivered"] == 0
 
     # On the wall clock at 60x: every dish delivered, similar waits (jitter moves a tick).
     out3 = tmp_path / "scaled"

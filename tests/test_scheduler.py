@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import Any
 
 import pytest
 
@@ -13,12 +14,14 @@ from serveur.scheduler import (
     Dish,
     Dispatcher,
     TripEstimate,
+    adaptive_hold,
     cart_order_trips,
     choose_robot,
     fifo_cart,
     group_by_table,
     order_stops,
     plan_trips,
+    rank_tables,
     route_length,
     split_trips,
     suggest_carts,
@@ -197,3 +200,76 @@ def test_trip_estimate_counts_legs_dwells_and_the_way_back() -> None:
     # pass -> T2 (2 m) -> T5 (3 m) -> pass (5 m): 3 legs, 2 stops of 1 and 3 plates.
     assert est.trip("pass", [("T2", 1), ("T5", 3)], d) == pytest.approx(10 + 6 + 15 + 25)
     assert est.leg(d, "T3", "T3") == 0.0
+
+
+def test_rank_tables_by_plates_per_robot_second_starving_tables_first() -> None:
+    d = euclid(POS)
+    plates = {"T8": 1, "T2": 1, "T1": 3}
+    oldest = {"T8": 0.0, "T2": 5.0, "T1": 10.0}
+    # Plates per second of a trip of its own: T1 3 plates near the pass, then T2, then T8
+    # (one plate at the far end), whatever the order they became ready in.
+    kw: dict[str, Any] = {"origin": "pass", "distance": d, "starve": 120.0}
+    assert rank_tables(plates, oldest, now=60.0, **kw) == ["T1", "T2", "T8"]
+    # T8 has waited 2 minutes: it goes first; then T2 too: the older of the two first.
+    assert rank_tables(plates, oldest, now=120.0, **kw) == ["T8", "T1", "T2"]
+    assert rank_tables(plates, oldest, now=125.0, **kw) == ["T8", "T2", "T1"]
+    # Equal plates and distance: the older first.
+    assert rank_tables(
+        {"T3": 2, "T4": 2}, {"T3": 1.0, "T4": 0.0}, now=1.0, origin="T0", distance=lambda a, b: 1.0
+    ) == ["T4", "T3"]
+
+
+def test_adaptive_hold_grows_as_tables_queue_beyond_the_robots() -> None:
+    # 3 robots, trays of 4 tables: no queue -> the base hold; 9 tables queued beyond the
+    # robots (every tray full) or more -> the longest; linear in between.
+    assert adaptive_hold(10.0, 60.0, waiting=2, robots=3, capacity=4) == 10.0
+    assert adaptive_hold(10.0, 60.0, waiting=3, robots=3, capacity=4) == 10.0
+    assert adaptive_hold(10.0, 60.0, waiting=3 + 9, robots=3, capacity=4) == 60.0
+    assert adaptive_hold(10.0, 60.0, waiting=40, robots=3, capacity=4) == 60.0
+    assert adaptive_hold(10.0, 60.0, waiting=3 + 3, robots=3, capacity=4) == pytest.approx(
+        10.0 + 50.0 / 3
+    )
+    # A maximum below the base, or no robot at all: the base hold.
+    assert adaptive_hold(10.0, 5.0, waiting=20, robots=3, capacity=4) == 10.0
+    assert adaptive_hold(10.0, 60.0, waiting=20, robots=0, capacity=4) == 10.0
+
+
+def test_suggest_carts_gives_the_free_robot_to_the_most_plates_per_second() -> None:
+    """One robot free now, one due back in 30 s; T8 (1 plate, far) has waited longest.
+
+    First-ready order gives T8 the free robot and leaves T1's three plates for the robot
+    coming back; ranked by plates per robot-second, T1 leaves now and T8 waits 30 s. The
+    second collects 3 plates about 30 s sooner for 1 plate 30 s later: the better of the two
+    is chosen. Once T8 has waited ``starve`` seconds it goes first whatever its plates.
+    """
+    d = euclid(POS)
+    dishes = [Dish(1, "T8", 0.0), Dish(2, "T1", 5.0), Dish(3, "T1", 5.5), Dish(4, "T1", 6.0)]
+    kw: dict[str, Any] = {"origin": "pass", "busy": [30.0]}
+    assert suggest_carts(dishes, 1, d, now=10.0, rank="fifo", **kw) == [[1]]
+    assert suggest_carts(dishes, 1, d, now=10.0, rank="wspt", **kw) == [[2, 3, 4]]
+    assert suggest_carts(dishes, 1, d, now=10.0, **kw) == [[2, 3, 4]]
+    assert suggest_carts(dishes, 1, d, now=10.0, starve=5.0, **kw) == [[1]]
+    with pytest.raises(ValueError):
+        suggest_carts(dishes, 1, d, now=10.0, rank="random", **kw)
+
+
+def test_suggest_carts_holds_longer_when_tables_queue() -> None:
+    """One robot, trays of 2 tables, three tables waiting: T1's next dish is 40 s away.
+
+    With a fixed 10 s hold T1 rides now (and its last dish needs a second trip); with the
+    hold growing to 60 s as tables queue, T1 waits for its dish and the robot takes the
+    other two. After 60 s on the pass T1 goes anyway.
+    """
+    d = euclid(POS)
+    dishes = [Dish(1, "T1", 0.0), Dish(2, "T2", 1.0), Dish(3, "T3", 2.0)]
+    coming = [Dish(9, "T1", 45.0)]
+    kw: dict[str, Any] = {"origin": "pass", "capacity": 2, "coming": coming, "rank": "fifo"}
+    fixed = suggest_carts(dishes, 1, d, now=5.0, hold=10.0, hold_max=10.0, **kw)
+    assert 1 in fixed[0]
+    grown = suggest_carts(dishes, 1, d, now=5.0, hold=10.0, hold_max=60.0, **kw)
+    assert grown == [[2, 3]]
+    late = suggest_carts(dishes, 1, d, now=61.0, hold=10.0, hold_max=60.0, **kw)
+    assert 1 in late[0]
+    # Three robots for three tables: no queue, the base hold only, and T1 rides now.
+    spare = suggest_carts(dishes, 3, d, now=5.0, hold=10.0, hold_max=60.0, **kw)
+    assert [1] in spare
