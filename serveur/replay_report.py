@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 from PIL import Image, ImageDraw, ImageFont
 
 if TYPE_CHECKING:
-    from serveur.replay import PolicyResult, ReplayOptions
+    from serveur.replay_model import PolicyResult, ReplayOptions
 
 __all__ = ["summary_text", "write_outputs", "write_plots"]
 
