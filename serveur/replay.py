@@ -25,10 +25,11 @@ The server runs with ``CoreConfig(policy=...)``: ``baseline`` visits tables in c
 ``serveur`` plans trips by area and stops by shortest route. Waits (ready -> collected) come
 from the server's own records afterwards, so they are what the restaurant's database says.
 
-This module sets up one service (server, simulated fleet, the players above), records the
-fleet's busy time and paths, and reads the results back (:class:`PolicyResult`,
-:mod:`serveur.replay_model`); :mod:`serveur.replay_cli` is the command line and
-:mod:`serveur.replay_report` the report. Their public names are importable from here.
+This module runs one service — the server and simulated fleet in the world of
+:mod:`serveur.replay_world`, the players above around them — records the fleet's busy time
+and paths, and reads the results back (:class:`PolicyResult`, :mod:`serveur.replay_model`);
+:mod:`serveur.replay_cli` is the command line and :mod:`serveur.replay_report` the report.
+The public names of all of them are importable from here.
 
 Determinism. The simulated world is seeded (robots: ``seed + i``; dwell per dish from
 ``(seed, line)``, independent of which trip the dish rides), staff act on protocol updates,
@@ -71,6 +72,7 @@ from serveur.replay_model import (
     stop_dwell,
 )
 from serveur.replay_staff import Staff
+from serveur.replay_world import load_world, server_config
 from serveur.vtime import LoopClock, VirtualTimeLoop
 
 __all__ = [
@@ -95,20 +97,6 @@ VIRTUAL_EPOCH = 1_767_225_600.0
 
 
 # -- one service -------------------------------------------------------------------------------
-
-
-def _load_world(map_path: str | None) -> tuple[Any, dict[str, Any], Path]:
-    from serveur.navigation import demo_map_path, load_demo, load_map, load_waypoints
-
-    if map_path is None:
-        grid, wps = load_demo()
-        return grid, wps, demo_map_path()
-    p = Path(map_path)
-    stem = p.with_suffix("")
-    for cand in (stem.with_name(stem.name + "_waypoints.json"), p.with_name("waypoints.json")):
-        if cand.is_file():
-            return load_map(p), load_waypoints(cand), p
-    raise ReplayError(f"no waypoints for {p}: expected {stem.name}_waypoints.json beside it")
 
 
 class _Service:
@@ -249,12 +237,10 @@ class _Service:
 
     async def run(self, workdir: Path) -> PolicyResult:
         from serveur.app import App, RobotSpec
-        from serveur.core import CoreConfig
         from serveur.robot_sim import start_simulation
-        from serveur.sessions import SecurityConfig
 
         opts = self.opts
-        nav_map, waypoints, map_path = _load_world(opts.map_path)
+        nav_map, waypoints, map_path = load_world(opts.map_path)
         homes = sorted((w for w in waypoints.values() if w.kind == "home"), key=lambda w: w.name)
         if opts.robots > len(homes):
             raise ReplayError(f"the map has {len(homes)} home spots; --robots {opts.robots}")
@@ -274,30 +260,7 @@ class _Service:
             RobotSpec(r.name, url, homes[i].name, opts.kinematics)
             for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
         ]
-        # Link timeouts are simulated seconds: at high time scales a 20 ms pause of the event
-        # loop (or of the whole process, on a shared machine) is many simulated seconds, so
-        # they are kept at >= 2 s of wall time. Nothing here fails on purpose, so they only
-        # need to never fire spuriously.
-        scale = self._scale
-        heartbeat = max(1.0, 2.0 * scale)
-        # Accelerated, the replay's cost is rosbridge traffic (~16 messages a robot-second,
-        # encoded by the simulator, decoded by the links): nobody watches poses (distances
-        # come from the simulator's true poses) and status is only a heartbeat and goal acks,
-        # so both are throttled (ms of simulated time) — 2 Hz poses leave the server's arrival
-        # checks a pose at most 0.35 m old; status keeps 4 beats per heartbeat period — and
-        # the battery, which the server only reports when it moves by 1 %, every 30 s.
-        fast = scale >= 10.0 or opts.time_scale is None
-        cfg = CoreConfig(
-            capacity=opts.capacity,
-            policy=self.policy,
-            heartbeat=heartbeat,
-            ack_timeout=max(2.0, 2.0 * scale),
-            # Saved poses are for a crash restart, which a replay never does: every 5 min.
-            pose_persist_period=300.0 if opts.time_scale is None else max(5.0, 0.5 * scale),
-            moving_pose_ms=500 if fast else 0,
-            status_ms=int(min(1000.0, 250.0 * heartbeat)) if fast else 0,
-            battery_ms=30_000 if fast else 0,  # 1 % of charge takes minutes
-        )
+        cfg, security = server_config(opts, self.policy)
         app = App(
             workdir / f"{self.policy}.db",
             port=0,
@@ -306,16 +269,7 @@ class _Service:
             waypoints=waypoints,
             robots=specs,
             config=cfg,
-            # The per-connection rate limit counts wall seconds, but the replay's one client
-            # speaks for a whole kitchen and staff in accelerated time: at 200x a rush is
-            # hundreds of requests a wall second. Scaled, the limit holds in simulated time.
-            # In virtual time a whole service's requests come in half a minute of wall time.
-            security=SecurityConfig(
-                # Nobody revokes the replay's token from another process: look every 5 min.
-                sweep_every=300.0,
-                rate=50.0 * (max(1.0, scale) if opts.time_scale else 1000.0),
-                burst=200.0 * (max(1.0, scale) if opts.time_scale else 1000.0),
-            ),
+            security=security,
         )
         result = PolicyResult(self.policy)
         bg: list[asyncio.Task[None]] = []

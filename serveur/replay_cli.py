@@ -43,10 +43,11 @@ def _replay_command(ns: argparse.Namespace) -> int:
         rank=ns.rank,
         progress=not ns.quiet,
     )
-    from serveur.replay import _load_world, run_replay
+    from serveur.replay import run_replay
+    from serveur.replay_world import load_world
 
     try:
-        _, waypoints, _ = _load_world(ns.map)
+        _, waypoints, _ = load_world(ns.map)
         tables = {w.name for w in waypoints.values() if w.kind == "table"}
         orders = read_orders(ns.log, tables=tables)
     except (OrderLogError, ReplayError) as exc:

@@ -178,9 +178,9 @@ def _paths(result: PolicyResult, grid: Any, waypoints: dict[str, Any], path: Pat
 
 def write_plots(results: dict[str, PolicyResult], map_path: str | None, out: Path) -> list[Path]:
     """Every plot of every policy into ``out``; the files written."""
-    from serveur.replay import _load_world
+    from serveur.replay_world import load_world
 
-    grid, waypoints, _ = _load_world(map_path)
+    grid, waypoints, _ = load_world(map_path)
     written: list[Path] = []
     for name, r in results.items():
         files: Sequence[tuple[str, Any]] = (
