@@ -47,7 +47,6 @@ from serveur.creation import Creation
 from serveur.domain import (
     OrderStatus,
     Robot,
-    StopStatus,
     Task,
     TaskStatus,
     WaypointKind,
@@ -55,24 +54,20 @@ from serveur.domain import (
 )
 from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurError
 from serveur.hub import Hub
-from serveur.link_reports import LinkReports
+from serveur.link_reports import HANDOVER_GRACE, LinkReports
 from serveur.places import Places
 from serveur.publisher import Publisher
 from serveur.robot_link import RobotLink
-from serveur.scheduler import Candidate, Dispatcher, order_stops
-from serveur.status import Action, Event, RobotMode, RobotState, RobotStatus, apply, check_allowed
+from serveur.scheduler import Candidate, Dispatcher
+from serveur.status import Action, Event, RobotState, RobotStatus, apply, check_allowed
 from serveur.store import Store
+from serveur.trips import Trips
 
 __all__ = ["HANDOVER_GRACE", "Core", "CoreConfig", "Destination"]
-
-#: Seconds a robot restored Offline at start is given to connect before a hand-over, however
-#: long it was away before the restart (its link needs a connection and a first status).
-HANDOVER_GRACE = 10.0
 
 log = logging.getLogger(__name__)
 
 S = RobotStatus
-_RESUMABLE = {S.DELIVERING, S.DELIVERED, S.STOPPED, S.TRANSIT, S.ERROR}
 
 
 class Core:
@@ -81,8 +76,10 @@ class Core:
     Collaborators it owns: :class:`~serveur.places.Places` (waypoints, map, path distances),
     :class:`~serveur.publisher.Publisher` (topics and the events feed),
     :class:`~serveur.link_reports.LinkReports` (every robot link's listener, feeding each
-    robot's report queue to :meth:`on_report`) and :class:`~serveur.creation.Creation` (orders,
-    trips and waypoints for ``create``).
+    robot's report queue to :meth:`on_report`, and the hand-over timers),
+    :class:`~serveur.trips.Trips` (each step of a trip in the store) and
+    :class:`~serveur.creation.Creation` (orders, trips and waypoints for ``create``). The core
+    keeps what ties them together: each robot's status, changed under its lock.
     """
 
     def __init__(
@@ -123,6 +120,15 @@ class Core:
             places=self.places,
             publisher=self.publisher,
         )
+        self.trips = Trips(
+            store,
+            clock,
+            self.config,
+            robots=self._robots,
+            places=self.places,
+            publisher=self.publisher,
+            origin=self._origin,
+        )
         self.creation = Creation(
             store,
             clock,
@@ -132,7 +138,6 @@ class Core:
             origin=self._origin,
             kick=self.dispatcher.kick,
         )
-        self._closing = False
 
     # -- lifecycle ---------------------------------------------------------------------------
 
@@ -146,7 +151,7 @@ class Core:
             # A robot already Offline before the restart has been away since its last state
             # change: its hand-over limit counts from then, not from this start.
             away_since = robot.status_since if robot.status is S.OFFLINE else None
-            robot, resume = await self._reconcile(robot, resume)
+            robot, resume = await self.trips.reconcile(robot, resume)
             self._add_runtime(robot)
             self._rt[robot.name].offline_since = away_since
             st = RobotState(S.OFFLINE, robot.mode, resume)
@@ -156,46 +161,6 @@ class Core:
         for rt in self._rt.values():
             self._start_link(rt)
 
-    async def _reconcile(
-        self, robot: Robot, resume: RobotStatus | None
-    ) -> tuple[Robot, RobotStatus | None]:
-        """The status to resume after a restart, made consistent with the robot's trip.
-
-        Each step of a trip is its own transaction, and the robot's status another one, so a
-        crash (SIGKILL, power cut) can fall between them. The trip in the store is the truth;
-        the status to resume is derived from it:
-
-        * a trip whose stops are all done but which is still active (crash after the last
-          "food collected"): finish it, the robot goes home;
-        * a trip taken but the robot not yet Delivering (crash right after dispatch), or
-          Delivered although the current stop is not reached (crash after "food collected"
-          at a middle stop): the robot delivers to the current stop;
-        * Delivering or Delivered without a trip (crash after a hand-over or a cancel): the
-          robot goes home.
-
-        Where the robot really is decides the rest on link-up (:meth:`_resume_move`: already
-        at the goal counts as arrived, otherwise the goal is sent again).
-        """
-        if resume not in _RESUMABLE:
-            resume = None
-        task_id = robot.current_task
-        if task_id is not None:
-            task = await self.store.get_task(task_id)
-            if task.status is not TaskStatus.ACTIVE:  # the store frees robots in the same tx
-                log.error("%s holds trip %d, which is %s", robot.name, task_id, task.status)
-            elif task.current_stop >= len(task.stops):
-                log.warning("%s: closing trip %d, served before the restart", robot.name, task_id)
-                await self.store.finish_task(task_id, now=self.clock.epoch())
-                robot = await self.store.get_robot(robot.name)
-            else:
-                reached = task.stops[task.current_stop].status is StopStatus.ARRIVED
-                on_trip = (S.DELIVERING, S.DELIVERED, S.STOPPED, S.ERROR)
-                if resume not in on_trip or (resume is S.DELIVERED and not reached):
-                    resume = S.DELIVERING
-        if robot.current_task is None and resume in (S.DELIVERING, S.DELIVERED):
-            resume = S.TRANSIT if robot.mode is RobotMode.AUTO else None
-        return robot, resume
-
     async def close(self) -> None:
         """Stop serving robots: no more dispatch, every robot's move cancelled, poses saved.
 
@@ -203,12 +168,11 @@ class Core:
         (a goal whose result no server will read, "Food collected" that nobody can press).
         Their stored status is left as it was, so a restarted server resumes each trip.
         """
-        self._closing = True
         self.reports.stop_queueing()
         self.places.close()
         await self.dispatcher.stop()
         for rt in self._rt.values():
-            self._disarm_handover(rt)
+            self.reports.disarm_handover(rt)
             await self.reports.stop_worker(rt)
         # Workers, dispatcher and clients are gone: nothing can send a new goal after this.
         for rt in self._rt.values():
@@ -324,39 +288,15 @@ class Core:
         elif rt.offline_since is None:
             rt.offline_since = self.clock.epoch()
         if st.status is S.OFFLINE and robot.current_task is not None:
-            self._arm_handover(rt)
+            self.reports.arm_handover(rt)
         else:
-            self._disarm_handover(rt)
+            self.reports.disarm_handover(rt)
         if st.status is S.AWAITING:
             rt.idle_since = self.clock.now()
             self.dispatcher.kick()
         return robot
 
     # -- hand-over of the trip of a robot gone too long ---------------------------------------
-
-    def _arm_handover(self, rt: Runtime) -> None:
-        if self.config.handover_after is None or rt.handover is not None or self._closing:
-            return
-        rt.handover = asyncio.create_task(self._handover_timer(rt), name=f"handover-{rt.name}")
-
-    def _disarm_handover(self, rt: Runtime) -> None:
-        timer, rt.handover = rt.handover, None
-        if timer is not None and timer is not asyncio.current_task():
-            timer.cancel()
-
-    async def _handover_timer(self, rt: Runtime) -> None:
-        limit = self.config.handover_after
-        assert limit is not None
-        away = self.clock.epoch() - (rt.offline_since or self.clock.epoch())
-        # What is left of the limit, but never less than a short grace (a robot restored at
-        # start needs a moment to connect before its trip can be judged), nor more than the
-        # limit (a stored time ahead of this clock: an accelerated run, restarted).
-        grace = min(limit, HANDOVER_GRACE)
-        await self.clock.sleep(min(limit, max(grace, limit - away)))
-        rt.handover = None
-        # Through the robot's queue, like a link report: a link-up already queued is handled
-        # first, and the hand-over then sees the robot back and does nothing.
-        self.reports.post(rt.name, "handover")
 
     async def _hand_over(self, rt: Runtime) -> None:
         """Give the trip of a robot Offline past ``handover_after`` back to the dispatcher.
@@ -372,15 +312,7 @@ class Core:
         limit = self.config.handover_after
         reason = f"offline for over {limit:g} s: trip {task_id} handed to another robot"
         log.warning("%s: %s", rt.name, reason)
-        now = self.clock.epoch()
-        try:
-            task = await self.store.requeue_task(task_id, now=now, reason=reason)
-        except Conflict:
-            # Every stop was served before the link dropped: the trip is over, not handed on.
-            task = await self.store.finish_task(task_id, now=now)
-        self._robots[rt.name] = await self.store.get_robot(rt.name)
-        self.publisher.pub_task(task)
-        await self.publisher.pub_orders([o for s in task.stops for o in s.orders])
+        await self.trips.hand_back(rt.name, task_id, reason)
         resume = rt.state.resume
         if resume in (S.DELIVERING, S.DELIVERED):
             resume = S.TRANSIT
@@ -468,7 +400,7 @@ class Core:
             await self._go_home_if_away(rt)
         elif action is Action.MANUAL:
             if self._robots[rt.name].current_task is not None:
-                await self._abandon_task(rt, "manual control taken")
+                await self.trips.abandon(rt.name, "manual control taken")
             with contextlib.suppress(LinkError):
                 await link.cancel_goal()
             rt.dest = None
@@ -507,41 +439,18 @@ class Core:
             await self._resume_move(rt)
         elif action is Action.CANCEL:
             if self._robots[rt.name].current_task is not None:
-                await self._abandon_task(rt, "cancelled by staff")
+                await self.trips.abandon(rt.name, "cancelled by staff")
             await self._event(rt, Event.CANCEL)
             await self._drive(rt, self._home_dest(rt))
 
-    async def _abandon_task(self, rt: Runtime, reason: str) -> None:
-        task_id = self._robots[rt.name].current_task
-        if task_id is None:
-            return
-        aboard = [o.id for o in await self.store.list_orders(task_id=task_id)]
-        task = await self.store.cancel_task(task_id, now=self.clock.epoch(), reason=reason)
-        self._robots[rt.name] = await self.store.get_robot(rt.name)
-        self.publisher.pub_task(task)
-        await self.publisher.pub_orders(aboard)
-
     async def _next(self, rt: Runtime) -> None:
-        task = await self._current_task(rt)
-        stop = task.stops[task.current_stop]
-        task = await self.store.complete_stop(task.id, stop.seq, now=self.clock.epoch())
-        self.publisher.pub_task(task)
-        await self.publisher.pub_orders(stop.orders)
+        task = await self.trips.serve_stop(rt.name)
         if task.current_stop < len(task.stops):
             await self._event(rt, Event.NEXT_TABLE)
             await self._drive(rt, self._stop_dest(task))
         else:
-            task = await self.store.finish_task(task.id, now=self.clock.epoch())
-            self._robots[rt.name] = await self.store.get_robot(rt.name)
-            self.publisher.pub_task(task)
             await self._event(rt, Event.NEXT_HOME)
             await self._drive(rt, self._home_dest(rt))
-
-    async def _current_task(self, rt: Runtime) -> Task:
-        task_id = self._robots[rt.name].current_task
-        if task_id is None:
-            raise Conflict(f"robot {rt.name} has no trip")
-        return await self.store.get_task(task_id)
 
     def _stop_dest(self, task: Task) -> Destination:
         wp = self.places.waypoint(task.stops[task.current_stop].table)
@@ -578,7 +487,7 @@ class Core:
         """Re-send the goal for the current move (after continue, or when the link returns)."""
         status = rt.state.status
         if status is S.DELIVERING:
-            task = await self._current_task(rt)
+            task = await self.trips.current(rt.name)
             dest = self._stop_dest(task)
             if self._near(rt, dest):
                 await self._arrived(rt)
@@ -594,11 +503,7 @@ class Core:
 
     async def _arrived(self, rt: Runtime) -> None:
         if rt.state.status is S.DELIVERING:
-            task = await self._current_task(rt)
-            task = await self.store.arrive_stop(
-                task.id, task.stops[task.current_stop].seq, now=self.clock.epoch()
-            )
-            self.publisher.pub_task(task)
+            await self.trips.arrive(rt.name)
         await self._event(rt, Event.ARRIVED)
 
     async def _create(self, msg: Any) -> dict[str, Any]:
@@ -637,14 +542,7 @@ class Core:
             self.places.waypoint(msg.table)
             return {"orders": await self.store.cart(msg.table)}
         rt = self._runtime(msg.robot)
-        task_id = self._robots[rt.name].current_task
-        if task_id is None:
-            return {"orders": []}
-        task = await self.store.get_task(task_id)
-        if task.current_stop >= len(task.stops):
-            return {"orders": []}
-        ids = set(task.stops[task.current_stop].orders)
-        return {"orders": [o for o in await self.store.list_orders(task_id=task_id) if o.id in ids]}
+        return {"orders": await self.trips.stop_orders(rt.name)}
 
     # -- dispatcher (scheduler.Fleet) -------------------------------------------------------
 
@@ -668,22 +566,9 @@ class Core:
         async with rt.lock:
             if rt.state.status is not S.AWAITING:
                 return False
-            home = self._robots[robot].home or self._origin()
-            task = await self.store.get_task(task_id)
-            order = [s.table for s in task.stops]
-            if self.config.policy == "baseline":
-                stop_order = order  # the cart's order, as the design report's robot does
-            else:
-                stop_order = order_stops(home, order, self.distance, end=home)
-            try:
-                task = await self.store.start_task(
-                    task_id, robot, stop_order=stop_order, now=self.clock.epoch()
-                )
-            except Conflict:
+            task = await self.trips.take(task_id, robot)
+            if task is None:
                 return False
-            self._robots[robot] = await self.store.get_robot(robot)
-            self.publisher.pub_task(task)
-            await self.publisher.pub_orders([o for s in task.stops for o in s.orders])
             await self._event(rt, Event.DISPATCH)
             await self._drive(rt, self._stop_dest(task))
         await self.flush_events()

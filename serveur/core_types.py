@@ -1,8 +1,8 @@
 """Values the server core and its collaborators share: tunables, destinations, a robot's runtime.
 
 They live apart from :mod:`serveur.core` so that the core's collaborators
-(:mod:`serveur.places`, :mod:`serveur.link_reports`, :mod:`serveur.publisher`,
-:mod:`serveur.creation`) can name them without importing the core, which imports them.
+(:mod:`serveur.link_reports`, :mod:`serveur.trips`, :mod:`serveur.creation`) can name them
+without importing the core, which imports them.
 """
 
 from __future__ import annotations

@@ -32,9 +32,13 @@ from serveur.hub import Hub
 from serveur.places import Places
 from serveur.publisher import Publisher
 
-__all__ = ["LinkReports", "ReportHandler"]
+__all__ = ["HANDOVER_GRACE", "LinkReports", "ReportHandler"]
 
 log = logging.getLogger(__name__)
+
+#: Seconds a robot restored Offline at start is given to connect before a hand-over, however
+#: long it was away before the restart (its link needs a connection and a first status).
+HANDOVER_GRACE = 10.0
 
 
 class ReportHandler(Protocol):
@@ -92,6 +96,34 @@ class LinkReports:
             rt.worker.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await rt.worker
+
+    # -- the hand-over timer: a report the server sends itself -------------------------------
+
+    def arm_handover(self, rt: Runtime) -> None:
+        """The robot is Offline with a trip: queue ``handover`` once it is gone too long."""
+        if self._config.handover_after is None or rt.handover is not None or self._closing:
+            return
+        rt.handover = asyncio.create_task(self._handover_timer(rt), name=f"handover-{rt.name}")
+
+    def disarm_handover(self, rt: Runtime) -> None:
+        """The robot is back or has no trip left to hand over."""
+        timer, rt.handover = rt.handover, None
+        if timer is not None and timer is not asyncio.current_task():
+            timer.cancel()
+
+    async def _handover_timer(self, rt: Runtime) -> None:
+        limit = self._config.handover_after
+        assert limit is not None
+        away = self._clock.epoch() - (rt.offline_since or self._clock.epoch())
+        # What is left of the limit, but never less than a short grace (a robot restored at
+        # start needs a moment to connect before its trip can be judged), nor more than the
+        # limit (a stored time ahead of this clock: an accelerated run, restarted).
+        grace = min(limit, HANDOVER_GRACE)
+        await self._clock.sleep(min(limit, max(grace, limit - away)))
+        rt.handover = None
+        # Through the robot's queue, like a link report: a link-up already queued is handled
+        # first, and the hand-over then sees the robot back and does nothing.
+        self.post(rt.name, "handover")
 
     async def _worker(self, rt: Runtime) -> None:
         while True:
