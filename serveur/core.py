@@ -185,16 +185,20 @@ class Core:
             if rt.link is not None:
                 await rt.link.close()
         for rt in self._rt.values():
-            if rt.pose is not None:
-                with contextlib.suppress(ServeurError):
-                    await self.store.save_robot_pose(
-                        rt.name,
-                        x=rt.pose[0],
-                        y=rt.pose[1],
-                        yaw=rt.pose[2],
-                        battery=rt.battery,
-                        now=self.clock.epoch(),
-                    )
+            with contextlib.suppress(ServeurError):
+                await self._save_pose(rt)
+
+    async def _save_pose(self, rt: Runtime) -> None:
+        """Store the robot's last pose and battery (for the map after a restart)."""
+        if rt.pose is not None:
+            await self.store.save_robot_pose(
+                rt.name,
+                x=rt.pose[0],
+                y=rt.pose[1],
+                yaw=rt.pose[2],
+                battery=rt.battery,
+                now=self.clock.epoch(),
+            )
 
     def _add_runtime(self, robot: Robot) -> Runtime:
         rt = Runtime(robot.name, RobotState(robot.status, robot.mode, robot.resume))
@@ -594,15 +598,8 @@ class Core:
             await self._on_goal(rt, *args)
         elif kind == "handover":
             await self._hand_over(rt)
-        elif kind == "persist_pose" and rt.pose is not None:
-            await self.store.save_robot_pose(
-                rt.name,
-                x=rt.pose[0],
-                y=rt.pose[1],
-                yaw=rt.pose[2],
-                battery=rt.battery,
-                now=self.clock.epoch(),
-            )
+        elif kind == "persist_pose":
+            await self._save_pose(rt)
 
     async def _on_goal(self, rt: Runtime, goal_id: str, status: rb.GoalStatus, text: str) -> None:
         if goal_id != rt.goal_id:
