@@ -32,26 +32,21 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import hashlib
-import json
 import logging
 import math
 import ssl
-import sys
-import time
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 from serveur import protocol as P
 from serveur import rosbridge as rb
 from serveur.clock import Clock
-from serveur.distances import Distances, MapData, PlanRequest, plan_async
+from serveur.core_types import CoreConfig, Destination, Runtime, pose_dict
+from serveur.creation import Creation
 from serveur.domain import (
-    Order,
     OrderStatus,
     Robot,
-    StopStatus,
     Task,
     TaskStatus,
     WaypointKind,
@@ -59,84 +54,33 @@ from serveur.domain import (
 )
 from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurError
 from serveur.hub import Hub
-from serveur.memory import trim_heap
+from serveur.link_reports import HANDOVER_GRACE, LinkReports
+from serveur.places import Places
+from serveur.publisher import Publisher
 from serveur.robot_link import RobotLink
-from serveur.scheduler import Candidate, Dispatcher, cart_order_trips, order_stops, plan_trips
-from serveur.status import Action, Event, RobotMode, RobotState, RobotStatus, apply, check_allowed
+from serveur.scheduler import Candidate, Dispatcher
+from serveur.status import Action, Event, RobotState, RobotStatus, apply, check_allowed
 from serveur.store import Store
+from serveur.trips import Trips
 
 __all__ = ["HANDOVER_GRACE", "Core", "CoreConfig", "Destination"]
-
-#: Seconds a robot restored Offline at start is given to connect before a hand-over, however
-#: long it was away before the restart (its link needs a connection and a first status).
-HANDOVER_GRACE = 10.0
 
 log = logging.getLogger(__name__)
 
 S = RobotStatus
-_RESUMABLE = {S.DELIVERING, S.DELIVERED, S.STOPPED, S.TRANSIT, S.ERROR}
-
-
-@dataclass
-class CoreConfig:
-    """Tunables; times are simulated seconds."""
-
-    capacity: int = 4
-    heartbeat: float = 1.0
-    ack_timeout: float = 2.0
-    ack_retries: int = 2
-    arrive_tolerance: float = 0.35  # a robot this close to its goal is "there" (reconciliation)
-    far_tolerance: float = 0.6  # SUCCEEDED this far from the goal is an error, not an arrival
-    pose_persist_period: float = 5.0
-    #: rosbridge throttles (ms) of a moving robot's unwatched pose, move_base status and the
-    #: battery; 0 for real robots, raised by accelerated replays (serveur.replay).
-    moving_pose_ms: int = 0
-    status_ms: int = 0
-    battery_ms: int = 0
-    robot_radius: float = 0.2
-    #: A robot Offline this long (simulated seconds) with a trip has the trip handed to another
-    #: robot; ``None`` never hands over. Two minutes: long enough for a Wi-Fi dead spot or a
-    #: rosbridge restart (seconds) to resume in place, short enough that food is still warm
-    #: when the kitchen re-plates it for another robot.
-    handover_after: float | None = 120.0
-    #: "serveur": trips by area, stops in shortest-route order (scheduler.plan_trips);
-    #: "baseline": the design report's behaviour, stops in the order of the cart (replay A/B).
-    policy: str = "serveur"
-
-
-@dataclass(frozen=True, slots=True)
-class Destination:
-    kind: str  # "table" | "home" | "manual"
-    name: str
-    x: float
-    y: float
-    yaw: float
-
-
-@dataclass
-class _Runtime:
-    name: str
-    state: RobotState
-    link: RobotLink | None = None
-    lock: asyncio.Lock = field(default_factory=asyncio.Lock)
-    events: asyncio.Queue[tuple[str, tuple[Any, ...]]] = field(default_factory=asyncio.Queue)
-    worker: asyncio.Task[None] | None = None
-    dest: Destination | None = None
-    goal_id: str | None = None
-    idle_since: float = 0.0
-    pose: tuple[float, float, float] | None = None
-    battery: float | None = None
-    pose_saved_at: float = -1e9
-    handover: asyncio.Task[None] | None = None  # the hand-over timer while Offline with a trip
-    offline_since: float | None = None  # epoch (clock) the robot was last seen, while Offline
-
-
-def _fingerprint(payload: Mapping[str, Any]) -> str:
-    return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
 
 
 class Core:
-    """Owns robots' runtime state and carries out every instruction."""
+    """Owns robots' runtime state and carries out every instruction.
+
+    Collaborators it owns: :class:`~serveur.places.Places` (waypoints, map, path distances),
+    :class:`~serveur.publisher.Publisher` (topics and the events feed),
+    :class:`~serveur.link_reports.LinkReports` (every robot link's listener, feeding each
+    robot's report queue to :meth:`on_report`, and the hand-over timers),
+    :class:`~serveur.trips.Trips` (each step of a trip in the store) and
+    :class:`~serveur.creation.Creation` (orders, trips and waypoints for ``create``). The core
+    keeps what ties them together: each robot's status, changed under its lock.
+    """
 
     def __init__(
         self,
@@ -157,48 +101,57 @@ class Core:
         self.robot_ssl = robot_ssl
         self.hub = Hub(on_watch=self._on_watch)
         self.dispatcher = Dispatcher(self)
-        self._rt: dict[str, _Runtime] = {}
+        self._rt: dict[str, Runtime] = {}
         self._robots: dict[str, Robot] = {}
-        self._task_robots: dict[int, str] = {}  # task id -> robot, for screens' views
-        self._waypoints: dict[str, WaypointRecord] = {}
-        # The map: a MapData (or an in-process OccupancyMap, converted), or a file the planner
-        # reads; path distances are planned off the event loop (serveur.distances), in a child
-        # process unless this process already holds numpy (then a thread is cheaper).
-        self._map: MapData | None = (
-            nav_map
-            if nav_map is None or isinstance(nav_map, MapData)
-            else MapData.from_occupancy(nav_map)
+        self.places = Places(
+            self.hub,
+            robot_radius=self.config.robot_radius,
+            nav_map=nav_map,
+            map_path=map_path,
+            plan_in_child=plan_in_child,
         )
-        self._map_path = map_path
-        self._map_json: str | None = None
-        self._plan_in_child = "numpy" not in sys.modules if plan_in_child is None else plan_in_child
-        self._distances = Distances()
-        self._planning: set[asyncio.Task[None]] = set()
-        self._closing = False
-        self._last_event: int = 0
-        self._events_lock = asyncio.Lock()
+        self.publisher = Publisher(self.hub, store)
+        self.reports = LinkReports(
+            self._rt,
+            self,
+            hub=self.hub,
+            clock=clock,
+            config=self.config,
+            places=self.places,
+            publisher=self.publisher,
+        )
+        self.trips = Trips(
+            store,
+            clock,
+            self.config,
+            robots=self._robots,
+            places=self.places,
+            publisher=self.publisher,
+            origin=self._origin,
+        )
+        self.creation = Creation(
+            store,
+            clock,
+            self.config,
+            places=self.places,
+            publisher=self.publisher,
+            origin=self._origin,
+            kick=self.dispatcher.kick,
+        )
 
     # -- lifecycle ---------------------------------------------------------------------------
 
     async def start(self) -> None:
-        while batch := await self.store.list_events(since_id=self._last_event, limit=1000):
-            self._last_event = batch[-1].id
-        for wp in await self.store.list_waypoints():
-            self._waypoints[wp.name] = wp
-        self._distances.set_spots(_spot(w) for w in self._waypoints.values())
-        if self._map is not None:
-            self._set_map(self._map)
-        if self._map is not None or self._map_path is not None:
-            # Path distances between all waypoints, planned once before any robot is driven
-            # (a bad map file stops the start here, with its MapError).
-            await self._plan(None)
+        await self.publisher.skip_stored_events()
+        # Path distances between all waypoints are planned before any robot is driven.
+        await self.places.load(await self.store.list_waypoints())
         for robot in await self.store.list_robots():
             # Every robot starts Offline and resumes what it was doing once its link is up.
             resume = robot.resume if robot.status is S.OFFLINE else robot.status
             # A robot already Offline before the restart has been away since its last state
             # change: its hand-over limit counts from then, not from this start.
             away_since = robot.status_since if robot.status is S.OFFLINE else None
-            robot, resume = await self._reconcile(robot, resume)
+            robot, resume = await self.trips.reconcile(robot, resume)
             self._add_runtime(robot)
             self._rt[robot.name].offline_since = away_since
             st = RobotState(S.OFFLINE, robot.mode, resume)
@@ -208,46 +161,6 @@ class Core:
         for rt in self._rt.values():
             self._start_link(rt)
 
-    async def _reconcile(
-        self, robot: Robot, resume: RobotStatus | None
-    ) -> tuple[Robot, RobotStatus | None]:
-        """The status to resume after a restart, made consistent with the robot's trip.
-
-        Each step of a trip is its own transaction, and the robot's status another one, so a
-        crash (SIGKILL, power cut) can fall between them. The trip in the store is the truth;
-        the status to resume is derived from it:
-
-        * a trip whose stops are all done but which is still active (crash after the last
-          "food collected"): finish it, the robot goes home;
-        * a trip taken but the robot not yet Delivering (crash right after dispatch), or
-          Delivered although the current stop is not reached (crash after "food collected"
-          at a middle stop): the robot delivers to the current stop;
-        * Delivering or Delivered without a trip (crash after a hand-over or a cancel): the
-          robot goes home.
-
-        Where the robot really is decides the rest on link-up (:meth:`_resume_move`: already
-        at the goal counts as arrived, otherwise the goal is sent again).
-        """
-        if resume not in _RESUMABLE:
-            resume = None
-        task_id = robot.current_task
-        if task_id is not None:
-            task = await self.store.get_task(task_id)
-            if task.status is not TaskStatus.ACTIVE:  # the store frees robots in the same tx
-                log.error("%s holds trip %d, which is %s", robot.name, task_id, task.status)
-            elif task.current_stop >= len(task.stops):
-                log.warning("%s: closing trip %d, served before the restart", robot.name, task_id)
-                await self.store.finish_task(task_id, now=self.clock.epoch())
-                robot = await self.store.get_robot(robot.name)
-            else:
-                reached = task.stops[task.current_stop].status is StopStatus.ARRIVED
-                on_trip = (S.DELIVERING, S.DELIVERED, S.STOPPED, S.ERROR)
-                if resume not in on_trip or (resume is S.DELIVERED and not reached):
-                    resume = S.DELIVERING
-        if robot.current_task is None and resume in (S.DELIVERING, S.DELIVERED):
-            resume = S.TRANSIT if robot.mode is RobotMode.AUTO else None
-        return robot, resume
-
     async def close(self) -> None:
         """Stop serving robots: no more dispatch, every robot's move cancelled, poses saved.
 
@@ -255,16 +168,12 @@ class Core:
         (a goal whose result no server will read, "Food collected" that nobody can press).
         Their stored status is left as it was, so a restarted server resumes each trip.
         """
-        self._closing = True
-        for job in list(self._planning):
-            job.cancel()
+        self.reports.stop_queueing()
+        self.places.close()
         await self.dispatcher.stop()
         for rt in self._rt.values():
-            self._disarm_handover(rt)
-            if rt.worker is not None:
-                rt.worker.cancel()
-                with contextlib.suppress(asyncio.CancelledError):
-                    await rt.worker
+            self.reports.disarm_handover(rt)
+            await self.reports.stop_worker(rt)
         # Workers, dispatcher and clients are gone: nothing can send a new goal after this.
         for rt in self._rt.values():
             if rt.link is not None and rt.link.up:
@@ -276,39 +185,43 @@ class Core:
             if rt.link is not None:
                 await rt.link.close()
         for rt in self._rt.values():
-            if rt.pose is not None:
-                with contextlib.suppress(ServeurError):
-                    await self.store.save_robot_pose(
-                        rt.name,
-                        x=rt.pose[0],
-                        y=rt.pose[1],
-                        yaw=rt.pose[2],
-                        battery=rt.battery,
-                        now=self.clock.epoch(),
-                    )
+            with contextlib.suppress(ServeurError):
+                await self._save_pose(rt)
 
-    def _add_runtime(self, robot: Robot) -> _Runtime:
-        rt = _Runtime(robot.name, RobotState(robot.status, robot.mode, robot.resume))
+    async def _save_pose(self, rt: Runtime) -> None:
+        """Store the robot's last pose and battery (for the map after a restart)."""
+        if rt.pose is not None:
+            await self.store.save_robot_pose(
+                rt.name,
+                x=rt.pose[0],
+                y=rt.pose[1],
+                yaw=rt.pose[2],
+                battery=rt.battery,
+                now=self.clock.epoch(),
+            )
+
+    def _add_runtime(self, robot: Robot) -> Runtime:
+        rt = Runtime(robot.name, RobotState(robot.status, robot.mode, robot.resume))
         if robot.x is not None and robot.y is not None and robot.yaw is not None:
             rt.pose = (robot.x, robot.y, robot.yaw)
         rt.battery = robot.battery
         rt.idle_since = self.clock.now()
         self._rt[robot.name] = rt
         self._robots[robot.name] = robot
-        rt.worker = asyncio.create_task(self._worker(rt), name=f"robot-{robot.name}")
+        rt.worker = self.reports.start_worker(rt)
         return rt
 
-    def _start_link(self, rt: _Runtime) -> None:
+    def _start_link(self, rt: Runtime) -> None:
         robot = self._robots[rt.name]
         rt.link = RobotLink(
             rt.name,
             robot.url,
-            self,
+            self.reports,
             self.clock,
             heartbeat=self.config.heartbeat,
             ack_timeout=self.config.ack_timeout,
             ack_retries=self.config.ack_retries,
-            want_map=self._map is None,
+            want_map=self.places.map is None,
             ssl=self.robot_ssl,
             pose_watched=self.hub.watched(f"pose:{rt.name}"),
             moving_pose_ms=self.config.moving_pose_ms,
@@ -317,70 +230,17 @@ class Core:
         )
         rt.link.start()
 
-    # -- map and distances ------------------------------------------------------------------
+    def _on_watch(self, topic: str, on: bool) -> None:
+        self.reports.on_watch(topic, on)
 
-    def _set_map(self, m: MapData) -> None:
-        self._map = m
-        self._map_json = P.dump(m.snapshot())
-        self.hub.publish("map", self._map_json)
-
-    async def _plan(self, sources: list[str] | None) -> None:
-        """Plan the distances of every pair (``sources`` None) or of pairs touching ``sources``."""
-        req = PlanRequest(
-            spots=[_spot(w) for w in self._waypoints.values()],
-            robot_radius=self.config.robot_radius,
-            map=self._map,
-            map_path=self._map_path if self._map is None else None,
-            sources=sources,
-        )
-        started = time.monotonic()
-        result = await plan_async(req, in_child=self._plan_in_child)
-        log.info(
-            "planned %d path distances in %.1f s (%s)",
-            len(result.pairs),
-            time.monotonic() - started,
-            "child process" if self._plan_in_child else "worker thread",
-        )
-        if not self._plan_in_child:
-            trim_heap()  # the worker thread's freed distance fields (serveur.memory)
-        if self._map is None:
-            self._set_map(result.map)
-        self._distances.merge(req, result)
-
-    def _plan_later(self, sources: list[str] | None) -> None:
-        """Plan in the background; until then the scheduler uses straight lines."""
-
-        async def run() -> None:
-            try:
-                await self._plan(sources)
-            except ServeurError as exc:
-                log.warning("path distances not planned (straight lines used): %s", exc)
-
-        job = asyncio.get_running_loop().create_task(run())
-        self._planning.add(job)
-        job.add_done_callback(self._planning.discard)
+    # -- distances ---------------------------------------------------------------------------
 
     def distance(self, a: str, b: str) -> float:
         """Path distance between two waypoints; straight line if not planned or no path."""
-        if a == b:
-            return 0.0
-        planned = self._distances.planned(a, b)
-        if planned is not None:
-            return planned
-        wa, wb = self._waypoints.get(a), self._waypoints.get(b)
-        if wa is None or wb is None:
-            return 1e6
-        return math.hypot(wa.x - wb.x, wa.y - wb.y)
+        return self.places.distance(a, b)
 
     def _origin(self) -> str:
-        for kind in (WaypointKind.PASS, WaypointKind.HOME):
-            for wp in self._waypoints.values():
-                if wp.kind is kind:
-                    return wp.name
-        for r in self._robots.values():
-            if r.home:
-                return r.home
-        return next(iter(self._waypoints), "")
+        return self.places.origin(r.home for r in self._robots.values())
 
     # -- publishing -------------------------------------------------------------------------
 
@@ -391,28 +251,16 @@ class Core:
             upd.update(x=rt.pose[0], y=rt.pose[1], yaw=rt.pose[2])
         return self._robots[name].model_copy(update=upd)
 
-    def _pub(self, topic: str, record: Any) -> None:
-        if self.hub.watched(topic):
-            self.hub.publish(topic, P.dump(record), record)
-
-    def _pub_task(self, task: Task) -> None:
-        if task.robot is not None:
-            self._task_robots[task.id] = task.robot
-            while len(self._task_robots) > 10_000:  # a night has hundreds; bound it anyway
-                del self._task_robots[next(iter(self._task_robots))]
-        self._pub("tasks", task)
+    def publish_robot(self, name: str) -> None:
+        """Publish the robot's record as screens see it (live pose and battery)."""
+        self.publisher.pub("robots", self._robot_view(name))
 
     def task_robot(self, task_id: int) -> str | None:
         """The robot doing (or that did) task ``task_id``, if this server has seen it."""
-        robot = self._task_robots.get(task_id)
+        robot = self.publisher.task_robot(task_id)
         if robot is None:
             robot = next((n for n, r in self._robots.items() if r.current_task == task_id), None)
         return robot
-
-    async def _pub_orders(self, ids: Sequence[int]) -> None:
-        if self.hub.watched("orders"):
-            for oid in ids:
-                self._pub("orders", await self.store.get_order(oid))
 
     async def _save_state(
         self,
@@ -438,15 +286,15 @@ class Core:
             data=data,
         )
         self._robots[name] = robot
-        self._pub("robots", self._robot_view(name))
+        self.publisher.pub("robots", self._robot_view(name))
         if st.status is not S.OFFLINE:
             rt.offline_since = None
         elif rt.offline_since is None:
             rt.offline_since = self.clock.epoch()
         if st.status is S.OFFLINE and robot.current_task is not None:
-            self._arm_handover(rt)
+            self.reports.arm_handover(rt)
         else:
-            self._disarm_handover(rt)
+            self.reports.disarm_handover(rt)
         if st.status is S.AWAITING:
             rt.idle_since = self.clock.now()
             self.dispatcher.kick()
@@ -454,31 +302,7 @@ class Core:
 
     # -- hand-over of the trip of a robot gone too long ---------------------------------------
 
-    def _arm_handover(self, rt: _Runtime) -> None:
-        if self.config.handover_after is None or rt.handover is not None or self._closing:
-            return
-        rt.handover = asyncio.create_task(self._handover_timer(rt), name=f"handover-{rt.name}")
-
-    def _disarm_handover(self, rt: _Runtime) -> None:
-        timer, rt.handover = rt.handover, None
-        if timer is not None and timer is not asyncio.current_task():
-            timer.cancel()
-
-    async def _handover_timer(self, rt: _Runtime) -> None:
-        limit = self.config.handover_after
-        assert limit is not None
-        away = self.clock.epoch() - (rt.offline_since or self.clock.epoch())
-        # What is left of the limit, but never less than a short grace (a robot restored at
-        # start needs a moment to connect before its trip can be judged), nor more than the
-        # limit (a stored time ahead of this clock: an accelerated run, restarted).
-        grace = min(limit, HANDOVER_GRACE)
-        await self.clock.sleep(min(limit, max(grace, limit - away)))
-        rt.handover = None
-        # Through the robot's queue, like a link report: a link-up already queued is handled
-        # first, and the hand-over then sees the robot back and does nothing.
-        self._post(rt.name, "handover")
-
-    async def _hand_over(self, rt: _Runtime) -> None:
+    async def _hand_over(self, rt: Runtime) -> None:
         """Give the trip of a robot Offline past ``handover_after`` back to the dispatcher.
 
         The task is requeued whole (its orders stay ``assigned`` to it, stops not served go
@@ -492,15 +316,7 @@ class Core:
         limit = self.config.handover_after
         reason = f"offline for over {limit:g} s: trip {task_id} handed to another robot"
         log.warning("%s: %s", rt.name, reason)
-        now = self.clock.epoch()
-        try:
-            task = await self.store.requeue_task(task_id, now=now, reason=reason)
-        except Conflict:
-            # Every stop was served before the link dropped: the trip is over, not handed on.
-            task = await self.store.finish_task(task_id, now=now)
-        self._robots[rt.name] = await self.store.get_robot(rt.name)
-        self._pub_task(task)
-        await self._pub_orders([o for s in task.stops for o in s.orders])
+        await self.trips.hand_back(rt.name, task_id, reason)
         resume = rt.state.resume
         if resume in (S.DELIVERING, S.DELIVERED):
             resume = S.TRANSIT
@@ -513,23 +329,14 @@ class Core:
         )
         self.dispatcher.kick()
 
-    async def _event(self, rt: _Runtime, ev: Event, *, error: str | None = None) -> Robot:
+    async def _event(self, rt: Runtime, ev: Event, *, error: str | None = None) -> Robot:
         new = apply(rt.state, ev)
         log.info("%s: %s --%s--> %s", rt.name, rt.state.status.value, ev.value, new.status.value)
         return await self._save_state(rt.name, new, error=error, data={"event": ev.value})
 
     async def flush_events(self) -> None:
-        """Push the events recorded since the last flush to ``events`` subscribers.
-
-        The store writes an event row in the same transaction as every state change; reading
-        them back here (by id, so nothing is missed or repeated) keeps that one source of truth.
-        """
-        async with self._events_lock:
-            while batch := await self.store.list_events(since_id=self._last_event, limit=500):
-                self._last_event = batch[-1].id
-                if self.hub.watched("events"):
-                    for ev in batch:
-                        self.hub.publish("events", P.dump(ev))
+        """Push the events recorded since the last flush to ``events`` subscribers."""
+        await self.publisher.flush_events()
 
     def robot_statuses(self) -> list[tuple[str, RobotStatus]]:
         return [(n, rt.state.status) for n, rt in sorted(self._rt.items())]
@@ -544,31 +351,24 @@ class Core:
         if topic == "tasks":
             return await self.store.list_tasks(status=[TaskStatus.QUEUED, TaskStatus.ACTIVE])
         if topic == "waypoints":
-            return list(self._waypoints.values())
+            return list(self.places.waypoints.values())
         if topic == "events":
-            await self.flush_events()
-            return await self.store.list_events(since_id=max(0, self._last_event - 100))
+            return await self.publisher.events_snapshot()
         if topic == "map":
-            return json.loads(self._map_json) if self._map_json else None
+            return self.places.map_snapshot()
         kind, _, robot = topic.partition(":")
         rt = self._runtime(robot)
         if kind == "pose":
-            return _pose_dict(rt.pose, self.clock.epoch()) if rt.pose else None
+            return pose_dict(rt.pose, self.clock.epoch()) if rt.pose else None
         return None  # scan: the next frame arrives as an update
 
     # -- instructions -----------------------------------------------------------------------
 
-    def _runtime(self, name: str) -> _Runtime:
+    def _runtime(self, name: str) -> Runtime:
         rt = self._rt.get(name)
         if rt is None:
             raise NotFound(f"no robot named {name!r}", robot=name)
         return rt
-
-    def _waypoint(self, name: str) -> WaypointRecord:
-        wp = self._waypoints.get(name)
-        if wp is None:
-            raise NotFound(f"no waypoint named {name!r}", waypoint=name)
-        return wp
 
     async def handle(self, msg: P.ClientMessage) -> dict[str, Any]:
         """Carry out one instruction; the reply payload, or a ServeurError."""
@@ -593,7 +393,7 @@ class Core:
             await self._act(rt, action, msg)
             return {"robot": self._robot_view(rt.name)}
 
-    async def _act(self, rt: _Runtime, action: Action, msg: Any) -> None:
+    async def _act(self, rt: Runtime, action: Action, msg: Any) -> None:
         link = rt.link
         assert link is not None
         if action is Action.AUTO:
@@ -604,7 +404,7 @@ class Core:
             await self._go_home_if_away(rt)
         elif action is Action.MANUAL:
             if self._robots[rt.name].current_task is not None:
-                await self._abandon_task(rt, "manual control taken")
+                await self.trips.abandon(rt.name, "manual control taken")
             with contextlib.suppress(LinkError):
                 await link.cancel_goal()
             rt.dest = None
@@ -615,7 +415,7 @@ class Core:
             await link.initial_pose(msg.x, msg.y, msg.yaw)
         elif action in (Action.GOAL, Action.GOTO):
             if action is Action.GOTO:
-                wp = self._waypoint(msg.waypoint)
+                wp = self.places.waypoint(msg.waypoint)
                 dest = Destination("manual", wp.name, wp.x, wp.y, wp.yaw)
             else:
                 dest = Destination("manual", "", msg.x, msg.y, msg.yaw)
@@ -643,59 +443,36 @@ class Core:
             await self._resume_move(rt)
         elif action is Action.CANCEL:
             if self._robots[rt.name].current_task is not None:
-                await self._abandon_task(rt, "cancelled by staff")
+                await self.trips.abandon(rt.name, "cancelled by staff")
             await self._event(rt, Event.CANCEL)
             await self._drive(rt, self._home_dest(rt))
 
-    async def _abandon_task(self, rt: _Runtime, reason: str) -> None:
-        task_id = self._robots[rt.name].current_task
-        if task_id is None:
-            return
-        aboard = [o.id for o in await self.store.list_orders(task_id=task_id)]
-        task = await self.store.cancel_task(task_id, now=self.clock.epoch(), reason=reason)
-        self._robots[rt.name] = await self.store.get_robot(rt.name)
-        self._pub_task(task)
-        await self._pub_orders(aboard)
-
-    async def _next(self, rt: _Runtime) -> None:
-        task = await self._current_task(rt)
-        stop = task.stops[task.current_stop]
-        task = await self.store.complete_stop(task.id, stop.seq, now=self.clock.epoch())
-        self._pub_task(task)
-        await self._pub_orders(stop.orders)
+    async def _next(self, rt: Runtime) -> None:
+        task = await self.trips.serve_stop(rt.name)
         if task.current_stop < len(task.stops):
             await self._event(rt, Event.NEXT_TABLE)
             await self._drive(rt, self._stop_dest(task))
         else:
-            task = await self.store.finish_task(task.id, now=self.clock.epoch())
-            self._robots[rt.name] = await self.store.get_robot(rt.name)
-            self._pub_task(task)
             await self._event(rt, Event.NEXT_HOME)
             await self._drive(rt, self._home_dest(rt))
 
-    async def _current_task(self, rt: _Runtime) -> Task:
-        task_id = self._robots[rt.name].current_task
-        if task_id is None:
-            raise Conflict(f"robot {rt.name} has no trip")
-        return await self.store.get_task(task_id)
-
     def _stop_dest(self, task: Task) -> Destination:
-        wp = self._waypoint(task.stops[task.current_stop].table)
+        wp = self.places.waypoint(task.stops[task.current_stop].table)
         return Destination("table", wp.name, wp.x, wp.y, wp.yaw)
 
-    def _home_dest(self, rt: _Runtime) -> Destination:
+    def _home_dest(self, rt: Runtime) -> Destination:
         home = self._robots[rt.name].home
         if home is None:
             raise Conflict(f"robot {rt.name} has no home waypoint")
-        wp = self._waypoint(home)
+        wp = self.places.waypoint(home)
         return Destination("home", wp.name, wp.x, wp.y, wp.yaw)
 
-    def _near(self, rt: _Runtime, dest: Destination) -> bool:
+    def _near(self, rt: Runtime, dest: Destination) -> bool:
         if rt.pose is None:
             return False
         return math.hypot(rt.pose[0] - dest.x, rt.pose[1] - dest.y) <= self.config.arrive_tolerance
 
-    async def _drive(self, rt: _Runtime, dest: Destination) -> None:
+    async def _drive(self, rt: Runtime, dest: Destination) -> None:
         rt.dest = dest
         assert rt.link is not None
         try:
@@ -704,17 +481,17 @@ class Core:
             rt.goal_id = None  # re-sent when the link is back (resume)
             log.warning("%s: goal to %s not sent: %s", rt.name, dest.name, exc)
 
-    async def _go_home_if_away(self, rt: _Runtime) -> None:
+    async def _go_home_if_away(self, rt: Runtime) -> None:
         dest = self._home_dest(rt)
         if rt.state.status is S.AWAITING and not self._near(rt, dest):
             await self._event(rt, Event.GO_HOME)
             await self._drive(rt, dest)
 
-    async def _resume_move(self, rt: _Runtime) -> None:
+    async def _resume_move(self, rt: Runtime) -> None:
         """Re-send the goal for the current move (after continue, or when the link returns)."""
         status = rt.state.status
         if status is S.DELIVERING:
-            task = await self._current_task(rt)
+            task = await self.trips.current(rt.name)
             dest = self._stop_dest(task)
             if self._near(rt, dest):
                 await self._arrived(rt)
@@ -728,27 +505,17 @@ class Core:
             else:
                 await self._drive(rt, dest)
 
-    async def _arrived(self, rt: _Runtime) -> None:
+    async def _arrived(self, rt: Runtime) -> None:
         if rt.state.status is S.DELIVERING:
-            task = await self._current_task(rt)
-            task = await self.store.arrive_stop(
-                task.id, task.stops[task.current_stop].seq, now=self.clock.epoch()
-            )
-            self._pub_task(task)
+            await self.trips.arrive(rt.name)
         await self._event(rt, Event.ARRIVED)
 
     async def _create(self, msg: Any) -> dict[str, Any]:
-        now = self.clock.epoch()
         kind = msg.type
         if kind == "order":
-            self._waypoint(msg.table)
-            order = await self.store.add_order(
-                msg.dish, msg.table, ready_at=now, key=msg.key, now=now
-            )
-            self._pub("orders", order)
-            return {"order": order}
+            return {"order": await self.creation.order(msg.dish, msg.table, msg.key)}
         if kind == "task":
-            return {"tasks": await self._create_task(list(msg.orders), msg.key)}
+            return {"tasks": await self.creation.tasks(list(msg.orders), msg.key)}
         if kind == "waypoint":
             if getattr(msg, "robot", None):
                 rt = self._runtime(msg.robot)
@@ -760,61 +527,26 @@ class Core:
             else:
                 x, y, yaw = msg.x, msg.y, msg.yaw
             wp = WaypointRecord(name=msg.name, x=x, y=y, yaw=yaw, kind=WaypointKind(msg.kind))
-            wp = await self.store.put_waypoint(wp, replace=msg.replace, now=now)
-            self._waypoints[wp.name] = wp
-            self._distances.set_spots([_spot(wp)])
-            if self._map is not None:
-                self._plan_later([wp.name])
-            self._pub("waypoints", wp)
-            return {"waypoint": wp}
+            return {"waypoint": await self.creation.waypoint(wp, replace=msg.replace)}
         if kind == "robot":
             if msg.home is not None:
-                self._waypoint(msg.home)
+                self.places.waypoint(msg.home)
             robot = await self.store.add_robot(
-                msg.name, msg.url, home=msg.home, kinematics=msg.kinematics, now=now
+                msg.name, msg.url, home=msg.home, kinematics=msg.kinematics, now=self.clock.epoch()
             )
             if robot.name not in self._rt:
                 self._add_runtime(robot)
                 self._start_link(self._rt[robot.name])
-            self._pub("robots", self._robot_view(robot.name))
+            self.publish_robot(robot.name)
             return {"robot": self._robot_view(robot.name)}
         raise InvalidField(f"cannot create {kind!r}")
 
-    async def _create_task(self, order_ids: list[int], key: str | None) -> list[Task]:
-        fp = _fingerprint({"orders": sorted(order_ids)})
-        orders: list[Order] = [await self.store.get_order(i) for i in order_ids]
-        pending = [o for o in orders if o.status is OrderStatus.PENDING]
-        if key is None and len(pending) != len(orders):
-            bad = sorted(o.id for o in orders if o.status is not OrderStatus.PENDING)
-            raise Conflict(f"orders not pending: {bad}", orders=bad)
-        if self.config.policy == "baseline":
-            trips = cart_order_trips(pending or orders, self.config.capacity)
-        else:
-            trips = plan_trips(
-                pending or orders, self._origin(), self.distance, self.config.capacity
-            )
-        tasks = await self.store.create_tasks(
-            trips, key=key, fingerprint=fp, now=self.clock.epoch()
-        )
-        for t in tasks:
-            self._pub_task(t)
-        await self._pub_orders(order_ids)
-        self.dispatcher.kick()
-        return tasks
-
     async def _order(self, msg: Any) -> dict[str, Any]:
         if getattr(msg, "table", None):
-            self._waypoint(msg.table)
+            self.places.waypoint(msg.table)
             return {"orders": await self.store.cart(msg.table)}
         rt = self._runtime(msg.robot)
-        task_id = self._robots[rt.name].current_task
-        if task_id is None:
-            return {"orders": []}
-        task = await self.store.get_task(task_id)
-        if task.current_stop >= len(task.stops):
-            return {"orders": []}
-        ids = set(task.stops[task.current_stop].orders)
-        return {"orders": [o for o in await self.store.list_orders(task_id=task_id) if o.id in ids]}
+        return {"orders": await self.trips.stop_orders(rt.name)}
 
     # -- dispatcher (scheduler.Fleet) -------------------------------------------------------
 
@@ -838,117 +570,18 @@ class Core:
         async with rt.lock:
             if rt.state.status is not S.AWAITING:
                 return False
-            home = self._robots[robot].home or self._origin()
-            task = await self.store.get_task(task_id)
-            order = [s.table for s in task.stops]
-            if self.config.policy == "baseline":
-                stop_order = order  # the cart's order, as the design report's robot does
-            else:
-                stop_order = order_stops(home, order, self.distance, end=home)
-            try:
-                task = await self.store.start_task(
-                    task_id, robot, stop_order=stop_order, now=self.clock.epoch()
-                )
-            except Conflict:
+            task = await self.trips.take(task_id, robot)
+            if task is None:
                 return False
-            self._robots[robot] = await self.store.get_robot(robot)
-            self._pub_task(task)
-            await self._pub_orders([o for s in task.stops for o in s.orders])
             await self._event(rt, Event.DISPATCH)
             await self._drive(rt, self._stop_dest(task))
         await self.flush_events()
         return True
 
-    # -- link reports (robot_link.LinkListener) ---------------------------------------------
+    # -- link reports, queued per robot (link_reports.ReportHandler) --------------------------
 
-    def _post(self, robot: str, kind: str, *args: Any) -> None:
-        rt = self._rt.get(robot)
-        if rt is not None and not self._closing:
-            rt.events.put_nowait((kind, args))
-
-    def link_up(self, robot: str) -> None:
-        self._post(robot, "up")
-
-    def link_down(self, robot: str, reason: str) -> None:
-        self._post(robot, "down", reason)
-
-    def goal_done(self, robot: str, goal_id: str, status: rb.GoalStatus, text: str) -> None:
-        self._post(robot, "goal", goal_id, status, text)
-
-    def goal_lost(self, robot: str, goal_id: str, reason: str) -> None:
-        self._post(robot, "goal", goal_id, rb.GoalStatus.LOST, reason)
-
-    def pose(self, robot: str, x: float, y: float, yaw: float, stamp: float) -> None:
-        rt = self._rt.get(robot)
-        if rt is None:
-            return
-        rt.pose = (x, y, yaw)
-        topic = f"pose:{robot}"
-        if self.hub.watched(topic):
-            self.hub.publish(topic, P.dump(_pose_dict(rt.pose, stamp)))
-        if self.clock.now() - rt.pose_saved_at > self.config.pose_persist_period:
-            rt.pose_saved_at = self.clock.now()
-            self._post(robot, "persist_pose")
-
-    def battery(self, robot: str, fraction: float) -> None:
-        rt = self._rt.get(robot)
-        if rt is None:
-            return
-        old, rt.battery = rt.battery, fraction
-        if old is None or abs(old - fraction) >= 0.01:
-            self._pub("robots", self._robot_view(robot))
-
-    def scan(self, robot: str, msg: Mapping[str, Any]) -> None:
-        rt = self._rt.get(robot)
-        if rt is None or not self.hub.watched(f"scan:{robot}"):
-            return
-        x, y, yaw = rt.pose or (0.0, 0.0, 0.0)
-        data = {
-            "stamp": rb.from_ros_time(msg["header"]["stamp"]),
-            "x": x,
-            "y": y,
-            "yaw": yaw,
-            "angle_min": msg["angle_min"],
-            "angle_increment": msg["angle_increment"],
-            "range_max": msg["range_max"],
-            "ranges": msg["ranges"],
-        }
-        self.hub.publish(f"scan:{robot}", P.dump(data))
-
-    def map(self, robot: str, msg: Mapping[str, Any]) -> None:
-        if self._map is not None:
-            return
-        try:
-            self._set_map(MapData.from_grid_msg(msg))
-            log.info("adopted the map published by %s", robot)
-            self._plan_later(None)
-        except ServeurError as exc:
-            log.warning("%s: unusable /map: %s", robot, exc)
-
-    def _on_watch(self, topic: str, on: bool) -> None:
-        # Scans stream only while watched; poses slow to 1 Hz while unwatched and parked.
-        if topic.startswith("scan:"):
-            rt = self._rt.get(topic[5:])
-            if rt is not None and rt.link is not None:
-                asyncio.get_running_loop().create_task(rt.link.want_scan(on))
-        elif topic.startswith("pose:"):
-            rt = self._rt.get(topic[5:])
-            if rt is not None and rt.link is not None:
-                asyncio.get_running_loop().create_task(rt.link.want_pose(on))
-
-    async def _worker(self, rt: _Runtime) -> None:
-        while True:
-            kind, args = await rt.events.get()
-            try:
-                async with rt.lock:
-                    await self._on_report(rt, kind, args)
-                await self.flush_events()
-            except asyncio.CancelledError:
-                raise
-            except Exception:
-                log.exception("%s: handling %s failed", rt.name, kind)
-
-    async def _on_report(self, rt: _Runtime, kind: str, args: tuple[Any, ...]) -> None:
+    async def on_report(self, rt: Runtime, kind: str, args: tuple[Any, ...]) -> None:
+        """One queued link report, under the robot's lock."""
         if kind == "up":
             await self._event(rt, Event.LINK_UP)
             if rt.state.status is S.AWAITING:
@@ -965,17 +598,10 @@ class Core:
             await self._on_goal(rt, *args)
         elif kind == "handover":
             await self._hand_over(rt)
-        elif kind == "persist_pose" and rt.pose is not None:
-            await self.store.save_robot_pose(
-                rt.name,
-                x=rt.pose[0],
-                y=rt.pose[1],
-                yaw=rt.pose[2],
-                battery=rt.battery,
-                now=self.clock.epoch(),
-            )
+        elif kind == "persist_pose":
+            await self._save_pose(rt)
 
-    async def _on_goal(self, rt: _Runtime, goal_id: str, status: rb.GoalStatus, text: str) -> None:
+    async def _on_goal(self, rt: Runtime, goal_id: str, status: rb.GoalStatus, text: str) -> None:
         if goal_id != rt.goal_id:
             return  # a goal we already replaced or cancelled
         rt.goal_id = None
@@ -996,16 +622,8 @@ class Core:
         what = {rb.GoalStatus.LOST: "goal lost"}.get(status, f"move_base {status.name}")
         await self._failed(rt, f"{what}: {text}" if text else what)
 
-    async def _failed(self, rt: _Runtime, reason: str) -> None:
+    async def _failed(self, rt: Runtime, reason: str) -> None:
         if rt.state.status in (S.DELIVERING, S.TRANSIT):
             await self._event(rt, Event.NAV_FAILED, error=reason)
         else:
             await self._save_state(rt.name, rt.state, error=reason, event="robot.goal_failed")
-
-
-def _pose_dict(pose: tuple[float, float, float], stamp: float) -> dict[str, float]:
-    return {"x": pose[0], "y": pose[1], "yaw": pose[2], "stamp": stamp}
-
-
-def _spot(w: WaypointRecord) -> tuple[str, float, float]:
-    return (w.name, w.x, w.y)

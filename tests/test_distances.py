@@ -114,10 +114,12 @@ async def test_a_new_waypoint_gets_path_distances(tmp_path: Path) -> None:
         served = (await c.ok("data", topics=["map"]))["data"]["map"]
         assert MapData.from_snapshot(served) == MapData.from_occupancy(load_demo()[0])
         # Just inside the pass corner: the straight line to T1 crosses the counter.
-        wp = core._waypoints["pass"]
+        wp = core.places.waypoints["pass"]
         await c.ok("create", type="waypoint", name="P2", x=wp.x, y=wp.y, yaw=0.0, kind="other")
-        await asyncio.wait_for(asyncio.gather(*core._planning), 30)
-        assert core._distances.planned("P2", "T1") == pytest.approx(core.distance("pass", "T1"))
+        await asyncio.wait_for(asyncio.gather(*core.places.planning), 30)
+        assert core.places.distances.planned("P2", "T1") == pytest.approx(
+            core.distance("pass", "T1")
+        )
         assert core.distance("P2", "T13") > 0
 
 
