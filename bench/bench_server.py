@@ -161,23 +161,7 @@ class Load:
         return await asyncio.wait_for(fut, 30)
 
 
-async def phase_latency(probe: Load, echo_url: str, samples: int) -> dict[str, float]:
-    req = json.dumps({"clientmsg": "data", "id": 0, "topics": ["map"], "unsubscribe": True})
-    srv: list[float] = []
-    raw: list[float] = []
-    async with connect(echo_url, compression=None) as echo:
-        for i in range(samples + 50):
-            t = time.perf_counter()
-            await probe.call("data", topics=["map"], unsubscribe=True)
-            a = time.perf_counter() - t
-            t = time.perf_counter()
-            await echo.send(req)
-            await echo.recv()
-            b = time.perf_counter() - t
-            if i >= 50:  # warm-up
-                srv.append(a)
-                raw.append(b)
-            await asyncio.sleep(0.002)
+def _latency_stats(srv: list[float], raw: list[float]) -> dict[str, float]:
     return {
         "serveur_p50_ms": 1e3 * pct(srv, 50),
         "serveur_p99_ms": 1e3 * pct(srv, 99),
@@ -186,6 +170,85 @@ async def phase_latency(probe: Load, echo_url: str, samples: int) -> dict[str, f
         "ratio_p50": pct(srv, 50) / pct(raw, 50),
         "ratio_p99": pct(srv, 99) / pct(raw, 99),
     }
+
+
+_PROBE_REQ = json.dumps({"clientmsg": "data", "id": 0, "topics": ["map"], "unsubscribe": True})
+
+
+async def phase_latency(probe: Load, echo_url: str, samples: int) -> dict[str, float]:
+    """The probe from this process (``--probe-in-process``): its loop also reads the 199
+    clients' 2,000 frames/s, so its own jitter lands on both serveur's and echo's figures."""
+    srv: list[float] = []
+    raw: list[float] = []
+    async with connect(echo_url, compression=None) as echo:
+        for i in range(samples + 50):
+            t = time.perf_counter()
+            await probe.call("data", topics=["map"], unsubscribe=True)
+            a = time.perf_counter() - t
+            t = time.perf_counter()
+            await echo.send(_PROBE_REQ)
+            await echo.recv()
+            b = time.perf_counter() - t
+            if i >= 50:  # warm-up
+                srv.append(a)
+                raw.append(b)
+            await asyncio.sleep(0.002)
+    return _latency_stats(srv, raw)
+
+
+async def _probe_main(url: str, echo_url: str, token: str, samples: int) -> None:
+    """The probe in a process of its own (the default), as a real tablet is: one connection
+    to serveur (subscribed to ``robots``, like the staff client of the in-process probe) and
+    one to the echo server, alternating requests; prints the stats as one JSON line."""
+    auth = {"Authorization": f"Bearer {token}"}
+    srv: list[float] = []
+    raw: list[float] = []
+    async with (
+        connect(url, compression=None, max_size=2**24, additional_headers=auth) as ws,
+        connect(echo_url, compression=None) as echo,
+    ):
+
+        async def call(n: int, **fields: Any) -> None:
+            await ws.send(json.dumps({"clientmsg": "data", "id": n, **fields}))
+            while True:
+                frame = await ws.recv()
+                if '"servermsg":"update"' not in frame and json.loads(frame).get("id") == n:
+                    return
+
+        await call(1, topics=["robots"])
+        for i in range(samples + 50):
+            t = time.perf_counter()
+            await call(i + 2, topics=["map"], unsubscribe=True)
+            a = time.perf_counter() - t
+            t = time.perf_counter()
+            await echo.send(_PROBE_REQ)
+            await echo.recv()
+            b = time.perf_counter() - t
+            if i >= 50:  # warm-up
+                srv.append(a)
+                raw.append(b)
+            await asyncio.sleep(0.002)
+    print(json.dumps(_latency_stats(srv, raw)), flush=True)
+
+
+async def phase_latency_process(
+    url: str, echo_url: str, token: str, samples: int
+) -> dict[str, float]:
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable,
+        __file__,
+        "--probe",
+        url,
+        echo_url,
+        token,
+        str(samples),
+        stdout=asyncio.subprocess.PIPE,
+    )
+    out, _ = await asyncio.wait_for(proc.communicate(), 60 + samples * 0.05)
+    if proc.returncode != 0:
+        raise RuntimeError(f"probe process failed ({proc.returncode})")
+    stats: dict[str, float] = json.loads(out.decode().strip().splitlines()[-1])
+    return stats
 
 
 async def phase_fanout(clients: list[Load], seconds: float) -> dict[str, float]:
@@ -397,13 +460,20 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
             )
             cpu0, _ = _proc_stats(spid)
             t0 = time.monotonic()
-            results["latency"] = await phase_latency(
-                staff, f"ws://127.0.0.1:{echo_port}", ns.samples
-            )
+            echo_url = f"ws://127.0.0.1:{echo_port}"
+            if ns.probe_in_process:
+                results["latency"] = await phase_latency(staff, echo_url, ns.samples)
+            else:
+                results["latency"] = await phase_latency_process(url, echo_url, token, ns.samples)
+            results["latency"]["probe"] = "in-process" if ns.probe_in_process else "own process"
             cpu1, rss = _proc_stats(spid)
             results["latency"]["server_cpu_percent"] = 100 * (cpu1 - cpu0) / (time.monotonic() - t0)
             results["latency"]["rss_mb_watching"] = rss / 2**20
             print("latency", results["latency"], flush=True)
+            if ns.latency_only:
+                for c in clients:
+                    await c.ws.close()
+                return results
             for i, c in enumerate(clients[1:]):
                 await c.call("data", topics=[f"pose:r{1 + i % ns.robots}"], unsubscribe=True)
             results["fanout"] = await phase_fanout(clients, ns.fanout_seconds)
@@ -444,8 +514,19 @@ if __name__ == "__main__":
     ap.add_argument(
         "--footprint-only", action="store_true", help="stop after the RSS / idle CPU phase"
     )
+    ap.add_argument(
+        "--probe-in-process",
+        action="store_true",
+        help="time the probe from the load process (the old method) instead of its own process",
+    )
+    ap.add_argument("--latency-only", action="store_true", help="stop after the latency phase")
     ap.add_argument("--echo-server", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--probe", nargs=4, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.probe:
+        purl, pecho, ptoken, psamples = args.probe
+        asyncio.run(_probe_main(purl, pecho, ptoken, int(psamples)))
+        sys.exit(0)
     if args.echo_server:
         with contextlib.suppress(KeyboardInterrupt):
             asyncio.run(_echo_main())
