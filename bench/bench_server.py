@@ -164,8 +164,10 @@ class Load:
 def _latency_stats(srv: list[float], raw: list[float]) -> dict[str, float]:
     return {
         "serveur_p50_ms": 1e3 * pct(srv, 50),
+        "serveur_p90_ms": 1e3 * pct(srv, 90),
         "serveur_p99_ms": 1e3 * pct(srv, 99),
         "echo_p50_ms": 1e3 * pct(raw, 50),
+        "echo_p90_ms": 1e3 * pct(raw, 90),
         "echo_p99_ms": 1e3 * pct(raw, 99),
         "ratio_p50": pct(srv, 50) / pct(raw, 50),
         "ratio_p99": pct(srv, 99) / pct(raw, 99),
