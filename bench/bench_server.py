@@ -352,7 +352,11 @@ async def phase_dispatch(
 
 
 async def main(ns: argparse.Namespace) -> dict[str, Any]:
-    results: dict[str, Any] = {"clients": ns.clients, "robots": ns.robots}
+    results: dict[str, Any] = {
+        "clients": ns.clients,
+        "robots": ns.robots,
+        "sim_phases": "spread" if ns.sim_spread else "lock-step",
+    }
     procs: list[asyncio.subprocess.Process] = []
     with tempfile.TemporaryDirectory(prefix="serveur-bench-") as tmpdir:
         tmp = Path(tmpdir)
@@ -370,6 +374,7 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                     "0",
                     "--map",
                     str(room),
+                    *(["--spread-phases"] if ns.sim_spread else []),
                 ],
                 ns.robots,
             )
@@ -520,6 +525,11 @@ if __name__ == "__main__":
         "--probe-in-process",
         action="store_true",
         help="time the probe from the load process (the old method) instead of its own process",
+    )
+    ap.add_argument(
+        "--sim-spread",
+        action="store_true",
+        help="serveur sim --spread-phases: robot i's poses i/N of the period after robot 0's",
     )
     ap.add_argument("--latency-only", action="store_true", help="stop after the latency phase")
     ap.add_argument("--echo-server", action="store_true", help=argparse.SUPPRESS)
