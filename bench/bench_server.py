@@ -234,9 +234,10 @@ async def _probe_main(url: str, echo_url: str, token: str, samples: int) -> None
 
 
 async def phase_latency_process(
-    url: str, echo_url: str, token: str, samples: int
+    url: str, echo_url: str, token: str, samples: int, rt: bool = False
 ) -> dict[str, float]:
     proc = await asyncio.create_subprocess_exec(
+        *(["chrt", "-r", "1"] if rt else []),
         sys.executable,
         __file__,
         "--probe",
@@ -379,7 +380,8 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                 ns.robots,
             )
             procs.append(sim)
-            echo, [echo_port] = await _start([sys.executable, __file__, "--echo-server"], 1)
+            rt = ["chrt", "-r", "1"] if ns.rt else []
+            echo, [echo_port] = await _start([*rt, sys.executable, __file__, "--echo-server"], 1)
             procs.append(echo)
             port = _free_port()
             # A staff token for the load clients; all of them come from 127.0.0.1, so the
@@ -432,7 +434,7 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                     "bench-server-profile.txt",
                     *cmd[1:],
                 ]
-            server, _ = await _start(cmd, 1)
+            server, _ = await _start([*rt, *cmd], 1)
             procs.append(server)
             url = f"ws://127.0.0.1:{port}/ws"
             clients = [
@@ -530,6 +532,13 @@ if __name__ == "__main__":
         "--sim-spread",
         action="store_true",
         help="serveur sim --spread-phases: robot i's poses i/N of the period after robot 0's",
+    )
+    ap.add_argument(
+        "--rt",
+        action="store_true",
+        help="run serveur, the echo server and the probe under SCHED_RR priority 1 (chrt, "
+        "needs root), the simulator and the 199 load clients as usual: what is measured is "
+        "then shielded from other work on a shared host (both servers alike)",
     )
     ap.add_argument("--latency-only", action="store_true", help="stop after the latency phase")
     ap.add_argument("--echo-server", action="store_true", help=argparse.SUPPRESS)
