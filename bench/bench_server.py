@@ -237,7 +237,7 @@ async def phase_latency_process(
     url: str, echo_url: str, token: str, samples: int, rt: bool = False
 ) -> dict[str, float]:
     proc = await asyncio.create_subprocess_exec(
-        *(["chrt", "-r", "1"] if rt else []),
+        *(["chrt", "-r", "1", "taskset", "-c", "1"] if rt else []),
         sys.executable,
         __file__,
         "--probe",
@@ -380,7 +380,7 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                 ns.robots,
             )
             procs.append(sim)
-            rt = ["chrt", "-r", "1"] if ns.rt else []
+            rt = ["chrt", "-r", "1", "taskset", "-c", "0"] if ns.isolate else []
             echo, [echo_port] = await _start([*rt, sys.executable, __file__, "--echo-server"], 1)
             procs.append(echo)
             port = _free_port()
@@ -534,11 +534,11 @@ if __name__ == "__main__":
         help="serveur sim --spread-phases: robot i's poses i/N of the period after robot 0's",
     )
     ap.add_argument(
-        "--rt",
+        "--isolate",
         action="store_true",
-        help="run serveur, the echo server and the probe under SCHED_RR priority 1 (chrt, "
-        "needs root), the simulator and the 199 load clients as usual: what is measured is "
-        "then shielded from other work on a shared host (both servers alike)",
+        help="serveur and the echo server on CPU 0, the simulator, the load clients and the "
+        "probe on CPU 1; serveur, echo and probe under SCHED_RR priority 1 (chrt, needs root): "
+        "what is measured is shielded from other work on a shared host, both servers alike",
     )
     ap.add_argument("--latency-only", action="store_true", help="stop after the latency phase")
     ap.add_argument("--echo-server", action="store_true", help=argparse.SUPPRESS)
@@ -552,5 +552,7 @@ if __name__ == "__main__":
         with contextlib.suppress(KeyboardInterrupt):
             asyncio.run(_echo_main())
         sys.exit(0)
+    if args.isolate:
+        os.sched_setaffinity(0, {1})  # the load clients and the simulator (started from here)
     out = asyncio.run(main(args))
     print(json.dumps(out, indent=1))
