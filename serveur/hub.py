@@ -72,7 +72,7 @@ class Pacer:
         self.per_turn = per_turn
         self._queue: deque[Subscriber] = deque()
         self._scheduled = False
-        self.turns = 0  # loop turns that wrote something (for tests and curiosity)
+        self.turns = 0  # loop turns the pacer has run
 
     def __len__(self) -> int:
         return len(self._queue)
