@@ -36,7 +36,7 @@ import asyncio
 import contextlib
 import logging
 from collections import deque
-from collections.abc import Awaitable, Callable, Coroutine, Iterable
+from collections.abc import Awaitable, Callable, Coroutine, Iterable, Iterator
 from typing import Any
 
 from serveur import protocol
@@ -76,6 +76,10 @@ class Pacer:
 
     def __len__(self) -> int:
         return len(self._queue)
+
+    def __iter__(self) -> Iterator[Subscriber]:
+        """The subscribers waiting, in the order they will be written."""
+        return iter(self._queue)
 
     def add(self, sub: Subscriber) -> None:
         self._queue.append(sub)
