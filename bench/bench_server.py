@@ -12,16 +12,22 @@ Phases (every one bounded in count and time; the script stops everything it star
 
 1. **footprint** — server RSS and CPU over ``--idle`` seconds with the robots streaming and
    the clients connected, subscribed to ``robots``, sending nothing;
-2. **latency** — clients also watch ``pose:<robot>`` (each one robot's, 10 Hz), and one client
+2. **latency** — clients also watch ``pose:<robot>`` (each one robot's, 10 Hz), and a probe
    times ``--samples`` requests (``data`` unsubscribing from ``map``: parsed, validated and
-   answered by the server, no database) alternately to serveur and to the echo server;
+   answered by the server, no database) alternately to serveur and to the echo server. The
+   probe is a process of its own, as a tablet is (``--probe-in-process``: the old method,
+   from this process, whose loop also reads the 199 clients' 2,000 frames/s);
 3. **fan-out** — every client subscribes to ``pose:r1``; for each update, the time from the
    robot's stamp to the *last* client's receipt;
 4. **dispatch** — ``create task`` sent -> the goal appears on the robot's ``/move_base/goal``
    (the bench subscribes to the robot's rosbridge), ``--dispatches`` times.
 
-Run: ``python bench/bench_server.py`` (about four minutes). ``--profile`` writes a pyinstrument
-profile of the server (``pip install pyinstrument``) to ``bench-server-profile.txt``.
+Run: ``python bench/bench_server.py`` (about four minutes). ``--latency-only`` stops after
+phase 2; ``--sim-spread`` spreads the simulated robots' publish phases (``serveur sim
+--spread-phases``); ``--isolate`` pins the servers and the load to different CPUs and runs
+the servers and the probe under SCHED_RR, to shield the figures from a shared host's noise.
+``--profile`` writes a pyinstrument profile of the server (``pip install pyinstrument``) to
+``bench-server-profile.txt``.
 """
 
 from __future__ import annotations
