@@ -12,16 +12,22 @@ Phases (every one bounded in count and time; the script stops everything it star
 
 1. **footprint** — server RSS and CPU over ``--idle`` seconds with the robots streaming and
    the clients connected, subscribed to ``robots``, sending nothing;
-2. **latency** — clients also watch ``pose:<robot>`` (each one robot's, 10 Hz), and one client
+2. **latency** — clients also watch ``pose:<robot>`` (each one robot's, 10 Hz), and a probe
    times ``--samples`` requests (``data`` unsubscribing from ``map``: parsed, validated and
-   answered by the server, no database) alternately to serveur and to the echo server;
+   answered by the server, no database) alternately to serveur and to the echo server. The
+   probe is a process of its own, as a tablet is (``--probe-in-process``: the old method,
+   from this process, whose loop also reads the 199 clients' 2,000 frames/s);
 3. **fan-out** — every client subscribes to ``pose:r1``; for each update, the time from the
    robot's stamp to the *last* client's receipt;
 4. **dispatch** — ``create task`` sent -> the goal appears on the robot's ``/move_base/goal``
    (the bench subscribes to the robot's rosbridge), ``--dispatches`` times.
 
-Run: ``python bench/bench_server.py`` (about four minutes). ``--profile`` writes a pyinstrument
-profile of the server (``pip install pyinstrument``) to ``bench-server-profile.txt``.
+Run: ``python bench/bench_server.py`` (about four minutes). ``--latency-only`` stops after
+phase 2; ``--sim-spread`` spreads the simulated robots' publish phases (``serveur sim
+--spread-phases``); ``--isolate`` pins the servers and the load to different CPUs and runs
+the servers and the probe under SCHED_RR, to shield the figures from a shared host's noise.
+``--profile`` writes a pyinstrument profile of the server (``pip install pyinstrument``) to
+``bench-server-profile.txt``.
 """
 
 from __future__ import annotations
@@ -161,8 +167,25 @@ class Load:
         return await asyncio.wait_for(fut, 30)
 
 
+def _latency_stats(srv: list[float], raw: list[float]) -> dict[str, float]:
+    return {
+        "serveur_p50_ms": 1e3 * pct(srv, 50),
+        "serveur_p90_ms": 1e3 * pct(srv, 90),
+        "serveur_p99_ms": 1e3 * pct(srv, 99),
+        "echo_p50_ms": 1e3 * pct(raw, 50),
+        "echo_p90_ms": 1e3 * pct(raw, 90),
+        "echo_p99_ms": 1e3 * pct(raw, 99),
+        "ratio_p50": pct(srv, 50) / pct(raw, 50),
+        "ratio_p99": pct(srv, 99) / pct(raw, 99),
+    }
+
+
+_PROBE_REQ = json.dumps({"clientmsg": "data", "id": 0, "topics": ["map"], "unsubscribe": True})
+
+
 async def phase_latency(probe: Load, echo_url: str, samples: int) -> dict[str, float]:
-    req = json.dumps({"clientmsg": "data", "id": 0, "topics": ["map"], "unsubscribe": True})
+    """The probe from this process (``--probe-in-process``): its loop also reads the 199
+    clients' 2,000 frames/s, so its own jitter lands on both serveur's and echo's figures."""
     srv: list[float] = []
     raw: list[float] = []
     async with connect(echo_url, compression=None) as echo:
@@ -171,21 +194,70 @@ async def phase_latency(probe: Load, echo_url: str, samples: int) -> dict[str, f
             await probe.call("data", topics=["map"], unsubscribe=True)
             a = time.perf_counter() - t
             t = time.perf_counter()
-            await echo.send(req)
+            await echo.send(_PROBE_REQ)
             await echo.recv()
             b = time.perf_counter() - t
             if i >= 50:  # warm-up
                 srv.append(a)
                 raw.append(b)
             await asyncio.sleep(0.002)
-    return {
-        "serveur_p50_ms": 1e3 * pct(srv, 50),
-        "serveur_p99_ms": 1e3 * pct(srv, 99),
-        "echo_p50_ms": 1e3 * pct(raw, 50),
-        "echo_p99_ms": 1e3 * pct(raw, 99),
-        "ratio_p50": pct(srv, 50) / pct(raw, 50),
-        "ratio_p99": pct(srv, 99) / pct(raw, 99),
-    }
+    return _latency_stats(srv, raw)
+
+
+async def _probe_main(url: str, echo_url: str, token: str, samples: int) -> None:
+    """The probe in a process of its own (the default), as a real tablet is: one connection
+    to serveur (subscribed to ``robots``, like the staff client of the in-process probe) and
+    one to the echo server, alternating requests; prints the stats as one JSON line."""
+    auth = {"Authorization": f"Bearer {token}"}
+    srv: list[float] = []
+    raw: list[float] = []
+    async with (
+        connect(url, compression=None, max_size=2**24, additional_headers=auth) as ws,
+        connect(echo_url, compression=None) as echo,
+    ):
+
+        async def call(n: int, **fields: Any) -> None:
+            await ws.send(json.dumps({"clientmsg": "data", "id": n, **fields}))
+            while True:
+                frame = await ws.recv()
+                if '"servermsg":"update"' not in frame and json.loads(frame).get("id") == n:
+                    return
+
+        await call(1, topics=["robots"])
+        for i in range(samples + 50):
+            t = time.perf_counter()
+            await call(i + 2, topics=["map"], unsubscribe=True)
+            a = time.perf_counter() - t
+            t = time.perf_counter()
+            await echo.send(_PROBE_REQ)
+            await echo.recv()
+            b = time.perf_counter() - t
+            if i >= 50:  # warm-up
+                srv.append(a)
+                raw.append(b)
+            await asyncio.sleep(0.002)
+    print(json.dumps(_latency_stats(srv, raw)), flush=True)
+
+
+async def phase_latency_process(
+    url: str, echo_url: str, token: str, samples: int, rt: bool = False
+) -> dict[str, float]:
+    proc = await asyncio.create_subprocess_exec(
+        *(["chrt", "-r", "1", "taskset", "-c", "1"] if rt else []),
+        sys.executable,
+        __file__,
+        "--probe",
+        url,
+        echo_url,
+        token,
+        str(samples),
+        stdout=asyncio.subprocess.PIPE,
+    )
+    out, _ = await asyncio.wait_for(proc.communicate(), 60 + samples * 0.05)
+    if proc.returncode != 0:
+        raise RuntimeError(f"probe process failed ({proc.returncode})")
+    stats: dict[str, float] = json.loads(out.decode().strip().splitlines()[-1])
+    return stats
 
 
 async def phase_fanout(clients: list[Load], seconds: float) -> dict[str, float]:
@@ -287,7 +359,11 @@ async def phase_dispatch(
 
 
 async def main(ns: argparse.Namespace) -> dict[str, Any]:
-    results: dict[str, Any] = {"clients": ns.clients, "robots": ns.robots}
+    results: dict[str, Any] = {
+        "clients": ns.clients,
+        "robots": ns.robots,
+        "sim_phases": "spread" if ns.sim_spread else "lock-step",
+    }
     procs: list[asyncio.subprocess.Process] = []
     with tempfile.TemporaryDirectory(prefix="serveur-bench-") as tmpdir:
         tmp = Path(tmpdir)
@@ -305,11 +381,13 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                     "0",
                     "--map",
                     str(room),
+                    *(["--spread-phases"] if ns.sim_spread else []),
                 ],
                 ns.robots,
             )
             procs.append(sim)
-            echo, [echo_port] = await _start([sys.executable, __file__, "--echo-server"], 1)
+            rt = ["chrt", "-r", "1", "taskset", "-c", "0"] if ns.isolate else []
+            echo, [echo_port] = await _start([*rt, sys.executable, __file__, "--echo-server"], 1)
             procs.append(echo)
             port = _free_port()
             # A staff token for the load clients; all of them come from 127.0.0.1, so the
@@ -362,7 +440,7 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                     "bench-server-profile.txt",
                     *cmd[1:],
                 ]
-            server, _ = await _start(cmd, 1)
+            server, _ = await _start([*rt, *cmd], 1)
             procs.append(server)
             url = f"ws://127.0.0.1:{port}/ws"
             clients = [
@@ -397,13 +475,20 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
             )
             cpu0, _ = _proc_stats(spid)
             t0 = time.monotonic()
-            results["latency"] = await phase_latency(
-                staff, f"ws://127.0.0.1:{echo_port}", ns.samples
-            )
+            echo_url = f"ws://127.0.0.1:{echo_port}"
+            if ns.probe_in_process:
+                results["latency"] = await phase_latency(staff, echo_url, ns.samples)
+            else:
+                results["latency"] = await phase_latency_process(url, echo_url, token, ns.samples)
+            results["latency"]["probe"] = "in-process" if ns.probe_in_process else "own process"
             cpu1, rss = _proc_stats(spid)
             results["latency"]["server_cpu_percent"] = 100 * (cpu1 - cpu0) / (time.monotonic() - t0)
             results["latency"]["rss_mb_watching"] = rss / 2**20
             print("latency", results["latency"], flush=True)
+            if ns.latency_only:
+                for c in clients:
+                    await c.ws.close()
+                return results
             for i, c in enumerate(clients[1:]):
                 await c.call("data", topics=[f"pose:r{1 + i % ns.robots}"], unsubscribe=True)
             results["fanout"] = await phase_fanout(clients, ns.fanout_seconds)
@@ -444,11 +529,36 @@ if __name__ == "__main__":
     ap.add_argument(
         "--footprint-only", action="store_true", help="stop after the RSS / idle CPU phase"
     )
+    ap.add_argument(
+        "--probe-in-process",
+        action="store_true",
+        help="time the probe from the load process (the old method) instead of its own process",
+    )
+    ap.add_argument(
+        "--sim-spread",
+        action="store_true",
+        help="serveur sim --spread-phases: robot i's poses i/N of the period after robot 0's",
+    )
+    ap.add_argument(
+        "--isolate",
+        action="store_true",
+        help="serveur and the echo server on CPU 0, the simulator, the load clients and the "
+        "probe on CPU 1; serveur, echo and probe under SCHED_RR priority 1 (chrt, needs root): "
+        "what is measured is shielded from other work on a shared host, both servers alike",
+    )
+    ap.add_argument("--latency-only", action="store_true", help="stop after the latency phase")
     ap.add_argument("--echo-server", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--probe", nargs=4, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.probe:
+        purl, pecho, ptoken, psamples = args.probe
+        asyncio.run(_probe_main(purl, pecho, ptoken, int(psamples)))
+        sys.exit(0)
     if args.echo_server:
         with contextlib.suppress(KeyboardInterrupt):
             asyncio.run(_echo_main())
         sys.exit(0)
+    if args.isolate:
+        os.sched_setaffinity(0, {1})  # the load clients and the simulator (started from here)
     out = asyncio.run(main(args))
     print(json.dumps(out, indent=1))

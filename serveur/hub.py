@@ -13,13 +13,21 @@ classic rosbridge complaint). So every subscriber has its own writer task and bo
   ``max_pending`` updates behind is disconnected with close code 4002, and resynchronises from
   a fresh snapshot when it reconnects (the ``seq`` numbers let it notice the gap).
 
-Stream frames to a client that has nothing queued are written straight to its socket from
-:meth:`Hub.publish` (``write_now``), not through its writer task: waking one task per
-subscriber for each 10 Hz pose made every AMCL tick a burst of ~100 task switches and
-``send`` calls (~36 us each), and a request arriving behind a burst waited for all of it —
-the server's p99 latency was 12-14x a raw echo server's (docs/performance.md). Anything that
+Stream frames and replies to a client that has nothing queued are written straight to its
+socket (``write_now``), not through its writer task: waking one task per subscriber for each
+10 Hz pose made every AMCL tick a burst of ~100 task switches and ``send`` calls, and the
+server's p99 latency was 12-14x a raw echo server's (docs/performance.md). Anything that
 cannot go out at once (a state update queued, the socket's buffer full) takes the queued
 path, so order and back-pressure are as before.
+
+Stream frames are also *paced* (:class:`Pacer`): :meth:`Hub.publish` only records the newest
+frame per subscriber and queues the subscriber; a callback writes ``per_turn`` subscribers'
+frames per event-loop turn and yields. On loopback a frame's ``send`` costs ~20-25 us (the
+kernel delivers it in the sender's time), so ten robots' poses arriving together to 200
+watchers were a ~5 ms run of sends in one loop turn, and a request arriving meanwhile waited
+for all of it. Paced, a request is read and answered between two chunks (its reply goes out
+directly, ahead of the remaining stream frames, which are latest-only and never reordered
+among themselves for one client).
 """
 
 from __future__ import annotations
@@ -28,22 +36,68 @@ import asyncio
 import contextlib
 import logging
 from collections import deque
-from collections.abc import Awaitable, Callable, Coroutine, Iterable
+from collections.abc import Awaitable, Callable, Coroutine, Iterable, Iterator
 from typing import Any
 
 from serveur import protocol
 
-__all__ = ["CLOSE_TOO_SLOW", "Hub", "Subscriber", "is_stream_topic"]
+__all__ = ["CLOSE_TOO_SLOW", "PER_TURN", "Hub", "Pacer", "Subscriber", "is_stream_topic"]
 
 log = logging.getLogger(__name__)
 
 CLOSE_TOO_SLOW = 4002
 _CLOSE = "\x00close"  # queue marker: close here (an identity-compared sentinel, not a topic)
+#: Subscribers whose stream frames the pacer writes per event-loop turn: 16 sends are
+#: ~0.3-0.4 ms, the most a request arriving during a fan-out waits per turn (it needs two
+#: turns: one to read the frame, one to parse and answer it).
+PER_TURN = 16
 
 
 def is_stream_topic(topic: str) -> bool:
     """Pose and scan streams are latest-only; everything else is a state topic."""
     return topic.startswith(("pose:", "scan:"))
+
+
+class Pacer:
+    """Writes subscribers' pending stream frames ``per_turn`` subscribers per loop turn.
+
+    Each subscriber is queued once however many frames it has pending (they wait in its
+    latest-only slots), in the order its first frame was published; one turn writes all of a
+    subscriber's pending frames, then the next turn goes on with the next subscribers.
+    """
+
+    def __init__(self, per_turn: int = PER_TURN) -> None:
+        if per_turn < 1:
+            raise ValueError("per_turn must be at least 1")
+        self.per_turn = per_turn
+        self._queue: deque[Subscriber] = deque()
+        self._scheduled = False
+        self.turns = 0  # loop turns the pacer has run
+
+    def __len__(self) -> int:
+        return len(self._queue)
+
+    def __iter__(self) -> Iterator[Subscriber]:
+        """The subscribers waiting, in the order they will be written."""
+        return iter(self._queue)
+
+    def add(self, sub: Subscriber) -> None:
+        self._queue.append(sub)
+        if not self._scheduled:
+            self._scheduled = True
+            asyncio.get_running_loop().call_soon(self._turn)
+
+    def _turn(self) -> None:
+        q = self._queue
+        self.turns += 1
+        for _ in range(min(self.per_turn, len(q))):
+            q.popleft().flush_streams()
+        if q:
+            # call_soon from a callback runs on the *next* turn, after the loop has polled
+            # the sockets: requests that arrived meanwhile are read before the next chunk.
+            asyncio.get_running_loop().call_soon(self._turn)
+        else:
+            self._scheduled = False
 
 
 class Subscriber:
@@ -63,6 +117,10 @@ class Subscriber:
         #: Writes a frame synchronously if the connection can take it now, else says False.
         self._write_now = write_now
         self._busy = False  # the writer task is between frames of a batch
+        #: Set by :meth:`Hub.add`: stream frames then wait for the hub's pacer (else written
+        #: inside ``update``).
+        self.pacer: Pacer | None = None
+        self._paced = False  # queued in the pacer
         self._max_pending = max_pending
         self.name = name
         self.topics: set[str] = set()
@@ -94,9 +152,19 @@ class Subscriber:
                 await task
 
     def reply(self, frame: str) -> None:
-        if not self.closed:
-            self._state.append((None, frame))
-            self._wake.set()
+        """Send a reply: straight to the socket when nothing is queued for this client (so
+        it is never behind stream frames waiting for the pacer), else after what is queued."""
+        if self.closed:
+            return
+        if (
+            self._write_now is not None
+            and not self._busy
+            and not self._state
+            and self._write_now(frame)
+        ):
+            return
+        self._state.append((None, frame))
+        self._wake.set()
 
     def close_after_replies(self, code: int, reason: str) -> None:
         """Close the connection once everything queued so far (the reply saying why) is sent."""
@@ -131,18 +199,17 @@ class Subscriber:
             self._held.append((topic, data_json))  # bounded: one snapshot's worth of awaits
             return
         if is_stream_topic(topic):
-            if (
-                self._write_now is not None
-                and not self._busy
-                and not self._state
-                and not self._latest
-                and self._write_now(protocol.update_frame(topic, self.seq + 1, data_json))
-            ):
-                self.seq += 1
-                return
             if topic in self._latest:
                 self.dropped_stream_frames += 1
             self._latest[topic] = data_json
+            if self._write_now is not None and not self._busy and not self._state:
+                if self.pacer is not None:
+                    if not self._paced:
+                        self._paced = True
+                        self.pacer.add(self)
+                    return
+                self.flush_streams()
+                return
         else:
             if len(self._state) >= self._max_pending:
                 self.closed = True
@@ -155,6 +222,23 @@ class Subscriber:
                 return
             self._state.append((topic, data_json))
         self._wake.set()
+
+    def flush_streams(self) -> None:
+        """Write this client's pending stream frames now if its connection takes them; what
+        it does not (state queued ahead, writer mid-batch, socket buffer full) is left to the
+        writer task, which sends them after the state updates queued before them."""
+        self._paced = False
+        write = self._write_now
+        if self.closed or not self._latest:
+            return
+        while self._latest and write is not None and not self._busy and not self._state:
+            topic = next(iter(self._latest))
+            if not write(protocol.update_frame(topic, self.seq + 1, self._latest[topic])):
+                break
+            del self._latest[topic]
+            self.seq += 1
+        if self._latest:
+            self._wake.set()
 
     def _next_frame(self) -> str | None:
         if self._state:
@@ -193,13 +277,20 @@ class Subscriber:
 class Hub:
     """Topic -> subscribers. ``on_watch`` hears when a topic gains its first or loses its last."""
 
-    def __init__(self, on_watch: Callable[[str, bool], None] | None = None) -> None:
+    def __init__(
+        self,
+        on_watch: Callable[[str, bool], None] | None = None,
+        *,
+        per_turn: int = PER_TURN,
+    ) -> None:
         self._by_topic: dict[str, set[Subscriber]] = {}
         self._on_watch = on_watch
         self.subscribers: set[Subscriber] = set()
+        self.pacer = Pacer(per_turn)
 
     def add(self, sub: Subscriber) -> None:
         self.subscribers.add(sub)
+        sub.pacer = self.pacer
 
     def remove(self, sub: Subscriber) -> None:
         self.subscribers.discard(sub)

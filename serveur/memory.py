@@ -14,10 +14,11 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import functools
+import gc
 import logging
 from collections.abc import Callable
 
-__all__ = ["trim_heap"]
+__all__ = ["freeze_heap", "trim_heap"]
 
 log = logging.getLogger(__name__)
 
@@ -44,3 +45,19 @@ def trim_heap() -> bool:
         return False
     fn(0)
     return True
+
+
+def freeze_heap() -> int:
+    """Collect, then move every object alive now out of the cyclic collector's reach.
+
+    Called once the server has started: its modules, pydantic models, map and records are
+    ~300,000 objects that live as long as the process, and each full (generation 2)
+    collection walked all of them — a 70 ms pause of the event loop, which every request and
+    pose frame in flight then waited for. Frozen, they are never traversed again (objects
+    made later are collected as usual; one dropped from a reference cycle among the frozen
+    objects would not be, which is why the collection runs first). Returns how many objects
+    were frozen.
+    """
+    gc.collect()
+    gc.freeze()
+    return gc.get_freeze_count()

@@ -736,12 +736,38 @@ class Simulation:
     """N robots, their endpoints and the physics loop. Use ``async with`` or start()/close()."""
 
     def __init__(
-        self, robots: Sequence[SimRobot], endpoints: Sequence[Endpoint], clock: Clock
+        self,
+        robots: Sequence[SimRobot],
+        endpoints: Sequence[Endpoint],
+        clock: Clock,
+        *,
+        spread: bool = False,
     ) -> None:
         self.robots: list[SimRobot] = list(robots)
         self._endpoints = list(endpoints)
         self.clock = clock
+        #: Step robot i i/N of the AMCL period after robot 0 (see :meth:`phases`).
+        self.spread = spread
         self._loop_task: asyncio.Task[None] | None = None
+
+    def phases(self) -> list[tuple[int, float]]:
+        """Per robot: (ticks its publishing lags robot 0's by, sim seconds its steps lag by).
+
+        Lock-step (the default), every robot is stepped in the same pass and robots only
+        alternate ticks (``SimRobot._ticks`` starts at the robot's index), so half the fleet's
+        AMCL poses leave together. Real robots are independent machines whose 10 Hz timers are
+        not phase-locked; with ``spread`` robot i's publishing is shifted by i/N of the AMCL
+        period (whole ticks, then a fraction of a tick by which its physics steps run later),
+        so N robots' poses arrive evenly spread. Physics and publish rates are unchanged.
+        """
+        n = len(self.robots)
+        if not self.spread:
+            return [(0, 0.0)] * n
+        out = []
+        for i in range(n):
+            ticks, rest = divmod(i * _AMCL_TICKS, n)
+            out.append((ticks, rest * TICK / n))
+        return out
 
     @property
     def urls(self) -> list[str]:
@@ -808,8 +834,13 @@ class Simulation:
         """Step every robot at TICK of sim time; publish what falls due."""
         clock = self.clock
         t = clock.now()
-        for r in self.robots:
-            r._t = t
+        groups: dict[float, list[SimRobot]] = {}
+        for r, (ticks, offset) in zip(self.robots, self.phases(), strict=True):
+            r._t = t + offset  # stamps stay the sim time of the robot's own steps
+            if self.spread:
+                r._ticks = -ticks
+            groups.setdefault(offset, []).append(r)
+        passes = sorted(groups.items())
         while True:
             t += TICK
             delay = t - clock.now()
@@ -825,11 +856,14 @@ class Simulation:
                     t += slip
                     for r in self.robots:
                         r._t += slip
-            for r in self.robots:
-                try:
-                    r._advance(steps)
-                except Exception:  # one robot's bug must not stop the fleet
-                    log.exception("%s: simulation step failed", r.name)
+            for offset, group in passes:
+                if offset > 0.0 and (lag := t + offset - clock.now()) > 0:
+                    await clock.sleep(lag)
+                for r in group:
+                    try:
+                        r._advance(steps)
+                    except Exception:  # one robot's bug must not stop the fleet
+                        log.exception("%s: simulation step failed", r.name)
 
 
 def _waypoints_beside(map_path: Path) -> dict[str, Waypoint]:
@@ -893,12 +927,14 @@ async def start_simulation(
     clock: Clock | None = None,
     names: Sequence[str] | None = None,
     ssl: ssl_module.SSLContext | None = None,
+    spread: bool = False,
 ) -> Simulation:
     """Start ``n`` robots listening on ports ``port``..``port+n-1`` (0: free ports).
 
     Robot i is named ``names[i]`` or ``r{i+1}``, starts at waypoint ``home{i+1}`` and uses random
     seed ``seed + i``. ``clock`` overrides ``time_scale`` (tests pass a shared ScaledClock).
     ``ssl`` (a server context, see serveur.tls.server_context) serves every robot over TLS.
+    ``spread`` spreads the robots' publish phases over the AMCL period (:meth:`Simulation.phases`).
     """
     if n < 1:
         raise ValueError("at least one robot")
@@ -937,7 +973,7 @@ async def start_simulation(
         )
         robots.append(robot)
         endpoints.append(Endpoint(robot, host, port + i if port else 0, ssl))
-    sim = Simulation(robots, endpoints, clock)
+    sim = Simulation(robots, endpoints, clock, spread=spread)
     await sim.start()
     return sim
 
@@ -971,6 +1007,12 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
         "--certfile", default=None, help="PEM certificate (chain): serve wss:// (needs --keyfile)"
     )
     parser.add_argument("--keyfile", default=None, help="PEM private key of --certfile")
+    parser.add_argument(
+        "--spread-phases",
+        action="store_true",
+        help="publish robot i's poses i/N of the AMCL period after robot 0's, as independent "
+        "robots do (default: the robots are stepped in lock-step)",
+    )
 
 
 async def run_sim(
@@ -986,6 +1028,7 @@ async def run_sim(
     stop: asyncio.Event | None = None,
     out: TextIO | None = None,
     ssl: ssl_module.SSLContext | None = None,
+    spread: bool = False,
 ) -> int:
     """Run a simulation until ``stop`` is set or SIGINT/SIGTERM; print the URLs first.
 
@@ -1011,6 +1054,7 @@ async def run_sim(
                 seed=seed,
                 names=names,
                 ssl=ssl,
+                spread=spread,
             )
         except (OSError, ServeurError, ValueError) as exc:
             print(f"serveur sim: cannot start: {exc}", file=sys.stderr, flush=True)
@@ -1054,4 +1098,5 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
         seed=ns.seed,
         names=names,
         ssl=ctx,
+        spread=getattr(ns, "spread_phases", False),
     )
