@@ -7,7 +7,7 @@ own: op parsing and errors as rosbridge_server words them, subscriptions merged 
 per-client bounded queues so a slow client only loses its own old messages and never blocks
 the robot or grows memory. :class:`Endpoint` is one robot's server; :class:`Sub` is one
 client's subscription to one of the robot's topics, which the robot feeds
-(:meth:`serveur.robot_sim.SimRobot.publish`-side) with :class:`Frame` objects encoded at most
+(:class:`serveur.sim_robot.SimRobot`) with :class:`Frame` objects encoded at most
 once per format.
 """
 
@@ -33,7 +33,7 @@ from serveur import rosbridge as rb
 from serveur.errors import RosbridgeError, ServeurError
 
 if TYPE_CHECKING:
-    from serveur.robot_sim import SimRobot
+    from serveur.sim_robot import SimRobot
 
 __all__ = [
     "CONTROL_QUEUE",

@@ -15,9 +15,10 @@ import pytest
 from websockets.asyncio.client import connect
 
 from serveur import rosbridge as rb
-from serveur.robot_sim import _AMCL_TICKS, TICK, start_simulation
+from serveur.robot_sim import TICK, start_simulation
+from serveur.sim_robot import AMCL_TICKS
 
-PERIOD = _AMCL_TICKS * TICK
+PERIOD = AMCL_TICKS * TICK
 
 
 async def amcl_phases(n: int, spread: bool) -> list[float]:
