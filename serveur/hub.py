@@ -154,17 +154,18 @@ class Subscriber:
             with contextlib.suppress(asyncio.CancelledError):
                 await task
 
+    def _direct(self) -> Callable[[str], bool] | None:
+        """The synchronous writer if a frame may bypass the writer task now: nothing is
+        queued or being sent ahead of it (so order is kept); else None."""
+        return None if self._busy or self._state else self._write_now
+
     def reply(self, frame: str) -> None:
         """Send a reply: straight to the socket when nothing is queued for this client (so
         it is never behind stream frames waiting for the pacer), else after what is queued."""
         if self.closed:
             return
-        if (
-            self._write_now is not None
-            and not self._busy
-            and not self._state
-            and self._write_now(frame)
-        ):
+        write = self._direct()
+        if write is not None and write(frame):
             return
         self._state.append((None, frame))
         self._wake.set()
@@ -205,7 +206,7 @@ class Subscriber:
             if topic in self._latest:
                 self.dropped_stream_frames += 1
             self._latest[topic] = data_json
-            if self._write_now is not None and not self._busy and not self._state:
+            if self._direct() is not None:
                 if self.pacer is not None:
                     if not self._paced:
                         self._paced = True
@@ -231,10 +232,9 @@ class Subscriber:
         it does not (state queued ahead, writer mid-batch, socket buffer full) is left to the
         writer task, which sends them after the state updates queued before them."""
         self._paced = False
-        write = self._write_now
         if self.closed or not self._latest:
             return
-        while self._latest and write is not None and not self._busy and not self._state:
+        while self._latest and (write := self._direct()) is not None:
             topic = next(iter(self._latest))
             if not write(protocol.update_frame(topic, self.seq + 1, self._latest[topic])):
                 break

@@ -440,5 +440,5 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
         seed=ns.seed,
         names=names,
         ssl=ctx,
-        spread=getattr(ns, "spread_phases", False),
+        spread=ns.spread_phases,
     )
