@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import itertools
 import json
 import math
 import os
@@ -43,6 +44,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
 
@@ -186,21 +188,31 @@ _PROBE_REQ = json.dumps({"clientmsg": "data", "id": 0, "topics": ["map"], "unsub
 async def phase_latency(probe: Load, echo_url: str, samples: int) -> dict[str, float]:
     """The probe from this process (``--probe-in-process``): its loop also reads the 199
     clients' 2,000 frames/s, so its own jitter lands on both serveur's and echo's figures."""
+    async with connect(echo_url, compression=None) as echo:
+        return await _alternate(
+            lambda: probe.call("data", topics=["map"], unsubscribe=True), echo, samples
+        )
+
+
+async def _alternate(
+    ask: Callable[[], Awaitable[object]], echo: ClientConnection, samples: int
+) -> dict[str, float]:
+    """``samples`` pairs, after 50 of warm-up: ``ask`` serveur, then echo the same frame;
+    2 ms apart, so the probe itself is no load."""
     srv: list[float] = []
     raw: list[float] = []
-    async with connect(echo_url, compression=None) as echo:
-        for i in range(samples + 50):
-            t = time.perf_counter()
-            await probe.call("data", topics=["map"], unsubscribe=True)
-            a = time.perf_counter() - t
-            t = time.perf_counter()
-            await echo.send(_PROBE_REQ)
-            await echo.recv()
-            b = time.perf_counter() - t
-            if i >= 50:  # warm-up
-                srv.append(a)
-                raw.append(b)
-            await asyncio.sleep(0.002)
+    for i in range(samples + 50):
+        t = time.perf_counter()
+        await ask()
+        a = time.perf_counter() - t
+        t = time.perf_counter()
+        await echo.send(_PROBE_REQ)
+        await echo.recv()
+        b = time.perf_counter() - t
+        if i >= 50:  # warm-up
+            srv.append(a)
+            raw.append(b)
+        await asyncio.sleep(0.002)
     return _latency_stats(srv, raw)
 
 
@@ -209,8 +221,6 @@ async def _probe_main(url: str, echo_url: str, token: str, samples: int) -> None
     to serveur (subscribed to ``robots``, like the staff client of the in-process probe) and
     one to the echo server, alternating requests; prints the stats as one JSON line."""
     auth = {"Authorization": f"Bearer {token}"}
-    srv: list[float] = []
-    raw: list[float] = []
     async with (
         connect(url, compression=None, max_size=2**24, additional_headers=auth) as ws,
         connect(echo_url, compression=None) as echo,
@@ -224,19 +234,11 @@ async def _probe_main(url: str, echo_url: str, token: str, samples: int) -> None
                     return
 
         await call(1, topics=["robots"])
-        for i in range(samples + 50):
-            t = time.perf_counter()
-            await call(i + 2, topics=["map"], unsubscribe=True)
-            a = time.perf_counter() - t
-            t = time.perf_counter()
-            await echo.send(_PROBE_REQ)
-            await echo.recv()
-            b = time.perf_counter() - t
-            if i >= 50:  # warm-up
-                srv.append(a)
-                raw.append(b)
-            await asyncio.sleep(0.002)
-    print(json.dumps(_latency_stats(srv, raw)), flush=True)
+        ids = itertools.count(2)
+        stats = await _alternate(
+            lambda: call(next(ids), topics=["map"], unsubscribe=True), echo, samples
+        )
+    print(json.dumps(stats), flush=True)
 
 
 async def phase_latency_process(
