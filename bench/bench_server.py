@@ -24,8 +24,9 @@ Phases (every one bounded in count and time; the script stops everything it star
 
 Run: ``python bench/bench_server.py`` (about four minutes). ``--latency-only`` stops after
 phase 2; ``--sim-spread`` spreads the simulated robots' publish phases (``serveur sim
---spread-phases``); ``--isolate`` pins the servers and the load to different CPUs and runs
-the servers and the probe under SCHED_RR, to shield the figures from a shared host's noise.
+--spread-phases``); ``--pin`` puts the servers and the load on different CPUs, ``--rt`` runs
+the servers and the probe under SCHED_RR (``--server-nice N`` at nice N instead), and
+``--isolate`` is both, to shield the figures from a shared host's noise.
 ``--profile`` writes a pyinstrument profile of the server (``pip install pyinstrument``) to
 ``bench-server-profile.txt``.
 """
@@ -242,10 +243,10 @@ async def _probe_main(url: str, echo_url: str, token: str, samples: int) -> None
 
 
 async def phase_latency_process(
-    url: str, echo_url: str, token: str, samples: int, rt: bool = False
+    url: str, echo_url: str, token: str, samples: int, prefix: list[str]
 ) -> dict[str, float]:
     proc = await asyncio.create_subprocess_exec(
-        *(["chrt", "-r", "1", "taskset", "-c", "1"] if rt else []),
+        *prefix,
         sys.executable,
         __file__,
         "--probe",
@@ -365,6 +366,8 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
         "clients": ns.clients,
         "robots": ns.robots,
         "sim_phases": "spread" if ns.sim_spread else "lock-step",
+        "cpus": "pinned" if ns.pin else "shared",
+        "priority": "SCHED_RR" if ns.rt else f"nice {ns.server_nice}",
     }
     procs: list[asyncio.subprocess.Process] = []
     with tempfile.TemporaryDirectory(prefix="serveur-bench-") as tmpdir:
@@ -388,7 +391,7 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                 ns.robots,
             )
             procs.append(sim)
-            rt = ["chrt", "-r", "1", "taskset", "-c", "0"] if ns.isolate else []
+            rt = _prefix(ns, cpu=0)
             echo, [echo_port] = await _start([*rt, sys.executable, __file__, "--echo-server"], 1)
             procs.append(echo)
             port = _free_port()
@@ -481,7 +484,9 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
             if ns.probe_in_process:
                 results["latency"] = await phase_latency(staff, echo_url, ns.samples)
             else:
-                results["latency"] = await phase_latency_process(url, echo_url, token, ns.samples)
+                results["latency"] = await phase_latency_process(
+                    url, echo_url, token, ns.samples, _prefix(ns, cpu=None)
+                )
             results["latency"]["probe"] = "in-process" if ns.probe_in_process else "own process"
             cpu1, rss = _proc_stats(spid)
             results["latency"]["server_cpu_percent"] = 100 * (cpu1 - cpu0) / (time.monotonic() - t0)
@@ -509,6 +514,19 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                         p.kill()
                         await p.wait()
     return results
+
+
+def _prefix(ns: argparse.Namespace, cpu: int | None) -> list[str]:
+    """The command prefix for a measured process (a server, or the probe when ``cpu`` is
+    None: it stays on the load's CPU, which it inherits from this process under ``--pin``)."""
+    out: list[str] = []
+    if ns.rt:
+        out += ["chrt", "-r", "1"]
+    elif ns.server_nice:
+        out += ["nice", "-n", str(ns.server_nice)]
+    if ns.pin and cpu is not None:
+        out += ["taskset", "-c", str(cpu)]
+    return out
 
 
 def _free_port() -> int:
@@ -542,11 +560,28 @@ if __name__ == "__main__":
         help="serveur sim --spread-phases: robot i's poses i/N of the period after robot 0's",
     )
     ap.add_argument(
+        "--pin",
+        action="store_true",
+        help="serveur and the echo server on CPU 0; the simulator, the load clients and the "
+        "probe on CPU 1",
+    )
+    ap.add_argument(
+        "--rt",
+        action="store_true",
+        help="serveur, the echo server and the probe under SCHED_RR priority 1 (chrt, needs "
+        "root), both servers alike",
+    )
+    ap.add_argument(
+        "--server-nice",
+        type=int,
+        default=0,
+        metavar="N",
+        help="serveur, the echo server and the probe at nice N (negative needs root)",
+    )
+    ap.add_argument(
         "--isolate",
         action="store_true",
-        help="serveur and the echo server on CPU 0, the simulator, the load clients and the "
-        "probe on CPU 1; serveur, echo and probe under SCHED_RR priority 1 (chrt, needs root): "
-        "what is measured is shielded from other work on a shared host, both servers alike",
+        help="--pin --rt: what is measured is shielded from other work on a shared host",
     )
     ap.add_argument("--latency-only", action="store_true", help="stop after the latency phase")
     ap.add_argument("--echo-server", action="store_true", help=argparse.SUPPRESS)
@@ -561,6 +596,8 @@ if __name__ == "__main__":
             asyncio.run(_echo_main())
         sys.exit(0)
     if args.isolate:
+        args.pin = args.rt = True
+    if args.pin:
         os.sched_setaffinity(0, {1})  # the load clients and the simulator (started from here)
     out = asyncio.run(main(args))
     print(json.dumps(out, indent=1))
