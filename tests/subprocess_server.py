@@ -80,7 +80,7 @@ class ServerProcess:
         statuses are reconciled by then: ``Core.start`` runs before the endpoint opens)."""
         assert self.proc is None or self.proc.returncode is not None
         if not self.token:
-            self.token = await _cli("token", "create", "--role", "staff", "--db", str(self.db))
+            self.token = await run_cli("token", "create", "--role", "staff", "--db", str(self.db))
         self.proc = await asyncio.create_subprocess_exec(
             sys.executable,
             "-m",
@@ -135,17 +135,18 @@ class ServerProcess:
             await self.kill()
 
 
-async def _cli(*args: str) -> str:
-    """Run ``serveur ARGS`` as the operator would; its stdout."""
+async def run_cli(*args: str, stdin: str = "") -> str:
+    """Run ``serveur ARGS`` as the operator would (``stdin`` typed in); its stdout."""
     proc = await asyncio.create_subprocess_exec(
         sys.executable,
         "-m",
         "serveur.cli",
         *args,
+        stdin=asyncio.subprocess.PIPE,
         stdout=asyncio.subprocess.PIPE,
         stderr=asyncio.subprocess.PIPE,
     )
-    out, err = await asyncio.wait_for(proc.communicate(), STARTUP)
+    out, err = await asyncio.wait_for(proc.communicate(stdin.encode()), STARTUP)
     assert proc.returncode == 0, err.decode()
     return out.decode().strip()
 

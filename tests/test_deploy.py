@@ -25,7 +25,7 @@ from pathlib import Path
 import pytest
 
 from serveur.mapio import demo_map_path, demo_waypoints_path
-from tests.subprocess_server import STARTUP, free_port
+from tests.subprocess_server import STARTUP, free_port, run_cli
 
 DEPLOY = Path(__file__).resolve().parent.parent / "deploy"
 BIN = "/opt/serveur/bin/serveur"
@@ -87,21 +87,6 @@ def test_the_service_keeps_its_database_where_it_may_write() -> None:
     assert unit("serveur-backup.timer")["Timer"]["Persistent"] == "true"
 
 
-async def _cli(*args: str, stdin: str = "") -> str:
-    proc = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "serveur.cli",
-        *args,
-        stdin=asyncio.subprocess.PIPE,
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.STDOUT,
-    )
-    out, _ = await asyncio.wait_for(proc.communicate(stdin.encode()), STARTUP)
-    assert proc.returncode == 0, out.decode()
-    return out.decode()
-
-
 class Service:
     """``ExecStart`` as systemd runs it: its own process, output to the journal (here, a list)."""
 
@@ -147,14 +132,18 @@ async def test_first_start_backup_stop_and_restore_as_documented(tmp_path: Path)
     db = state / "serveur.db"
 
     # docs/deploy.md, "First start": the owner is made before the service ever runs
-    await _cli("user", "add", "alice", "--role", "owner", "--db", str(db), stdin="a long pass 1\n")
+    await run_cli(
+        "user", "add", "alice", "--role", "owner", "--db", str(db), stdin="a long pass 1\n"
+    )
 
     svc = unit("serveur.service")["Service"]
     service = Service(serveur_argv(local(svc["ExecStart"], tmp_path, port)), state)
     await service.start()
     try:
         assert "First start" not in "".join(service.output), "a password went to the journal"
-        await _cli("user", "add", "bob", "--role", "staff", "--db", str(db), stdin="another one\n")
+        await run_cli(
+            "user", "add", "bob", "--role", "staff", "--db", str(db), stdin="another one\n"
+        )
 
         # the nightly backup, its shell line as systemd hands it to /bin/sh (%% is a %)
         line = local(unit("serveur-backup.service")["Service"]["ExecStart"], tmp_path, port)
@@ -176,11 +165,11 @@ async def test_first_start_backup_stop_and_restore_as_documented(tmp_path: Path)
     assert rc == 0, "".join(service.output)
 
     # docs/deploy.md, "Restore": a later change is lost, the backup's data is back
-    await _cli("user", "remove", "bob", "--db", str(db))
+    await run_cli("user", "remove", "bob", "--db", str(db))
     for f in state.glob("serveur.db*"):
         f.unlink()
     shutil.copy(copies[0], db)
     await service.start()
     await service.stop(signal.SIGTERM, 20)
-    users = await _cli("user", "list", "--db", str(db))
+    users = await run_cli("user", "list", "--db", str(db))
     assert "alice\towner" in users and "bob\tstaff" in users, users
