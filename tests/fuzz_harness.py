@@ -126,6 +126,9 @@ class _Conn:
         self.replies: asyncio.Queue[Any] = asyncio.Queue()
         self.pending: deque[Expect] = deque()
         self.updates = 0
+        #: A fuzzed frame turned out to be a valid ``logout`` (a mutation can make one, e.g.
+        #: ``next`` with its robot dropped and its tag swapped): log in before the next step.
+        self.logged_out = False
         self.reader = asyncio.create_task(self._read())
 
     async def _read(self) -> None:
@@ -450,6 +453,9 @@ class LiveRestaurant:
         assert self.observer is not None
         self.errors.records.clear()
         for step in steps:
+            for i, c in enumerate(self.conns):
+                if c.logged_out:
+                    await self._login_again(i)
             if isinstance(step, Wait):
                 timeout = step.timeout * self.wait_scale
                 reached = await self.observer.wait(step.robot, step.statuses, timeout)
@@ -471,6 +477,8 @@ class LiveRestaurant:
                 raise FuzzFailure(
                     f"connection {i}: a reply nobody asked for: {c.replies.get_nowait()}"
                 )
+            if c.logged_out:  # the example ends with every connection logged in
+                await self._login_again(i)
         if self.errors.records:
             raise FuzzFailure("the server logged errors:\n  " + "\n  ".join(self.errors.records))
 
@@ -534,6 +542,22 @@ class LiveRestaurant:
             ),
             (Expect("login", "login", True, "in", (), login), login),
         ]
+        if conn.logged_out:  # a fuzzed logout, not yet noticed: in again first
+            await self._login_again(index)
+        await self._exchange(index, frames)
+        await self._logged_in(index)
+
+    async def _login_again(self, index: int) -> None:
+        """Log connection ``index`` in again with its token after a fuzzed ``logout``."""
+        assert self.r is not None
+        login = json.dumps({"clientmsg": "login", "id": "in", "token": self.r.token})
+        self.conns[index].logged_out = False
+        await self._exchange(index, [(Expect("login", "login", True, "in", (), login), login)])
+        await self._logged_in(index)
+
+    async def _exchange(self, index: int, frames: list[tuple[Expect, str]]) -> None:
+        """Send each frame on connection ``index`` and check its reply before the next."""
+        conn = self.conns[index]
         for expect, text in frames:
             conn.pending.append(expect)
             self.stats.frames += 1
@@ -542,8 +566,13 @@ class LiveRestaurant:
             except websockets.exceptions.ConnectionClosed as exc:
                 raise FuzzFailure(f"connection closed by the server before {text[:300]!r}") from exc
             await self._drain(conn, index)
+
+    async def _logged_in(self, index: int) -> None:
+        """After a login with the connection's token: ok, or (the fuzzer's wrong-credential
+        logins locked this address) a new connection with the token on the handshake."""
+        assert self.r is not None
         if self.stats.last_code == "rate_limited":
-            await conn.close()
+            await self.conns[index].close()
             self.conns[index] = _Conn(await open_connection(self.r))
         elif self.stats.last_code != "ok":
             raise FuzzFailure(f"login with the connection's own token: {self.stats.last_code}")
@@ -559,6 +588,8 @@ class LiveRestaurant:
                     f" {expect.text[:500]!r}"
                 )
             self._check_reply(expect, reply)
+            if expect.label != "logout" and reply.get("session", False) is None:
+                conn.logged_out = True  # only a logout's ok reply carries "session": null
 
     @staticmethod
     async def _reply(conn: _Conn) -> Any:

@@ -38,12 +38,14 @@ from tests.fuzz_strategies import (
     Obj,
     Raw,
     Ref,
+    Relog,
     Send,
     Step,
     encode,
     examples,
     frames,
     mutated,
+    obj,
     valid_messages,
 )
 from tests.invariants import InvariantViolation, check_invariants, violations
@@ -139,6 +141,28 @@ REGRESSIONS = {
 @pytest.mark.parametrize("case", sorted(REGRESSIONS))
 def test_regression_frames_are_answered(live: LiveRestaurant, case: str) -> None:
     live.run([Send(Raw(REGRESSIONS[case]), case, False)])
+
+
+def test_a_fuzzed_logout_is_followed_by_a_login(live: LiveRestaurant) -> None:
+    """A mutation can make a valid ``logout`` (``next`` with its robot dropped and its tag
+    swapped; bench/fuzz.py's seed 3 drew one at example 11,937). The harness then logs the
+    connection in again: before, the next Relog's own ``logout`` was refused as
+    ``unauthorized`` (rightly: nobody was logged in) and counted as a server failure, and
+    every frame in between only tested the login gate."""
+    logins = live.stats.labels["login"]
+    probe = obj(clientmsg="data", id=IdSlot(), topics=["robots"])
+    live.run(
+        [
+            Send(obj(clientmsg="logout", id=IdSlot()), "next: mutated", None),
+            Send(probe, "data"),
+            Relog(probe, "data"),
+            Send(obj(clientmsg="logout", id=IdSlot()), "next: mutated", None, conn=1),
+            Send(probe, "data", conn=1),
+        ]
+    )
+    # logged in again: after each fuzzed logout (found at the next drain) and in the Relog
+    assert live.stats.labels["login"] == logins + 3, live.stats.labels
+    assert not any(c.logged_out for c in live.conns)
 
 
 @pytest.mark.parametrize("case", sorted(REGRESSIONS))
