@@ -565,3 +565,56 @@ async def test_logging_in_and_out_and_screen_setup_links(tmp_path: Path, browser
         table = await screens.open("/table/T3")
         assert "token" not in table.url
         screens.assert_no_errors(re.compile("401|4001|Unauthorized", re.I))
+
+
+async def test_the_owner_registers_a_robot_staff_cannot(tmp_path: Path, browser: Any) -> None:
+    async with ui_restaurant(tmp_path) as r:
+        # A robot the server does not know yet, on its own rosbridge port.
+        extra = await start_simulation(
+            1, port=0, map_path=demo_map_path(), time_scale=TIME_SCALE, clock=r.clock
+        )
+        try:
+            screens = Screens(browser, http_base(r), r.token)
+            staff = await screens.open("/")  # a staff device token: no form
+            await expect(staff.get_by_role("button", name="Take control r1")).to_be_visible()
+            await expect(staff.get_by_text("Register a robot")).to_be_hidden()
+
+            screens.token = ""
+            owner = await screens.open("/", online=False)
+            login = owner.get_by_role("dialog").filter(has_text="Log in to serveur")
+            await login.get_by_label("Login").fill("owner")
+            await login.get_by_label("Password").fill(r.app.first_owner_password or "")
+            await login.get_by_role("button", name="Log in").click()
+            await expect(owner.locator("body")).to_have_attribute("data-connection", "online")
+            await owner.get_by_text("Register a robot").click()
+            form = owner.get_by_role("form", name="Register a robot")
+            # the free home spots are offered, home1 (r1's) is not
+            await expect(form.get_by_label("Home")).to_have_value("home2")
+            assert "home1" not in await form.get_by_label("Home").inner_text()
+
+            # A name in use with another address: the server's refusal is shown.
+            await form.get_by_label("Name").fill("r1")
+            await form.get_by_label("Rosbridge").fill(extra.urls[0])
+            await form.get_by_role("button", name="Register robot").click()
+            await expect(owner.get_by_role("alert").filter(has_text="conflict")).to_be_visible()
+            await dismiss_toasts(owner)
+
+            await form.get_by_label("Name").fill("r2")
+            await form.get_by_label("Drive").select_option("diff")
+            await form.get_by_role("button", name="Register robot").click()
+            await expect(owner.get_by_text("Registered r2")).to_be_visible()
+            # the server reached it: Ready, in both consoles' lists
+            for page in (owner, staff):
+                await expect(page.get_by_role("listitem").filter(has_text="r2")).to_contain_text(
+                    "Ready"
+                )
+            robot = await r.app.store.get_robot("r2")
+            assert (robot.url, robot.home, robot.kinematics) == (
+                extra.urls[0],
+                "home2",
+                "diff",
+            )
+            await expect(form.get_by_label("Home")).not_to_have_value("home2")  # taken now
+            screens.assert_no_errors(re.compile("401|4001|Unauthorized", re.I))
+        finally:
+            await extra.close()

@@ -10,6 +10,7 @@ import { Teleop } from "./teleop.js";
 import { WaypointsPanel } from "./waypoints.js";
 import { IssuePanel } from "./issue.js";
 import { NewOrderPanel } from "./neworder.js";
+import { RegisterRobot } from "./register.js";
 
 const conn = new Connection();
 const live = new Live(conn);
@@ -52,6 +53,7 @@ const view = new MapView(document.getElementById("map"), live, {
 });
 const tools = new MapTools(conn, live, view, selection, goals);
 new RobotsPanel(document.getElementById("robots"), conn, live, selection);
+new RegisterRobot(document.getElementById("register"), conn, live);
 new Teleop(document.getElementById("teleop"), conn, live, selection);
 new WaypointsPanel(document.getElementById("waypoints"), conn, live, selection);
 new IssuePanel(document.getElementById("panel-issue"), conn, live);

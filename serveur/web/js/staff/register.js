@@ -1,0 +1,94 @@
+// Register a robot (owners only): its name, its rosbridge address, where it parks and how it
+// drives. The server connects to it at once; the robot then shows in the list, Offline until
+// the server reaches it, Ready after. Staff do not see the form (the server would refuse).
+
+import { act, byName, el, toast } from "../ui.js";
+
+const KINEMATICS = [
+  ["omni", "Omnidirectional"],
+  ["diff", "Differential drive"],
+];
+
+export class RegisterRobot {
+  constructor(root, conn, live) {
+    this.conn = conn;
+    this.live = live;
+    this.name = el("input", {
+      id: "rr-name", type: "text", maxlength: 64, required: true, autocomplete: "off",
+      placeholder: "r3",
+    });
+    this.url = el("input", {
+      id: "rr-url", type: "text", required: true, autocomplete: "off", spellcheck: "false",
+      placeholder: "ws://10.0.0.23:9090", pattern: "wss?://.+",
+      title: "The robot's rosbridge: ws://ADDRESS:9090 (wss:// with TLS)",
+    });
+    this.home = el("select", { id: "rr-home" });
+    this.kinematics = el(
+      "select",
+      { id: "rr-kinematics" },
+      KINEMATICS.map(([v, label]) => el("option", { value: v }, label)),
+    );
+    this.submit = el("button", { type: "submit", text: "Register robot" });
+    const form = el(
+      "form",
+      { class: "wp-form", "aria-label": "Register a robot" },
+      el("label", { for: "rr-name" }, "Name"),
+      this.name,
+      el("label", { for: "rr-url" }, "Rosbridge"),
+      this.url,
+      el("label", { for: "rr-home" }, "Home"),
+      this.home,
+      el("label", { for: "rr-kinematics" }, "Drive"),
+      this.kinematics,
+      this.submit,
+    );
+    form.addEventListener("submit", (e) => {
+      e.preventDefault();
+      if (form.reportValidity()) this._register();
+    });
+    this.section = el(
+      "details",
+      { class: "register", hidden: true },
+      el("summary", {}, "Register a robot"),
+      form,
+    );
+    root.append(this.section);
+    conn.addEventListener("session", (e) => {
+      this.section.hidden = e.detail.session.role !== "owner";
+    });
+    live.addEventListener("change", (e) => {
+      if (e.detail.topic === "waypoints" || e.detail.topic === "robots") this.renderHomes();
+    });
+    this.renderHomes();
+  }
+
+  /** Home spots no robot has taken yet, the first of them chosen. */
+  renderHomes() {
+    const taken = new Set([...this.live.robots.values()].map((r) => r.home));
+    const homes = [...this.live.waypoints.values()]
+      .filter((w) => w.kind === "home" && !taken.has(w.name))
+      .map((w) => w.name)
+      .sort(byName);
+    const signature = homes.join("\n");
+    if (signature === this._signature) return;
+    this._signature = signature;
+    const keep = this.home.value;
+    this.home.replaceChildren(
+      ...homes.map((h) => el("option", { value: h }, h)),
+      el("option", { value: "" }, "(none yet)"),
+    );
+    if (homes.includes(keep)) this.home.value = keep;
+  }
+
+  async _register() {
+    const name = this.name.value.trim();
+    const url = this.url.value.trim();
+    const msg = { clientmsg: "create", type: "robot", name, url, kinematics: this.kinematics.value };
+    if (this.home.value) msg.home = this.home.value;
+    const reply = await act(this.submit, () => this.conn.request(msg));
+    if (!reply) return;
+    toast(`Registered ${reply.robot.name}: the server is connecting to it`);
+    this.name.value = "";
+    this.url.value = "";
+  }
+}
