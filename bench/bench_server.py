@@ -91,6 +91,23 @@ def _proc_stats(pid: int) -> tuple[float, int]:
     return cpu, rss
 
 
+def _sched(pid: int) -> tuple[int, int, int]:
+    """(ns on a CPU, ns runnable but waiting for one, times run) of a process's main thread
+    (serveur's event loop): /proc/PID/schedstat. The wait is the host's share of a tail."""
+    run, wait, slices = Path(f"/proc/{pid}/schedstat").read_text().split()
+    return int(run), int(wait), int(slices)
+
+
+def _sched_delta(before: tuple[int, int, int], after: tuple[int, int, int]) -> dict[str, float]:
+    run, wait, slices = (b - a for a, b in zip(before, after, strict=True))
+    return {
+        "cpu_ms": run / 1e6,
+        "runqueue_wait_ms": wait / 1e6,
+        "wakeups": slices,
+        "mean_wait_us": wait / 1e3 / max(1, slices),
+    }
+
+
 def _world(tmp: Path, robots: int) -> tuple[Path, Path]:
     """The demo map with ``robots`` home spots (the demo has six) for both sim and server."""
     shutil.copy(demo_map_path(), tmp / "room.yaml")
@@ -479,6 +496,7 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                 )
             )
             cpu0, _ = _proc_stats(spid)
+            sched0 = _sched(spid), _sched(echo.pid)
             t0 = time.monotonic()
             echo_url = f"ws://127.0.0.1:{echo_port}"
             if ns.probe_in_process:
@@ -491,6 +509,9 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
             cpu1, rss = _proc_stats(spid)
             results["latency"]["server_cpu_percent"] = 100 * (cpu1 - cpu0) / (time.monotonic() - t0)
             results["latency"]["rss_mb_watching"] = rss / 2**20
+            # how long each server waited for a CPU while runnable, over the latency phase
+            results["latency"]["serveur_sched"] = _sched_delta(sched0[0], _sched(spid))
+            results["latency"]["echo_sched"] = _sched_delta(sched0[1], _sched(echo.pid))
             print("latency", results["latency"], flush=True)
             if ns.latency_only:
                 for c in clients:
