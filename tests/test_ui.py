@@ -434,7 +434,7 @@ async def test_calibrate_move_here_teleop_and_waypoints(tmp_path: Path, browser:
         released = len(twists())
 
         # Waypoints: save the pose under a name; go to a waypoint by clicking it.
-        await staff.get_by_label("Name").fill("bar")
+        await staff.get_by_label("Name", exact=True).fill("bar")
         await staff.get_by_role("button", name="Save waypoint").click()
         await expect(staff.get_by_role("button", name="Go to bar")).to_be_visible()
         pose = c.streams["pose:r1"]
@@ -518,7 +518,7 @@ async def test_server_refusals_are_shown_and_gaps_resync(tmp_path: Path, browser
         await expect(take).to_have_count(0)
 
         # Saving a waypoint under a taken name asks before replacing it.
-        await staff.get_by_label("Name").fill("T1")
+        await staff.get_by_label("Name", exact=True).fill("T1")
         await staff.get_by_role("button", name="Save waypoint").click()
         dialog = staff.get_by_role("dialog", name="Replace waypoint T1?")
         await expect(dialog).to_be_visible()
@@ -589,17 +589,17 @@ async def test_the_owner_registers_a_robot_staff_cannot(tmp_path: Path, browser:
             await owner.get_by_text("Register a robot").click()
             form = owner.get_by_role("form", name="Register a robot")
             # the free home spots are offered, home1 (r1's) is not
-            await expect(form.get_by_label("Home")).to_have_value("home2")
-            assert "home1" not in await form.get_by_label("Home").inner_text()
+            await expect(form.get_by_label("Home spot")).to_have_value("home2")
+            assert "home1" not in await form.get_by_label("Home spot").inner_text()
 
             # A name in use with another address: the server's refusal is shown.
-            await form.get_by_label("Name").fill("r1")
-            await form.get_by_label("Rosbridge").fill(extra.urls[0])
+            await form.get_by_label("Robot name").fill("r1")
+            await form.get_by_label("Rosbridge address").fill(extra.urls[0])
             await form.get_by_role("button", name="Register robot").click()
             await expect(owner.get_by_role("alert").filter(has_text="conflict")).to_be_visible()
             await dismiss_toasts(owner)
 
-            await form.get_by_label("Name").fill("r2")
+            await form.get_by_label("Robot name").fill("r2")
             await form.get_by_label("Drive").select_option("diff")
             await form.get_by_role("button", name="Register robot").click()
             await expect(owner.get_by_text("Registered r2")).to_be_visible()
@@ -614,7 +614,7 @@ async def test_the_owner_registers_a_robot_staff_cannot(tmp_path: Path, browser:
                 "home2",
                 "diff",
             )
-            await expect(form.get_by_label("Home")).not_to_have_value("home2")  # taken now
+            await expect(form.get_by_label("Home spot")).not_to_have_value("home2")  # taken now
             screens.assert_no_errors(re.compile("401|4001|Unauthorized", re.I))
         finally:
             await extra.close()
