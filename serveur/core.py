@@ -255,6 +255,16 @@ class Core:
         """Publish the robot's record as screens see it (live pose and battery)."""
         self.publisher.pub("robots", self._robot_view(name))
 
+    def battery_changed(self, name: str) -> None:
+        """Screens see the new level; the dispatcher looks again if the robot is waiting at
+        home. A robot below the dispatch threshold (``scheduler.choose_robot``) charges there
+        and must be given the queued trips once it is above it: nothing else may happen (the
+        last dishes of a service are queued, every robot was low), so without this kick the
+        trips waited for ever beside a usable robot."""
+        self.publish_robot(name)
+        if self._rt[name].state.status is S.AWAITING:
+            self.dispatcher.kick()
+
     def task_robot(self, task_id: int) -> str | None:
         """The robot doing (or that did) task ``task_id``, if this server has seen it."""
         robot = self.publisher.task_robot(task_id)

@@ -47,8 +47,9 @@ class ReportHandler(Protocol):
     async def on_report(self, rt: Runtime, kind: str, args: tuple[Any, ...]) -> None:
         """Handle one report: ``up``, ``down``, ``goal``, ``handover`` or ``persist_pose``."""
 
-    def publish_robot(self, name: str) -> None:
-        """Publish the robot's record (its battery changed)."""
+    def battery_changed(self, name: str) -> None:
+        """The robot's battery moved by a percent or more: publish its record, and let the
+        dispatcher look again (a robot charging at home may be usable for trips now)."""
 
 
 class LinkReports:
@@ -169,7 +170,7 @@ class LinkReports:
             return
         old, rt.battery = rt.battery, fraction
         if old is None or abs(old - fraction) >= 0.01:
-            self._handler.publish_robot(robot)
+            self._handler.battery_changed(robot)
 
     def scan(self, robot: str, msg: Mapping[str, Any]) -> None:
         rt = self._rt.get(robot)
