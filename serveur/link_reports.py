@@ -31,6 +31,7 @@ from serveur.core_types import CoreConfig, Runtime, pose_dict
 from serveur.hub import Hub
 from serveur.places import Places
 from serveur.publisher import Publisher
+from serveur.scheduler import MIN_BATTERY
 
 __all__ = ["HANDOVER_GRACE", "LinkReports", "ReportHandler"]
 
@@ -74,6 +75,7 @@ class LinkReports:
         self._places = places
         self._publisher = publisher
         self._closing = False
+        self._battery_shown: dict[str, float] = {}  # the level last published, per robot
 
     # -- the per-robot queue and worker ------------------------------------------------------
 
@@ -168,8 +170,17 @@ class LinkReports:
         rt = self._rt.get(robot)
         if rt is None:
             return
-        old, rt.battery = rt.battery, fraction
-        if old is None or abs(old - fraction) >= 0.01:
+        rt.battery = fraction
+        # Against the level last *published*: a robot's battery moves by far less than 1 %
+        # between two messages (5 s apart), so comparing with the previous message never
+        # published a slow change. Crossing the dispatch threshold counts whatever its size.
+        shown = self._battery_shown.get(robot)
+        if (
+            shown is None
+            or abs(shown - fraction) >= 0.01
+            or (shown < MIN_BATTERY) != (fraction < MIN_BATTERY)
+        ):
+            self._battery_shown[robot] = fraction
             self._handler.battery_changed(robot)
 
     def scan(self, robot: str, msg: Mapping[str, Any]) -> None:

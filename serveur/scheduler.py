@@ -39,6 +39,7 @@ from serveur.domain import Order
 
 __all__ = [
     "DEFAULT_CAPACITY",
+    "MIN_BATTERY",
     "RANKS",
     "Candidate",
     "Dish",
@@ -485,7 +486,13 @@ class Candidate:
     battery: float | None = None
 
 
-def choose_robot(candidates: Sequence[Candidate], *, min_battery: float = 0.15) -> str | None:
+#: Below this charge a robot gets no new trip (it charges at home; staff can still drive it).
+MIN_BATTERY = 0.15
+
+
+def choose_robot(
+    candidates: Sequence[Candidate], *, min_battery: float = MIN_BATTERY
+) -> str | None:
     """The free robot that has waited longest; robots below ``min_battery`` are skipped."""
     usable = [c for c in candidates if c.battery is None or c.battery >= min_battery]
     if not usable:

@@ -354,10 +354,12 @@ async def test_events_topic_records_every_state_change(one_robot: Restaurant) ->
 
 
 async def test_a_low_robot_takes_the_queued_trip_once_charged(one_robot: Restaurant) -> None:
-    """Below the dispatch threshold (15 %) a robot waiting at home gets no trip; charged
-    above it, it takes the trip that waited, with nothing else happening meanwhile (before,
-    only a new trip or a robot coming home woke the dispatcher: the last trips of a long
-    service waited for ever beside a usable robot; the replay saw it at 540-600 dishes/h)."""
+    """Below the dispatch threshold (15 %) a robot waiting at home gets no trip; once its dock
+    has charged it above, it takes the trip that waited, with nothing else happening meanwhile.
+    Before, a battery report never woke the dispatcher (only a new trip or a robot coming
+    home did), and a change was published only when it moved 1 % since the previous report,
+    which a charge 5 s apart never does: the last trips of a long service waited for ever
+    beside a charged robot (the replay left 15-103 dishes undelivered at 540-600 dishes/h)."""
     r = one_robot
     c = await staff(r)
     await activate(c, "r1")
@@ -371,6 +373,12 @@ async def test_a_low_robot_takes_the_queued_trip_once_charged(one_robot: Restaur
     await c.until(lambda: dispatcher.rounds > rounds, what="a dispatch round after the trip")
     assert c.task(task["id"])["status"] == "queued"
     assert c.robot("r1")["status"] == "Awaiting"
-    sim_robot.battery = 0.60  # charged (a swapped battery, or hours on the dock)
+    # Charging on its dock, a hair below the threshold: the reports arrive every 5 s, each
+    # a small fraction of a percent higher, until one is above 15 % (before, a change was
+    # published, and the dispatcher woken, only when it moved 1 % since the last report).
+    sim_robot.battery = 0.145
+    await c.until(lambda: c.robot("r1")["battery"] >= 0.145, what="0.145 seen, still low")
+    assert c.task(task["id"])["status"] == "queued"
     await c.status("r1", "Delivering")
     assert c.robot("r1")["current_task"] == task["id"]
+    assert sim_robot.battery < 0.16
