@@ -575,6 +575,24 @@ def test_oversized_frames_are_refused_before_parsing() -> None:
     assert (exc.code, exc.request_id) == ("invalid_field", 1)
 
 
+@pytest.mark.parametrize("cut", [1, 2, 5, 6])
+def test_an_unreadable_frames_id_is_never_misread_at_the_window(cut: int) -> None:
+    """The best-effort id of an unreadable frame (here: a duplicate key) is read whole or not
+    at all. ``"id":179023`` across the end of the 4,096 characters looked at was answered
+    with the id's first digits (bench/fuzz.py, seed 3, example 33,405)."""
+    head = '{"clientmsg":"stop","pad":"'
+    tail = '","id":'
+    pad = "a" * (4096 - len(head) - len(tail) - cut)
+    frame = head + pad + tail + "179023" + ',"robot":"r1","robot":"r2"}'
+    assert frame.index("179023") + cut == 4096  # the window ends inside the id
+    exc = _raises(frame)
+    assert exc.code == "invalid_field" and "duplicate key" in exc.message
+    assert exc.request_id in (179023, None)
+    # and an id that starts past the window is not read
+    exc = _raises('{"pad":"' + "a" * 5000 + '","id":7,"id":8}')
+    assert exc.request_id is None
+
+
 @pytest.mark.parametrize("depth", [21, 30, 500, 30_000])
 def test_deep_nesting_is_refused(depth: int) -> None:
     nested = "[" * depth + "]" * depth
