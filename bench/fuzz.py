@@ -19,9 +19,11 @@ over depth; robots keep moving between examples anyway.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import tempfile
 import time
+from collections import Counter
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # for ``tests.*``
@@ -49,7 +51,7 @@ def main() -> int:
 
     started = time.perf_counter()
     deadline = started + args.max_minutes * 60
-    shown = 0
+    kinds: Counter[str] = Counter()
 
     with tempfile.TemporaryDirectory(prefix="serveur-fuzz-") as tmp:
         live = LiveRestaurant(
@@ -68,15 +70,18 @@ def main() -> int:
             )
             @given(examples())
             def one_example(steps: list[Step]) -> None:
-                nonlocal shown
                 if time.perf_counter() > deadline:
                     raise _TimeUp
                 n = stats.examples + 1
                 try:
                     live.run(steps, check=n % args.check_every == 0)
                 except AssertionError as exc:
-                    if shown < 5:
-                        shown += 1
+                    # Every new kind of failure is printed (the first line, digits masked,
+                    # says the kind), and the count of each at the end: a cluster of one
+                    # bug's repeats must not hide the next bug.
+                    kind = re.sub(r"\d+", "N", str(exc).splitlines()[0] if str(exc) else "?")
+                    kinds[kind] += 1
+                    if kinds[kind] == 1:
                         print(f"FAILURE in example {n}: {str(exc)[:3000]}", flush=True)
                 if n % args.report_every == 0:
                     print(
@@ -104,6 +109,8 @@ def main() -> int:
         f" invariants every {args.check_every} examples"
     )
     print(stats.summary())
+    for kind, count in kinds.most_common():
+        print(f"failure kind x{count}: {kind[:300]}")
     print(
         f"wall {wall:.1f} s ({stats.examples / wall:.1f} examples/s,"
         f" {stats.frames / wall:.0f} frames/s)"
