@@ -92,6 +92,7 @@ class Stats:
     checks: int = 0
     failures: list[str] = field(default_factory=list)
     last_code: str = ""  # the code of the latest reply checked
+    relogins: int = 0  # connections logged in again after a fuzzed logout
 
     def summary(self) -> str:
         lines = [
@@ -552,6 +553,7 @@ class LiveRestaurant:
         assert self.r is not None
         login = json.dumps({"clientmsg": "login", "id": "in", "token": self.r.token})
         self.conns[index].logged_out = False
+        self.stats.relogins += 1
         await self._exchange(index, [(Expect("login", "login", True, "in", (), login), login)])
         await self._logged_in(index)
 

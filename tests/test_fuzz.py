@@ -149,7 +149,7 @@ def test_a_fuzzed_logout_is_followed_by_a_login(live: LiveRestaurant) -> None:
     connection in again: before, the next Relog's own ``logout`` was refused as
     ``unauthorized`` (rightly: nobody was logged in) and counted as a server failure, and
     every frame in between only tested the login gate."""
-    logins = live.stats.labels["login"]
+    relogins = live.stats.relogins
     probe = obj(clientmsg="data", id=IdSlot(), topics=["robots"])
     live.run(
         [
@@ -160,8 +160,9 @@ def test_a_fuzzed_logout_is_followed_by_a_login(live: LiveRestaurant) -> None:
             Send(probe, "data", conn=1),
         ]
     )
-    # logged in again: after each fuzzed logout (found at the next drain) and in the Relog
-    assert live.stats.labels["login"] == logins + 3, live.stats.labels
+    # logged in again after each fuzzed logout (found at the next drain), with the token or,
+    # if the fuzzer's wrong logins locked the address, on a new connection
+    assert live.stats.relogins == relogins + 2
     assert not any(c.logged_out for c in live.conns)
 
 
