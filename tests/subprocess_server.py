@@ -32,60 +32,27 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-class ServerProcess:
-    """One ``serveur run`` on a fixed database and port; start it again after it stopped."""
+class ServeurProcess:
+    """A command that runs a serveur as a real process (``argv``, in ``cwd``); start it again
+    after it stopped. Its output is drained all along into :attr:`output`."""
 
-    def __init__(
-        self,
-        db: Path,
-        robots: dict[str, str],
-        *,
-        time_scale: float,
-        port: int = 0,
-        extra: Sequence[str] = (),
-    ) -> None:
-        self.db = db
-        self.extra = list(extra)  # more `serveur run` options, e.g. ["--map", PATH]
-        self.port = port or free_port()
-        self.time_scale = time_scale
-        self.robots = robots  # name -> rosbridge url; homes are home1, home2, ... in order
+    def __init__(self, argv: Sequence[str] = (), *, cwd: Path | None = None) -> None:
+        self.argv = list(argv)
+        self.cwd = cwd
         self.proc: asyncio.subprocess.Process | None = None
         self.output: collections.deque[str] = collections.deque(maxlen=200)
         self._drain: asyncio.Task[None] | None = None
         self.starts = 0
-        self.token = ""  # a staff token, made in the database before the first start
 
-    @property
-    def url(self) -> str:
-        return f"ws://127.0.0.1:{self.port}/ws"
-
-    def args(self) -> list[str]:
-        args = [
-            "run",
-            "--db",
-            str(self.db),
-            "--port",
-            str(self.port),
-            "--waypoints",
-            str(demo_waypoints_path()),
-            "--time-scale",
-            str(self.time_scale),
-        ]
-        for i, (name, url) in enumerate(self.robots.items()):
-            args += ["--robot", f"{name}={url},home=home{i + 1}"]
-        return args + self.extra
+    def command(self) -> list[str]:
+        return self.argv
 
     async def start(self) -> None:
-        """Start the server and return once it listens (its database is open and the robots'
-        statuses are reconciled by then: ``Core.start`` runs before the endpoint opens)."""
+        """Start the process and return once the server prints that it listens."""
         assert self.proc is None or self.proc.returncode is not None
-        if not self.token:
-            self.token = await run_cli("token", "create", "--role", "staff", "--db", str(self.db))
         self.proc = await asyncio.create_subprocess_exec(
-            sys.executable,
-            "-m",
-            "serveur.cli",
-            *self.args(),
+            *self.command(),
+            cwd=self.cwd,
             stdout=asyncio.subprocess.PIPE,
             stderr=asyncio.subprocess.STDOUT,
             env={**os.environ, "PYTHONUNBUFFERED": "1"},
@@ -114,18 +81,20 @@ class ServerProcess:
 
     async def kill(self) -> None:
         """SIGKILL: a crash, nothing flushed, nothing closed."""
-        await self._stop(signal.SIGKILL)
+        await self.stop(signal.SIGKILL)
 
     async def terminate(self) -> int:
         """SIGTERM: a clean shutdown; the exit code."""
-        return await self._stop(signal.SIGTERM)
+        return await self.stop(signal.SIGTERM)
 
-    async def _stop(self, sig: signal.Signals) -> int:
+    async def stop(self, sig: signal.Signals, timeout: float = 30.0) -> int:
+        """Send ``sig``; the exit code, once the process ended (within ``timeout`` s) and all
+        its output is in :attr:`output`."""
         proc = self.proc
         assert proc is not None
         if proc.returncode is None:
             proc.send_signal(sig)
-        rc = await asyncio.wait_for(proc.wait(), 30)
+        rc = await asyncio.wait_for(proc.wait(), timeout)
         if self._drain is not None:
             await self._drain
         return rc
@@ -133,6 +102,57 @@ class ServerProcess:
     async def close(self) -> None:
         if self.proc is not None and self.proc.returncode is None:
             await self.kill()
+
+
+class ServerProcess(ServeurProcess):
+    """One ``serveur run`` on a fixed database and port, with simulated robots."""
+
+    def __init__(
+        self,
+        db: Path,
+        robots: dict[str, str],
+        *,
+        time_scale: float,
+        port: int = 0,
+        extra: Sequence[str] = (),
+    ) -> None:
+        super().__init__()
+        self.db = db
+        self.extra = list(extra)  # more `serveur run` options, e.g. ["--map", PATH]
+        self.port = port or free_port()
+        self.time_scale = time_scale
+        self.robots = robots  # name -> rosbridge url; homes are home1, home2, ... in order
+        self.token = ""  # a staff token, made in the database before the first start
+
+    @property
+    def url(self) -> str:
+        return f"ws://127.0.0.1:{self.port}/ws"
+
+    def args(self) -> list[str]:
+        args = [
+            "run",
+            "--db",
+            str(self.db),
+            "--port",
+            str(self.port),
+            "--waypoints",
+            str(demo_waypoints_path()),
+            "--time-scale",
+            str(self.time_scale),
+        ]
+        for i, (name, url) in enumerate(self.robots.items()):
+            args += ["--robot", f"{name}={url},home=home{i + 1}"]
+        return args + self.extra
+
+    def command(self) -> list[str]:
+        return [sys.executable, "-m", "serveur.cli", *self.args()]
+
+    async def start(self) -> None:
+        """Start the server and return once it listens (its database is open and the robots'
+        statuses are reconciled by then: ``Core.start`` runs before the endpoint opens)."""
+        if not self.token:
+            self.token = await run_cli("token", "create", "--role", "staff", "--db", str(self.db))
+        await super().start()
 
 
 async def run_cli(*args: str, stdin: str = "") -> str:

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import asyncio
 import configparser
-import os
 import shlex
 import shutil
 import signal
@@ -25,7 +24,7 @@ from pathlib import Path
 import pytest
 
 from serveur.mapio import demo_map_path, demo_waypoints_path
-from tests.subprocess_server import STARTUP, free_port, run_cli
+from tests.subprocess_server import STARTUP, ServeurProcess, free_port, run_cli
 
 DEPLOY = Path(__file__).resolve().parent.parent / "deploy"
 BIN = "/opt/serveur/bin/serveur"
@@ -87,39 +86,6 @@ def test_the_service_keeps_its_database_where_it_may_write() -> None:
     assert unit("serveur-backup.timer")["Timer"]["Persistent"] == "true"
 
 
-class Service:
-    """``ExecStart`` as systemd runs it: its own process, output to the journal (here, a list)."""
-
-    def __init__(self, argv: list[str], cwd: Path) -> None:
-        self.argv, self.cwd = argv, cwd
-        self.output: list[str] = []
-        self.proc: asyncio.subprocess.Process | None = None
-
-    async def start(self) -> None:
-        self.output.clear()
-        self.proc = await asyncio.create_subprocess_exec(
-            *self.argv,
-            cwd=self.cwd,
-            stdout=asyncio.subprocess.PIPE,
-            stderr=asyncio.subprocess.STDOUT,
-            env={**os.environ, "PYTHONUNBUFFERED": "1"},
-        )
-        assert self.proc.stdout is not None
-        async with asyncio.timeout(STARTUP):
-            while " listening on " not in (line := (await self.proc.stdout.readline()).decode()):
-                assert line, "the service exited before listening:\n" + "".join(self.output)
-                self.output.append(line)
-            self.output.append(line)
-
-    async def stop(self, sig: signal.Signals, timeout: float) -> int:
-        assert self.proc is not None and self.proc.stdout is not None
-        self.proc.send_signal(sig)
-        async with asyncio.timeout(timeout):
-            rest, _ = await self.proc.communicate()
-        self.output.append(rest.decode())
-        return int(self.proc.returncode or 0)
-
-
 async def test_first_start_backup_stop_and_restore_as_documented(tmp_path: Path) -> None:
     port = free_port()
     state, etc = tmp_path / "state", tmp_path / "etc"
@@ -137,10 +103,9 @@ async def test_first_start_backup_stop_and_restore_as_documented(tmp_path: Path)
     )
 
     svc = unit("serveur.service")["Service"]
-    service = Service(serveur_argv(local(svc["ExecStart"], tmp_path, port)), state)
+    service = ServeurProcess(serveur_argv(local(svc["ExecStart"], tmp_path, port)), cwd=state)
     await service.start()
     try:
-        assert "First start" not in "".join(service.output), "a password went to the journal"
         await run_cli(
             "user", "add", "bob", "--role", "staff", "--db", str(db), stdin="another one\n"
         )
@@ -162,7 +127,9 @@ async def test_first_start_backup_stop_and_restore_as_documented(tmp_path: Path)
         rc = await service.stop(
             signal.Signals[svc["KillSignal"]], float(svc["TimeoutStopSec"].rstrip("s"))
         )
-    assert rc == 0, "".join(service.output)
+    journal = "\n".join(service.output)  # all of it: the first-start notice follows "listening"
+    assert rc == 0, journal
+    assert "First start" not in journal, "a password went to the journal"
 
     # docs/deploy.md, "Restore": a later change is lost, the backup's data is back
     await run_cli("user", "remove", "bob", "--db", str(db))
