@@ -408,8 +408,10 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                 ns.robots,
             )
             procs.append(sim)
-            rt = _prefix(ns, cpu=0)
-            echo, [echo_port] = await _start([*rt, sys.executable, __file__, "--echo-server"], 1)
+            prefix = _prefix(ns, cpu=0)  # the servers' CPU and priority
+            echo, [echo_port] = await _start(
+                [*prefix, sys.executable, __file__, "--echo-server"], 1
+            )
             procs.append(echo)
             port = _free_port()
             # A staff token for the load clients; all of them come from 127.0.0.1, so the
@@ -462,7 +464,7 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                     "bench-server-profile.txt",
                     *cmd[1:],
                 ]
-            server, _ = await _start([*rt, *cmd], 1)
+            server, _ = await _start([*prefix, *cmd], 1)
             procs.append(server)
             url = f"ws://127.0.0.1:{port}/ws"
             clients = [

@@ -79,10 +79,11 @@ def main() -> int:
                     # Every new kind of failure is printed (the first line, digits masked,
                     # says the kind), and the count of each at the end: a cluster of one
                     # bug's repeats must not hide the next bug.
-                    kind = re.sub(r"\d+", "N", str(exc).splitlines()[0] if str(exc) else "?")
+                    text = str(exc)
+                    kind = re.sub(r"\d+", "N", (text.splitlines() or ["?"])[0])
                     kinds[kind] += 1
                     if kinds[kind] == 1:
-                        print(f"FAILURE in example {n}: {str(exc)[:3000]}", flush=True)
+                        print(f"FAILURE in example {n}: {text[:3000]}", flush=True)
                 if n % args.report_every == 0:
                     print(
                         f"  {n} examples, {stats.frames} frames, {len(stats.failures)} failures,"

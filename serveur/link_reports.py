@@ -49,8 +49,9 @@ class ReportHandler(Protocol):
         """Handle one report: ``up``, ``down``, ``goal``, ``handover`` or ``persist_pose``."""
 
     def battery_changed(self, name: str) -> None:
-        """The robot's battery moved by a percent or more: publish its record, and let the
-        dispatcher look again (a robot charging at home may be usable for trips now)."""
+        """The robot's battery moved by a percent or more since last published, or crossed
+        the dispatch threshold: publish its record, and let the dispatcher look again (a
+        robot charging at home may be usable for trips now)."""
 
 
 class LinkReports:

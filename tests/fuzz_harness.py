@@ -454,9 +454,7 @@ class LiveRestaurant:
         assert self.observer is not None
         self.errors.records.clear()
         for step in steps:
-            for i, c in enumerate(self.conns):
-                if c.logged_out:
-                    await self._login_again(i)
+            await self._login_logged_out()
             if isinstance(step, Wait):
                 timeout = step.timeout * self.wait_scale
                 reached = await self.observer.wait(step.robot, step.statuses, timeout)
@@ -478,8 +476,7 @@ class LiveRestaurant:
                 raise FuzzFailure(
                     f"connection {i}: a reply nobody asked for: {c.replies.get_nowait()}"
                 )
-            if c.logged_out:  # the example ends with every connection logged in
-                await self._login_again(i)
+        await self._login_logged_out()  # the example ends with every connection logged in
         if self.errors.records:
             raise FuzzFailure("the server logged errors:\n  " + "\n  ".join(self.errors.records))
 
@@ -523,7 +520,6 @@ class LiveRestaurant:
         ids: list[int] = []
         probe = encode(step.probe, self.live, ids)
         exact, loose = _expected_id(probe, ids, step.probe)
-        login = json.dumps({"clientmsg": "login", "id": "in", "token": self.r.token})
         frames = [
             (
                 Expect("logout", "logout", True, "out", (), "logout", code="ok"),
@@ -541,20 +537,30 @@ class LiveRestaurant:
                 ),
                 probe,
             ),
-            (Expect("login", "login", True, "in", (), login), login),
+            self._login_frame(),
         ]
         if conn.logged_out:  # a fuzzed logout, not yet noticed: in again first
             await self._login_again(index)
         await self._exchange(index, frames)
         await self._logged_in(index)
 
-    async def _login_again(self, index: int) -> None:
-        """Log connection ``index`` in again with its token after a fuzzed ``logout``."""
+    def _login_frame(self) -> tuple[Expect, str]:
+        """A login with the connections' token, and what its reply must be."""
         assert self.r is not None
         login = json.dumps({"clientmsg": "login", "id": "in", "token": self.r.token})
+        return Expect("login", "login", True, "in", (), login), login
+
+    async def _login_logged_out(self) -> None:
+        """Log in again every connection a fuzzed ``logout`` logged out."""
+        for i, c in enumerate(self.conns):
+            if c.logged_out:
+                await self._login_again(i)
+
+    async def _login_again(self, index: int) -> None:
+        """Log connection ``index`` in again with its token after a fuzzed ``logout``."""
         self.conns[index].logged_out = False
         self.stats.relogins += 1
-        await self._exchange(index, [(Expect("login", "login", True, "in", (), login), login)])
+        await self._exchange(index, [self._login_frame()])
         await self._logged_in(index)
 
     async def _exchange(self, index: int, frames: list[tuple[Expect, str]]) -> None:
