@@ -166,6 +166,15 @@ def angle_diff(a: float, b: float) -> float:
     return abs((a - b + math.pi) % (2 * math.pi) - math.pi)
 
 
+async def log_in(page: Any, user: str, password: str) -> Any:
+    """Fill the page's login dialog and press "Log in"; the dialog."""
+    form = page.get_by_role("dialog").filter(has_text="Log in to serveur")
+    await form.get_by_label("Login").fill(user)
+    await form.get_by_label("Password").fill(password)
+    await form.get_by_role("button", name="Log in").click()
+    return form
+
+
 async def dismiss_toasts(page: Any) -> None:
     for button in await page.get_by_role("button", name="Dismiss").all():
         await button.click()
@@ -536,12 +545,9 @@ async def test_logging_in_and_out_and_screen_setup_links(tmp_path: Path, browser
         staff = await screens.open("/", online=False)
         form = staff.get_by_role("dialog").filter(has_text="Log in to serveur")
         await expect(form).to_be_visible()
-        await form.get_by_label("Login").fill("owner")
-        await form.get_by_label("Password").fill("not the password")
-        await form.get_by_role("button", name="Log in").click()
+        await log_in(staff, "owner", "not the password")
         await expect(form.get_by_role("alert")).to_have_text("Wrong user name, password or token.")
-        await form.get_by_label("Password").fill(password)
-        await form.get_by_role("button", name="Log in").click()
+        await log_in(staff, "owner", password)
         await expect(staff.locator("body")).to_have_attribute("data-connection", "online")
         await expect(form).to_be_hidden()
         await expect(staff.get_by_test_id("who")).to_have_text("owner (owner)")
@@ -581,10 +587,7 @@ async def test_the_owner_registers_a_robot_staff_cannot(tmp_path: Path, browser:
 
             screens.token = ""
             owner = await screens.open("/", online=False)
-            login = owner.get_by_role("dialog").filter(has_text="Log in to serveur")
-            await login.get_by_label("Login").fill("owner")
-            await login.get_by_label("Password").fill(r.app.first_owner_password or "")
-            await login.get_by_role("button", name="Log in").click()
+            await log_in(owner, "owner", r.app.first_owner_password or "")
             await expect(owner.locator("body")).to_have_attribute("data-connection", "online")
             await owner.get_by_text("Register a robot").click()
             form = owner.get_by_role("form", name="Register a robot")
