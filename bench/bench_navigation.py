@@ -21,7 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from serveur.navigation import DistanceTable, Planner, inflate, load_demo, raycast
+from serveur.maps.navigation import DistanceTable, Planner, inflate, load_demo, raycast
 
 
 def median_ms(fn: Callable[[], object], repeat: int) -> tuple[float, float]:

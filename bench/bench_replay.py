@@ -3,7 +3,7 @@
 The demo restaurant has 16 tables, so this script first draws a larger dining room with 30
 (6 columns x 5 rows, 22 m x 14.5 m, counter and six home spots along the north wall), in the
 style of ``bench/make_demo_map.py``, into a temporary directory; then generates the log
-(``serveur.orders.generate_orders``, the first 1,000 dishes of the first seed giving at least
+(``serveur.replay.orders.generate_orders``, the first 1,000 dishes of the first seed giving at least
 that many) and runs ``serveur replay`` in-process with the serveur policy.
 
 Run: ``python bench/bench_replay.py [--time-scale 300] [--profile]``. ``--profile`` writes a
@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from serveur.mapio import OccupancyMap, Waypoint, save_map, save_waypoints
-from serveur.orders import format_orders, generate_orders
-from serveur.replay import ReplayOptions, run_replay
-from serveur.replay_report import summary_text
+from serveur.maps.mapio import OccupancyMap, Waypoint, save_map, save_waypoints
+from serveur.replay.orders import format_orders, generate_orders
+from serveur.replay.report import summary_text
+from serveur.replay.service import ReplayOptions, run_replay
 
 RES = 0.05
 ROOM_W, ROOM_H = 22.0, 14.5

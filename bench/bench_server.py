@@ -53,7 +53,7 @@ import websockets
 from websockets.asyncio.client import ClientConnection, connect
 from websockets.asyncio.server import ServerConnection, serve
 
-from serveur.mapio import demo_map_path, demo_waypoints_path
+from serveur.maps.mapio import demo_map_path, demo_waypoints_path
 
 HZ = os.sysconf("SC_CLK_TCK")
 

@@ -41,9 +41,9 @@ from typing import Any
 
 from websockets.asyncio.client import connect
 
-from serveur import rosbridge as rb
-from serveur.navigation import load_demo
+from serveur.maps.navigation import load_demo
 from serveur.robot_sim import TICK, Simulation, start_simulation
+from serveur.robots import rosbridge as rb
 
 EXPECTED_HZ = {"/amcl_pose": 10.0, "/scan": 5.0}
 PREFIXES = {topic: f'{{"op":"publish","topic":"{topic}"'.encode() for topic in EXPECTED_HZ}

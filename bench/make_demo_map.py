@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from serveur.mapio import OccupancyMap, Waypoint, save_map, save_waypoints
+from serveur.maps.mapio import OccupancyMap, Waypoint, save_map, save_waypoints
 
 RES = 0.05
 ROOM_W, ROOM_H = 16.0, 12.0

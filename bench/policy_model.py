@@ -5,7 +5,7 @@ and is slightly noisy. Tuning ``suggest_carts`` (hold time, spreading) needs hun
 services, so this script replays a log as a discrete-event model in milliseconds: the same
 staff functions (:func:`~serveur.scheduler.fifo_cart`, :func:`~serveur.scheduler.suggest_carts`),
 the same stop ordering as the server (cart order for baseline, ``order_stops`` otherwise), the
-same guests (:func:`~serveur.replay_model.stop_dwell`) and path distances on the demo map; robots
+same guests (:func:`~serveur.replay.model.stop_dwell`) and path distances on the demo map; robots
 move at an effective speed with a fixed cost per leg, calibrated against real replays
 (docs/performance.md). Its figures are estimates; the real replay has the last word.
 
@@ -20,9 +20,9 @@ import heapq
 import itertools
 from collections.abc import Callable, Sequence
 
-from serveur.navigation import DistanceTable, Planner, load_demo
-from serveur.orders import LogOrder, demo_tables, read_orders
-from serveur.replay_model import stop_dwell
+from serveur.maps.navigation import DistanceTable, Planner, load_demo
+from serveur.replay.model import stop_dwell
+from serveur.replay.orders import LogOrder, demo_tables, read_orders
 from serveur.scheduler import RANKS, Dish, TripEstimate, fifo_cart, order_stops, suggest_carts
 
 SPEED = 0.6  # m/s effective (0.7 m/s top speed, acceleration, corners)

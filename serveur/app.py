@@ -14,12 +14,13 @@ from pathlib import Path
 from typing import Any
 
 from serveur.clock import Clock, ScaledClock
-from serveur.core import Core, CoreConfig
+from serveur.core.engine import Core, CoreConfig
 from serveur.domain import WaypointKind, WaypointRecord
 from serveur.errors import Conflict
+from serveur.security.sessions import SecurityConfig, Sessions
 from serveur.server import Server
-from serveur.sessions import SecurityConfig, Sessions
-from serveur.store import Store, open_store
+from serveur.store.base import Store
+from serveur.store.factory import open_store
 
 __all__ = ["App", "RobotSpec", "parse_robot_spec"]
 
@@ -54,7 +55,7 @@ class App:
 
     ``ssl`` makes the server's one port TLS-only (https + wss); ``robot_ssl`` is how links
     verify ``wss://`` robots (None: the system trust store). Both are contexts rather than
-    file names so tests and embedders can build them however they like (serveur.tls).
+    file names so tests and embedders can build them however they like (serveur.security.tls).
     """
 
     def __init__(

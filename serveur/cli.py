@@ -25,7 +25,7 @@ from serveur import __version__
 from serveur.errors import ServeurError
 
 if TYPE_CHECKING:
-    from serveur.sessions import SecurityConfig
+    from serveur.security.sessions import SecurityConfig
 
 __all__ = ["main"]
 
@@ -42,7 +42,7 @@ async def _wait_for_signal() -> None:
 
 
 def _security(ns: argparse.Namespace) -> SecurityConfig:
-    from serveur.sessions import SecurityConfig
+    from serveur.security.sessions import SecurityConfig
 
     return SecurityConfig(
         allowed_origins=tuple(ns.allow_origin),
@@ -70,7 +70,7 @@ def _add_security_arguments(p: argparse.ArgumentParser) -> None:
 def _tls(ns: argparse.Namespace) -> tuple[ssl.SSLContext | None, ssl.SSLContext | None]:
     """The server's and the robot links' TLS contexts from ``--certfile/--keyfile`` and
     ``--robot-cafile`` (None: serve in the clear / the system trust store)."""
-    from serveur.tls import client_context, server_context
+    from serveur.security.tls import client_context, server_context
 
     server = server_context(ns.certfile, ns.keyfile) if ns.certfile else None
     robots = client_context(ns.robot_cafile) if ns.robot_cafile else None
@@ -90,7 +90,7 @@ async def _run(ns: argparse.Namespace) -> int:
 
     waypoints = None
     if ns.waypoints:
-        from serveur.mapio import load_waypoints
+        from serveur.maps.mapio import load_waypoints
 
         waypoints = load_waypoints(ns.waypoints)
     robots = [parse_robot_spec(s) for s in ns.robot]
@@ -107,7 +107,7 @@ async def _run(ns: argparse.Namespace) -> int:
         robot_ssl=robot_tls,
     )
     await app.start()
-    from serveur.memory import freeze_heap
+    from serveur.maps.memory import freeze_heap
 
     freeze_heap()  # start-up objects out of the collector's way: no 70 ms full collections
     print(f"serveur {__version__} listening on {app.url} (database {ns.db})", flush=True)
@@ -132,7 +132,7 @@ async def _demo(ns: argparse.Namespace) -> int:
     from serveur.app import App, RobotSpec
     from serveur.clock import ScaledClock
     from serveur.errors import ServeurError
-    from serveur.navigation import demo_map_path, load_demo
+    from serveur.maps.navigation import demo_map_path, load_demo
     from serveur.robot_sim import start_simulation
 
     try:
@@ -206,7 +206,7 @@ async def _demo(ns: argparse.Namespace) -> int:
 async def _demo_accounts(app: Any, specs: Sequence[Any], waypoints: Any) -> dict[str, str]:
     """Demo logins: an owner and a staff user with random passwords, a token per robot
     screen and one for the first table's screen."""
-    from serveur import auth
+    from serveur.security import auth
 
     assert app.sessions is not None
     creds: dict[str, str] = {}
@@ -306,19 +306,19 @@ def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     else:
         sub.add_parser("sim", help=_SIM_HELP)
 
-    from serveur.orders import add_orders_parser
+    from serveur.replay.orders import add_orders_parser
 
     add_orders_parser(sub)
     if "replay" in wanted:
-        from serveur.replay import add_replay_parser
+        from serveur.replay.cli import add_replay_parser
 
         add_replay_parser(sub)
     else:
         sub.add_parser("replay", help=_REPLAY_HELP)
-    from serveur.accounts_cli import add_accounts_parsers
+    from serveur.security.accounts_cli import add_accounts_parsers
 
     add_accounts_parsers(sub)
-    from serveur.maintenance import add_maintenance_parser
+    from serveur.store.maintenance import add_maintenance_parser
 
     add_maintenance_parser(sub)
 
@@ -335,7 +335,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"{ns.command}: --certfile and --keyfile go together: give both or neither")
     level = logging.WARNING - 10 * min(ns.verbose, 2) if ns.verbose else logging.INFO
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    from serveur.sessions import RedactSecrets
+    from serveur.security.sessions import RedactSecrets
 
     for handler in logging.getLogger().handlers:  # every record, from any logger, is scrubbed
         handler.addFilter(RedactSecrets())

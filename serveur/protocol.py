@@ -41,7 +41,8 @@ from serveur.domain import (
     WaypointKind,
 )
 from serveur.errors import BadJson, InvalidField, ServeurError, UnknownMessage
-from serveur.protocol_fields import (
+from serveur.status import Action
+from serveur.wire.fields import (
     MAX_ANGULAR,
     MAX_COORD,
     MAX_DEPTH,
@@ -67,7 +68,7 @@ from serveur.protocol_fields import (
     split_topic,
     unique_orders,
 )
-from serveur.protocol_server import (
+from serveur.wire.frames import (
     SERVER_ADAPTER,
     ErrorCode,
     ErrorReply,
@@ -85,7 +86,6 @@ from serveur.protocol_server import (
     ok_frame,
     update_frame,
 )
-from serveur.status import Action
 
 __all__ = [
     "MAX_ANGULAR",

@@ -9,10 +9,10 @@ exercise the same code paths as a restaurant.
 
 Structure:
 
-* :mod:`serveur.sim_robot` — one robot's ROS graph (:class:`~serveur.sim_robot.SimRobot`):
-  kinematics (:mod:`serveur.kinematics`), move_base's actionlib state machine, AMCL-like pose,
+* :mod:`serveur.sim.robot` — one robot's ROS graph (:class:`~serveur.sim.robot.SimRobot`):
+  kinematics (:mod:`serveur.sim.kinematics`), move_base's actionlib state machine, AMCL-like pose,
   odometry, laser, battery, and what it publishes.
-* :mod:`serveur.sim_bridge` — one websocket server per robot (many clients each), with
+* :mod:`serveur.sim.bridge` — one websocket server per robot (many clients each), with
   per-client, per-topic bounded queues so that a slow client only loses its own old messages
   and never blocks the robot or grows memory.
 * :class:`Simulation` — the robots of a fleet, one physics loop stepping all of them at a fixed
@@ -39,13 +39,9 @@ from typing import TextIO
 
 import numpy as np
 
-from serveur import rosbridge as rb
 from serveur.clock import Clock, ScaledClock
 from serveur.errors import ServeurError
-from serveur.kinematics import (
-    KINDS,
-)
-from serveur.navigation import (
+from serveur.maps.navigation import (
     OccupancyMap,
     Planner,
     Waypoint,
@@ -54,8 +50,11 @@ from serveur.navigation import (
     load_map,
     load_waypoints,
 )
-from serveur.sim_bridge import Endpoint, Frame
-from serveur.sim_robot import AMCL_TICKS, MAX_CATCH_UP, TICK, SimRobot
+from serveur.robots import rosbridge as rb
+from serveur.sim.bridge import Endpoint
+from serveur.sim.kinematics import KINDS
+from serveur.sim.robot import AMCL_TICKS, MAX_CATCH_UP, TICK, SimRobot
+from serveur.sim.topics import Frame
 
 __all__ = [
     "TICK",
@@ -275,7 +274,7 @@ async def start_simulation(
 
     Robot i is named ``names[i]`` or ``r{i+1}``, starts at waypoint ``home{i+1}`` and uses random
     seed ``seed + i``. ``clock`` overrides ``time_scale`` (tests pass a shared ScaledClock).
-    ``ssl`` (a server context, see serveur.tls.server_context) serves every robot over TLS.
+    ``ssl`` (a server context, see serveur.security.tls.server_context) serves every robot over TLS.
     ``spread`` spreads the robots' publish phases over the AMCL period (:meth:`Simulation.phases`).
     """
     if n < 1:
@@ -420,7 +419,7 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
     ctx = None
     certfile, keyfile = getattr(ns, "certfile", None), getattr(ns, "keyfile", None)
     if certfile or keyfile:
-        from serveur.tls import server_context
+        from serveur.security.tls import server_context
 
         if not (certfile and keyfile):
             print("serveur sim: --certfile and --keyfile go together", file=sys.stderr)

@@ -27,12 +27,12 @@ from websockets.http11 import Request, Response
 from websockets.protocol import State
 
 from serveur import protocol as P
-from serveur.auth import Principal, RateLimiter, Role, authorize, visible
-from serveur.core import Core
+from serveur.core.engine import Core
+from serveur.core.hub import Subscriber
 from serveur.errors import InvalidField, NotFound, RateLimited, ServeurError, Unauthorized
-from serveur.hub import Subscriber
-from serveur.sessions import CLOSE_AUTH, Sessions
-from serveur.static import default_site
+from serveur.security.auth import Principal, RateLimiter, Role, authorize, visible
+from serveur.security.sessions import CLOSE_AUTH, Sessions
+from serveur.web.static import default_site
 
 __all__ = ["CLOSE_IDLE", "MAX_FRAME", "Server"]
 
@@ -104,9 +104,9 @@ class Server:
     connection's role and scopes, requests are rate-limited per connection, and every
     state-changing instruction is audited with who gave it and from where.
 
-    With ``ssl`` (see :func:`serveur.tls.server_context`) that port speaks only TLS: the web UI
-    is https and /ws is wss, so a tablet that loaded the page over https opens its socket with
-    the same certificate, and nothing is ever accepted in the clear.
+    With ``ssl`` (see :func:`serveur.security.tls.server_context`) that port speaks only TLS: the
+    web UI is https and /ws is wss, so a tablet that loaded the page over https opens its socket
+    with the same certificate, and nothing is ever accepted in the clear.
     """
 
     def __init__(

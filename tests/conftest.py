@@ -21,7 +21,7 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from serveur.app import App, RobotSpec
 from serveur.clock import ScaledClock
-from serveur.core import CoreConfig
+from serveur.core.engine import CoreConfig
 
 # The private MariaDB server (once per session) and a fresh database for a test that asks.
 from tests.mariadb_server import mariadb_server, mariadb_url  # noqa: F401
@@ -177,7 +177,7 @@ class Restaurant:
 
 
 def make_app(db: Path | str, clock: ScaledClock, specs: list[RobotSpec], port: int = 0) -> App:
-    from serveur.navigation import load_demo
+    from serveur.maps.navigation import load_demo
 
     nav_map, waypoints = load_demo()
     cfg = CoreConfig(heartbeat=2.0, ack_timeout=3.0)
@@ -191,7 +191,7 @@ async def restaurant(
     tmp_path: Path, robots: int = 1, time_scale: float = TIME_SCALE, db_url: str | None = None
 ) -> AsyncIterator[Restaurant]:
     """A running restaurant on a SQLite file in ``tmp_path``, or on ``db_url`` if given."""
-    from serveur.navigation import demo_map_path
+    from serveur.maps.navigation import demo_map_path
     from serveur.robot_sim import start_simulation
 
     clock = ScaledClock(time_scale)

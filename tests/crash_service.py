@@ -39,8 +39,8 @@ from typing import Any
 import websockets
 
 from serveur.clock import ScaledClock
-from serveur.mapio import demo_map_path
-from serveur.navigation import load_demo
+from serveur.maps.mapio import demo_map_path
+from serveur.maps.navigation import load_demo
 from serveur.robot_sim import Simulation, start_simulation
 from tests import invariants
 from tests.conftest import Client

@@ -230,7 +230,7 @@ def query(url: str, sql: str) -> list[dict[str, Any]]:
         import asyncmy
         from asyncmy.cursors import DictCursor
 
-        from serveur.mariadb_db import MariaDBConfig
+        from serveur.store.mariadb.db import MariaDBConfig
 
         cfg = MariaDBConfig.from_url(url, {"SERVEUR_DB_PASSWORD": PASSWORD})
 

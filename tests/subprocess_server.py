@@ -20,7 +20,7 @@ from pathlib import Path
 
 from websockets.asyncio.client import connect
 
-from serveur.mapio import demo_waypoints_path
+from serveur.maps.mapio import demo_waypoints_path
 from tests.conftest import Client
 
 STARTUP = 30.0  # wall seconds for the server to listen (imports dominate; busy CI box)

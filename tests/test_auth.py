@@ -7,10 +7,10 @@ from typing import Any
 
 import pytest
 
-from serveur import auth
 from serveur import protocol as P
-from serveur.auth import Principal, Role, Scope
 from serveur.errors import Forbidden, InvalidField, RateLimited, Unauthorized
+from serveur.security import auth
+from serveur.security.auth import Principal, Role, Scope
 
 ROBOT = {"robot": "r1"}
 

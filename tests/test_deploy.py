@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from serveur.mapio import demo_map_path, demo_waypoints_path
+from serveur.maps.mapio import demo_map_path, demo_waypoints_path
 from tests.subprocess_server import STARTUP, ServeurProcess, free_port, run_cli
 
 DEPLOY = Path(__file__).resolve().parent.parent / "deploy"

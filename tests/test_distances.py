@@ -1,4 +1,4 @@
-"""Path distances planned outside the server's heap (serveur/distances.py).
+"""Path distances planned outside the server's heap (serveur/maps/distances.py).
 
 The child process and the worker thread must give the scheduler the same table the planner
 gives, a bad map must come back as a MapError with its message, a result planned for a spot
@@ -14,10 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from serveur import rosbridge as rb
-from serveur.distances import Distances, MapData, PlanRequest, PlanResult, plan_async
 from serveur.errors import MapError
-from serveur.navigation import DistanceTable, Planner, demo_map_path, load_demo, load_map
+from serveur.maps.distances import Distances, MapData, PlanRequest, PlanResult, plan_async
+from serveur.maps.navigation import DistanceTable, Planner, demo_map_path, load_demo, load_map
+from serveur.robots import rosbridge as rb
 from tests.conftest import restaurant
 from tests.subprocess_server import ServerProcess, staff_client
 

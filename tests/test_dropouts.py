@@ -14,9 +14,9 @@ from typing import Any
 
 from serveur.app import App, RobotSpec
 from serveur.clock import ScaledClock
-from serveur.core import Core, CoreConfig
-from serveur.mapio import demo_map_path
-from serveur.navigation import load_demo
+from serveur.core.engine import Core, CoreConfig
+from serveur.maps.mapio import demo_map_path
+from serveur.maps.navigation import load_demo
 from serveur.robot_sim import start_simulation
 from tests import invariants
 from tests.conftest import Client, Restaurant
@@ -194,7 +194,7 @@ async def test_silent_robot_is_offline_within_two_simulated_seconds(tmp_path: Pa
 async def test_hand_over_limit_counts_from_the_drop_across_a_restart(tmp_path: Path) -> None:
     """A robot that dropped before a server restart is handed over ``handover_after`` after
     the drop, not ``handover_after`` after the restart."""
-    from serveur.core import HANDOVER_GRACE
+    from serveur.core.engine import HANDOVER_GRACE
     from tests.conftest import restaurant
 
     limit = 30.0

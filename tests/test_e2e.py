@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from serveur.navigation import load_demo
+from serveur.maps.navigation import load_demo
 from tests.conftest import Client, Restaurant
 
 _, WAYPOINTS = load_demo()

@@ -29,7 +29,7 @@ from serveur import protocol as P
 from serveur.domain import WaypointKind, WaypointRecord
 from serveur.errors import ServeurError
 from serveur.status import RobotMode, RobotStatus
-from serveur.store import open_store
+from serveur.store.factory import open_store
 from tests.fuzz_harness import ERROR_CODES, Expect, FuzzFailure, LiveRestaurant, Stats
 from tests.fuzz_strategies import (
     LABELS,

@@ -11,7 +11,7 @@ import json
 
 import pytest
 
-from serveur.hub import Hub, Pacer, Subscriber
+from serveur.core.hub import Hub, Pacer, Subscriber
 
 
 class FakeConn:

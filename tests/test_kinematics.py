@@ -8,8 +8,8 @@ import random
 
 import pytest
 
-from serveur.kinematics import Limits, MotionModel, OdometryModel, PathFollower, wrap_angle
-from serveur.navigation import Planner, load_demo
+from serveur.maps.navigation import Planner, load_demo
+from serveur.sim.kinematics import Limits, MotionModel, OdometryModel, PathFollower, wrap_angle
 
 DT = 0.05
 

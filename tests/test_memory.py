@@ -1,11 +1,11 @@
-"""serveur.memory: freed heap pages go back to the OS where the C library allows it."""
+"""serveur.maps.memory: freed heap pages go back to the OS where the C library allows it."""
 
 from __future__ import annotations
 
 import gc
 import platform
 
-from serveur.memory import freeze_heap, trim_heap
+from serveur.maps.memory import freeze_heap, trim_heap
 
 
 def test_trim_heap_works_on_glibc_and_is_harmless_elsewhere() -> None:

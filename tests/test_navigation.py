@@ -20,7 +20,7 @@ import pytest
 from PIL import Image
 
 from serveur.errors import InvalidField, MapError, NotFound, ServeurError, Unreachable
-from serveur.navigation import (
+from serveur.maps.navigation import (
     DistanceTable,
     OccupancyMap,
     Planner,

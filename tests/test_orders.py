@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from serveur.cli import main
-from serveur.orders import (
+from serveur.replay.orders import (
     LogOrder,
     OrderLogError,
     demo_tables,

@@ -12,7 +12,7 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Callable
 
-from serveur.robot_link import IDLE_POSE_MS, IDLE_STATUS_MS
+from serveur.robots.ros1.link import IDLE_POSE_MS, IDLE_STATUS_MS
 from tests.conftest import WAIT, Restaurant
 from tests.test_e2e import activate, new_orders, staff
 
@@ -70,9 +70,9 @@ class _Quiet:
 async def test_replay_throttles_reach_the_robot() -> None:
     """What ``serveur replay`` asks for at high time scales: slow status, 2 Hz moving pose."""
     from serveur.clock import ScaledClock
-    from serveur.navigation import demo_map_path
-    from serveur.robot_link import RobotLink
+    from serveur.maps.navigation import demo_map_path
     from serveur.robot_sim import start_simulation
+    from serveur.robots.ros1.link import RobotLink
 
     clock = ScaledClock(10.0)
     sim = await start_simulation(1, port=0, map_path=demo_map_path(), clock=clock)

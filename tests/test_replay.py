@@ -17,7 +17,7 @@ import pytest
 from PIL import Image
 
 from serveur.cli import main
-from serveur.replay import dish_dwell, peak_utilisation, percentile, stop_dwell
+from serveur.replay.service import dish_dwell, peak_utilisation, percentile, stop_dwell
 
 pytestmark = pytest.mark.slow
 

@@ -10,9 +10,9 @@ import cbor2
 import numpy as np
 import pytest
 
-from serveur import rosbridge as rb
 from serveur.errors import RosbridgeError
-from serveur.navigation import OccupancyMap
+from serveur.maps.navigation import OccupancyMap
+from serveur.robots import rosbridge as rb
 
 # -- encode / decode ------------------------------------------------------------------------
 

@@ -19,7 +19,7 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from serveur.app import App
 from serveur.clock import FakeClock
-from serveur.sessions import CLOSE_AUTH, SecurityConfig
+from serveur.security.sessions import CLOSE_AUTH, SecurityConfig
 from tests.conftest import WAIT, Client, Restaurant
 
 # -- helpers ---------------------------------------------------------------------------------
@@ -28,7 +28,7 @@ from tests.conftest import WAIT, Client, Restaurant
 @contextlib.asynccontextmanager
 async def bare_server(tmp_path: Path, **security: Any) -> AsyncIterator[App]:
     """A server with no robots on a fresh database, on a clock the test moves."""
-    from serveur.navigation import load_demo
+    from serveur.maps.navigation import load_demo
 
     _, waypoints = load_demo()
     app = App(

@@ -13,11 +13,11 @@ from pathlib import Path
 
 from websockets.asyncio.client import connect
 
-from serveur import rosbridge as rb
 from serveur.cli import main
 from serveur.clock import ScaledClock
-from serveur.mapio import demo_map_path
+from serveur.maps.mapio import demo_map_path
 from serveur.robot_sim import start_simulation
+from serveur.robots import rosbridge as rb
 from tests import invariants
 from tests.conftest import Restaurant
 from tests.subprocess_server import ServerProcess, close_quietly, staff_client

@@ -24,9 +24,9 @@ import pytest
 from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed
 
-from serveur import rosbridge as rb
 from serveur.clock import FakeClock, ScaledClock
 from serveur.robot_sim import Simulation, start_simulation
+from serveur.robots import rosbridge as rb
 
 SCALE = 20.0
 WAIT = 10.0  # wall seconds; every wait returns as soon as its condition holds

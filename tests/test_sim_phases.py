@@ -14,9 +14,9 @@ import json
 import pytest
 from websockets.asyncio.client import connect
 
-from serveur import rosbridge as rb
 from serveur.robot_sim import TICK, start_simulation
-from serveur.sim_robot import AMCL_TICKS
+from serveur.robots import rosbridge as rb
+from serveur.sim.robot import AMCL_TICKS
 
 PERIOD = AMCL_TICKS * TICK
 

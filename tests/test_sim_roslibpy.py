@@ -19,8 +19,8 @@ import pytest
 import roslibpy
 from roslibpy.ros1.actionlib import ActionClient, Goal
 
-from serveur import rosbridge as rb
 from serveur.robot_sim import Simulation, start_simulation
+from serveur.robots import rosbridge as rb
 
 SCALE = 20.0
 WAIT = 10.0  # wall seconds

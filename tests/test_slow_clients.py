@@ -1,7 +1,7 @@
 """Slow and dead clients: nobody waits for them, they cost bounded memory, and a client cut
 off for being too far behind (4002) resynchronises from a snapshot.
 
-The hub's rules (serveur/hub.py): state updates queue per client up to ``max_pending``, then
+The hub's rules (serveur/core/hub.py): state updates queue per client up to ``max_pending``, then
 the client is closed with 4002; pose and scan keep only the newest frame per topic.
 """
 
@@ -18,9 +18,9 @@ import pytest
 import websockets
 from websockets.asyncio.client import connect
 
-from serveur import hub as hub_module
 from serveur import server as server_module
-from serveur.hub import CLOSE_TOO_SLOW, Hub, Subscriber
+from serveur.core import hub as hub_module
+from serveur.core.hub import CLOSE_TOO_SLOW, Hub, Subscriber
 from tests.conftest import Restaurant
 from tests.test_e2e import staff
 

@@ -10,7 +10,7 @@ import pytest
 from websockets.datastructures import Headers
 from websockets.http11 import Request
 
-from serveur.static import WEB_ROOT, StaticSite
+from serveur.web.static import WEB_ROOT, StaticSite
 from tests.conftest import Restaurant
 
 PAGES = {

@@ -1,7 +1,7 @@
 """The store against real database files: every method, its refusals, and its races.
 
 Backend-neutral on purpose: tests get a :class:`Backend` (a way to open another
-:class:`~serveur.store.Store` on the same database, and to read it with raw SQL) and an opened
+:class:`~serveur.store.base.Store` on the same database, and to read it with raw SQL) and an opened
 ``store``. A MariaDB backend joins by adding a parameter to :func:`backend`; the few tests
 that are about SQLite files skip themselves elsewhere.
 """
@@ -27,8 +27,10 @@ from serveur.domain import (
 )
 from serveur.errors import Conflict, InvalidField, NotFound, StoreError
 from serveur.status import RobotMode, RobotStatus
-from serveur.store import SQLiteStore, Store, load_migrations, open_store
-from serveur.store_sqlite import split_sql
+from serveur.store.base import Store
+from serveur.store.factory import open_store
+from serveur.store.migrations import load_migrations
+from serveur.store.sqlite.store import SQLiteStore, split_sql
 from tests.mariadb_server import query
 
 pytestmark = pytest.mark.timeout(30)

@@ -15,9 +15,12 @@ import pytest
 
 from serveur.domain import OrderStatus, TaskStatus
 from serveur.errors import Conflict, StoreError
-from serveur.mariadb_db import MariaDBConfig, split_statements
-from serveur.store import SQLiteStore, Store, load_migrations, open_store
-from serveur.store_mariadb import MariaDBStore
+from serveur.store.base import Store
+from serveur.store.factory import open_store
+from serveur.store.mariadb.db import MariaDBConfig, split_statements
+from serveur.store.mariadb.store import MariaDBStore
+from serveur.store.migrations import load_migrations
+from serveur.store.sqlite.store import SQLiteStore
 from tests.mariadb_server import PASSWORD, MariaDBServer, query
 from tests.test_store import T0, TABLES, orders, seed
 

@@ -29,8 +29,8 @@ from websockets.exceptions import InvalidHandshake
 from serveur.app import App, RobotSpec
 from serveur.cli import main
 from serveur.clock import ScaledClock
-from serveur.core import CoreConfig
-from serveur.tls import client_context, server_context
+from serveur.core.engine import CoreConfig
+from serveur.security.tls import client_context, server_context
 from tests.conftest import TIME_SCALE, WAIT, Client, Restaurant
 from tests.test_cli import free_port, read_until
 
@@ -116,7 +116,7 @@ def tls_app(
     robot_tls: ssl.SSLContext | None = None,
 ) -> App:
     """conftest.make_app with the TLS options (same map, waypoints and link tunables)."""
-    from serveur.navigation import load_demo
+    from serveur.maps.navigation import load_demo
 
     nav_map, waypoints = load_demo()
     return App(
@@ -142,7 +142,7 @@ async def tls_restaurant(
 ) -> AsyncIterator[Restaurant]:
     """conftest.restaurant() with one robot, TLS where asked: ``server_tls`` for /ws and the
     UI, ``robot_server_tls`` for the simulated robot's rosbridge, ``robot_tls`` for the link."""
-    from serveur.navigation import demo_map_path
+    from serveur.maps.navigation import demo_map_path
     from serveur.robot_sim import start_simulation
 
     clock = ScaledClock(TIME_SCALE)
@@ -306,7 +306,7 @@ async def test_robot_added_from_the_console_over_wss(tmp_path: Path, pki: Pki) -
 
 
 class _LinkLog(logging.Handler):
-    """Collects serveur.robot_link records and wakes a waiter (the link logs on the loop)."""
+    """Collects serveur.robots.ros1.link records and wakes a waiter (the link logs on the loop)."""
 
     def __init__(self) -> None:
         super().__init__(logging.DEBUG)
@@ -332,7 +332,7 @@ class _LinkLog(logging.Handler):
 
 @contextlib.contextmanager
 def link_log() -> Iterator[_LinkLog]:
-    logger = logging.getLogger("serveur.robot_link")
+    logger = logging.getLogger("serveur.robots.ros1.link")
     handler, level = _LinkLog(), logger.level
     logger.addHandler(handler)
     logger.setLevel(logging.DEBUG)

@@ -26,8 +26,8 @@ import pytest_asyncio
 
 from serveur.app import App, RobotSpec
 from serveur.clock import ScaledClock
-from serveur.core import CoreConfig
-from serveur.navigation import demo_map_path, load_demo
+from serveur.core.engine import CoreConfig
+from serveur.maps.navigation import demo_map_path, load_demo
 from serveur.robot_sim import start_simulation
 from tests.conftest import TIME_SCALE, Client, Restaurant
 

@@ -1,4 +1,4 @@
-"""Virtual time (serveur/vtime.py): the clock jumps only when nothing can run.
+"""Virtual time (serveur/replay/vtime.py): the clock jumps only when nothing can run.
 
 The replay's determinism rests on these properties: timers fire in deadline order without
 waiting, a query in a worker thread (or anything a busy predicate covers) finishes before time
@@ -19,7 +19,7 @@ import pytest
 from websockets.asyncio.client import connect
 from websockets.asyncio.server import ServerConnection, serve
 
-from serveur.vtime import LoopClock, VirtualTimeLoop
+from serveur.replay.vtime import LoopClock, VirtualTimeLoop
 
 T = TypeVar("T")
 

@@ -1,0 +1,102 @@
+"""Creating orders, trips and waypoints: validation, planning, idempotency, publication.
+
+``create`` is the one verb that does not act on a robot, so it needs none of the core's
+per-robot locking or status machine — only the store, the floor plan
+(:mod:`serveur.core.places`), publication (:mod:`serveur.core.publisher`) and a nudge to the
+dispatcher. Keeping it here leaves :mod:`serveur.core.engine` about robots. (Creating a
+*robot*, and a waypoint at a robot's current pose, do touch robots; the core does those parts.)
+
+Idempotency: a keyed ``create task`` may be resent (a tablet that lost the reply). The
+fingerprint is a digest of the request's order ids, not of the planned trips: by the resend
+some orders are no longer pending and planning would give other trips, yet it is the same
+request and must get the same answer — the store answers it from the key.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from serveur.clock import Clock
+from serveur.core.places import Places
+from serveur.core.publisher import Publisher
+from serveur.core.runtime import CoreConfig
+from serveur.domain import Order, OrderStatus, Task, WaypointRecord
+from serveur.errors import Conflict
+from serveur.scheduler import cart_order_trips, plan_trips
+from serveur.store.base import Store
+
+__all__ = ["Creation"]
+
+
+class Creation:
+    """Creates orders, trips and waypoints for the ``create`` verb."""
+
+    def __init__(
+        self,
+        store: Store,
+        clock: Clock,
+        config: CoreConfig,
+        *,
+        places: Places,
+        publisher: Publisher,
+        origin: Callable[[], str],
+        kick: Callable[[], None],
+    ) -> None:
+        """``origin`` names where trips start (:meth:`Places.origin` over the robots' homes);
+        ``kick`` tells the dispatcher trips were queued."""
+        self._store = store
+        self._clock = clock
+        self._config = config
+        self._places = places
+        self._publisher = publisher
+        self._origin = origin
+        self._kick = kick
+
+    async def order(self, dish: str, table: str, key: str | None) -> Order:
+        """A dish ready at the pass now, for a table that must exist."""
+        now = self._clock.epoch()
+        self._places.waypoint(table)
+        order = await self._store.add_order(dish, table, ready_at=now, key=key, now=now)
+        self._publisher.pub("orders", order)
+        return order
+
+    async def tasks(self, order_ids: list[int], key: str | None) -> list[Task]:
+        """Queue the orders as trips (planned by the configured policy); the dispatcher runs.
+
+        Without a key every order must be pending. With a key, a resend is answered by the
+        store from the key; only the orders still pending are planned otherwise.
+        """
+        fp = _fingerprint({"orders": sorted(order_ids)})
+        orders: list[Order] = [await self._store.get_order(i) for i in order_ids]
+        pending = [o for o in orders if o.status is OrderStatus.PENDING]
+        if key is None and len(pending) != len(orders):
+            bad = sorted(o.id for o in orders if o.status is not OrderStatus.PENDING)
+            raise Conflict(f"orders not pending: {bad}", orders=bad)
+        if self._config.policy == "baseline":
+            trips = cart_order_trips(pending or orders, self._config.capacity)
+        else:
+            trips = plan_trips(
+                pending or orders, self._origin(), self._places.distance, self._config.capacity
+            )
+        tasks = await self._store.create_tasks(
+            trips, key=key, fingerprint=fp, now=self._clock.epoch()
+        )
+        for t in tasks:
+            self._publisher.pub_task(t)
+        await self._publisher.pub_orders(order_ids)
+        self._kick()
+        return tasks
+
+    async def waypoint(self, wp: WaypointRecord, *, replace: bool) -> WaypointRecord:
+        """Store a waypoint (``replace`` to move one); its path distances are then planned."""
+        wp = await self._store.put_waypoint(wp, replace=replace, now=self._clock.epoch())
+        self._places.put(wp)
+        self._publisher.pub("waypoints", wp)
+        return wp
+
+
+def _fingerprint(payload: Mapping[str, Any]) -> str:
+    return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()

@@ -1,0 +1,639 @@
+"""The server core: robots' live state, what each instruction does, and what robot reports do.
+
+This is the application layer between the websocket endpoint (:mod:`serveur.server`, which
+only parses and replies) and the store, the robot links and the dispatcher. Rules it relies
+on live in pure modules: the status machine (:mod:`serveur.status`), trip planning
+(:mod:`serveur.scheduler`) and message validation (:mod:`serveur.protocol`).
+
+Concurrency: everything that touches one robot — a client instruction, a link report, the
+dispatcher giving it a trip — runs under that robot's lock, so "check the status, then act"
+can never interleave (two staff pressing Continue and Cancel together get one success and one
+``not_allowed_in_status``). Link reports are queued per robot and handled in arrival order.
+
+Robot dropouts: at first the trip stays with its robot — the dishes are physically on its
+tray. The robot is Offline while the link is down; when it returns, it resumes the status it
+had and re-sends the goal of the current stop (or arrives at once if it is already there).
+A robot Offline for longer than ``CoreConfig.handover_after`` has its trip handed over: the
+task goes back to the queue (its orders stay on it) and the next free robot takes it; the
+away robot, when it returns, goes home instead of continuing a trip that is no longer its own.
+
+Server restarts are the same case: every robot starts Offline and resumes on link-up (one
+that was already Offline before the restart keeps counting its hand-over limit from when it
+was last seen, with a short grace to reconnect). Before
+that, :meth:`Core.start` reconciles what a crash may have left half-done between two
+transactions (a trip taken but the robot not yet Delivering, the last stop served but the
+trip not closed, a trip handed over but the robot still meant to deliver it).
+
+Shutdown (:meth:`Core.close`) stops every robot's move so none drives off unattended; the
+stored status is kept, so a restarted server sends the robot on with its trip.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import ssl
+from collections.abc import Mapping
+from dataclasses import replace
+from typing import Any
+
+from serveur import protocol as P
+from serveur.clock import Clock
+from serveur.core.creation import Creation
+from serveur.core.hub import Hub
+from serveur.core.link_reports import HANDOVER_GRACE, LinkReports
+from serveur.core.places import Places
+from serveur.core.publisher import Publisher
+from serveur.core.runtime import CoreConfig, Destination, Runtime, pose_dict
+from serveur.core.trips import Trips
+from serveur.domain import (
+    OrderStatus,
+    Robot,
+    Task,
+    TaskStatus,
+    WaypointKind,
+    WaypointRecord,
+)
+from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurError
+from serveur.robots import rosbridge as rb
+from serveur.robots.ros1.link import RobotLink
+from serveur.scheduler import Candidate, Dispatcher
+from serveur.status import Action, Event, RobotState, RobotStatus, apply, check_allowed
+from serveur.store.base import Store
+
+__all__ = ["HANDOVER_GRACE", "Core", "CoreConfig", "Destination"]
+
+log = logging.getLogger(__name__)
+
+S = RobotStatus
+
+
+class Core:
+    """Owns robots' runtime state and carries out every instruction.
+
+    Collaborators it owns: :class:`~serveur.core.places.Places` (waypoints, map, path distances),
+    :class:`~serveur.core.publisher.Publisher` (topics and the events feed),
+    :class:`~serveur.core.link_reports.LinkReports` (every robot link's listener, feeding each
+    robot's report queue to :meth:`on_report`, and the hand-over timers),
+    :class:`~serveur.core.trips.Trips` (each step of a trip in the store) and
+    :class:`~serveur.core.creation.Creation` (orders, trips and waypoints for ``create``). The core
+    keeps what ties them together: each robot's status, changed under its lock.
+    """
+
+    def __init__(
+        self,
+        store: Store,
+        clock: Clock,
+        *,
+        config: CoreConfig | None = None,
+        nav_map: Any = None,
+        map_path: str | None = None,
+        plan_in_child: bool | None = None,
+        robot_ssl: ssl.SSLContext | None = None,
+    ) -> None:
+        self.store = store
+        self.clock = clock
+        self.config = config or CoreConfig()
+        #: How robot links verify ``wss://`` robots (see serveur.security.tls.client_context); None:
+        #: the system trust store.
+        self.robot_ssl = robot_ssl
+        self.hub = Hub(on_watch=self._on_watch)
+        self.dispatcher = Dispatcher(self)
+        self._rt: dict[str, Runtime] = {}
+        self._robots: dict[str, Robot] = {}
+        self.places = Places(
+            self.hub,
+            robot_radius=self.config.robot_radius,
+            nav_map=nav_map,
+            map_path=map_path,
+            plan_in_child=plan_in_child,
+        )
+        self.publisher = Publisher(self.hub, store)
+        self.reports = LinkReports(
+            self._rt,
+            self,
+            hub=self.hub,
+            clock=clock,
+            config=self.config,
+            places=self.places,
+            publisher=self.publisher,
+        )
+        self.trips = Trips(
+            store,
+            clock,
+            self.config,
+            robots=self._robots,
+            places=self.places,
+            publisher=self.publisher,
+            origin=self._origin,
+        )
+        self.creation = Creation(
+            store,
+            clock,
+            self.config,
+            places=self.places,
+            publisher=self.publisher,
+            origin=self._origin,
+            kick=self.dispatcher.kick,
+        )
+
+    # -- lifecycle ---------------------------------------------------------------------------
+
+    async def start(self) -> None:
+        await self.publisher.skip_stored_events()
+        # Path distances between all waypoints are planned before any robot is driven.
+        await self.places.load(await self.store.list_waypoints())
+        for robot in await self.store.list_robots():
+            # Every robot starts Offline and resumes what it was doing once its link is up.
+            resume = robot.resume if robot.status is S.OFFLINE else robot.status
+            # A robot already Offline before the restart has been away since its last state
+            # change: its hand-over limit counts from then, not from this start.
+            away_since = robot.status_since if robot.status is S.OFFLINE else None
+            robot, resume = await self.trips.reconcile(robot, resume)
+            self._add_runtime(robot)
+            self._rt[robot.name].offline_since = away_since
+            st = RobotState(S.OFFLINE, robot.mode, resume)
+            self._rt[robot.name].state = st
+            await self._save_state(robot.name, st, event="robot.restored")
+        self.dispatcher.start()
+        for rt in self._rt.values():
+            self._start_link(rt)
+
+    async def close(self) -> None:
+        """Stop serving robots: no more dispatch, every robot's move cancelled, poses saved.
+
+        Robots are stopped where they are rather than left driving with nobody watching
+        (a goal whose result no server will read, "Food collected" that nobody can press).
+        Their stored status is left as it was, so a restarted server resumes each trip.
+        """
+        self.reports.stop_queueing()
+        self.places.close()
+        await self.dispatcher.stop()
+        for rt in self._rt.values():
+            self.reports.disarm_handover(rt)
+            await self.reports.stop_worker(rt)
+        # Workers, dispatcher and clients are gone: nothing can send a new goal after this.
+        for rt in self._rt.values():
+            if rt.link is not None and rt.link.up:
+                try:
+                    await asyncio.wait_for(rt.link.cancel_goal(), self.clock.wall(2.0) + 1.0)
+                except (LinkError, TimeoutError) as exc:
+                    log.warning("%s: could not stop the robot on shutdown: %s", rt.name, exc)
+        for rt in self._rt.values():
+            if rt.link is not None:
+                await rt.link.close()
+        for rt in self._rt.values():
+            with contextlib.suppress(ServeurError):
+                await self._save_pose(rt)
+
+    async def _save_pose(self, rt: Runtime) -> None:
+        """Store the robot's last pose and battery (for the map after a restart)."""
+        if rt.pose is not None:
+            await self.store.save_robot_pose(
+                rt.name,
+                x=rt.pose[0],
+                y=rt.pose[1],
+                yaw=rt.pose[2],
+                battery=rt.battery,
+                now=self.clock.epoch(),
+            )
+
+    def _add_runtime(self, robot: Robot) -> Runtime:
+        rt = Runtime(robot.name, RobotState(robot.status, robot.mode, robot.resume))
+        if robot.x is not None and robot.y is not None and robot.yaw is not None:
+            rt.pose = (robot.x, robot.y, robot.yaw)
+        rt.battery = robot.battery
+        rt.idle_since = self.clock.now()
+        self._rt[robot.name] = rt
+        self._robots[robot.name] = robot
+        rt.worker = self.reports.start_worker(rt)
+        return rt
+
+    def _start_link(self, rt: Runtime) -> None:
+        robot = self._robots[rt.name]
+        rt.link = RobotLink(
+            rt.name,
+            robot.url,
+            self.reports,
+            self.clock,
+            heartbeat=self.config.heartbeat,
+            ack_timeout=self.config.ack_timeout,
+            ack_retries=self.config.ack_retries,
+            want_map=self.places.map is None,
+            ssl=self.robot_ssl,
+            pose_watched=self.hub.watched(f"pose:{rt.name}"),
+            moving_pose_ms=self.config.moving_pose_ms,
+            status_ms=self.config.status_ms,
+            battery_ms=self.config.battery_ms,
+        )
+        rt.link.start()
+
+    def _on_watch(self, topic: str, on: bool) -> None:
+        self.reports.on_watch(topic, on)
+
+    # -- distances ---------------------------------------------------------------------------
+
+    def distance(self, a: str, b: str) -> float:
+        """Path distance between two waypoints; straight line if not planned or no path."""
+        return self.places.distance(a, b)
+
+    def _origin(self) -> str:
+        return self.places.origin(r.home for r in self._robots.values())
+
+    # -- publishing -------------------------------------------------------------------------
+
+    def _robot_view(self, name: str) -> Robot:
+        rt = self._rt[name]
+        upd: dict[str, Any] = {"battery": rt.battery}
+        if rt.pose is not None:
+            upd.update(x=rt.pose[0], y=rt.pose[1], yaw=rt.pose[2])
+        return self._robots[name].model_copy(update=upd)
+
+    def publish_robot(self, name: str) -> None:
+        """Publish the robot's record as screens see it (live pose and battery)."""
+        self.publisher.pub("robots", self._robot_view(name))
+
+    def battery_changed(self, name: str) -> None:
+        """Screens see the new level; the dispatcher looks again if the robot is waiting at
+        home. A robot below the dispatch threshold (``scheduler.choose_robot``) charges there
+        and must be given the queued trips once it is above it: nothing else may happen (the
+        last dishes of a service are queued, every robot was low), so without this kick the
+        trips waited for ever beside a usable robot."""
+        self.publish_robot(name)
+        if self._rt[name].state.status is S.AWAITING:
+            self.dispatcher.kick()
+
+    def task_robot(self, task_id: int) -> str | None:
+        """The robot doing (or that did) task ``task_id``, if this server has seen it."""
+        robot = self.publisher.task_robot(task_id)
+        if robot is None:
+            robot = next((n for n, r in self._robots.items() if r.current_task == task_id), None)
+        return robot
+
+    async def _save_state(
+        self,
+        name: str,
+        st: RobotState,
+        *,
+        event: str = "robot.status",
+        error: str | None = None,
+        keep_error: bool = False,
+        data: Mapping[str, Any] | None = None,
+    ) -> Robot:
+        rt = self._rt[name]
+        rt.state = st
+        last_error = self._robots[name].last_error if keep_error else error
+        robot = await self.store.save_robot_state(
+            name,
+            status=st.status,
+            mode=st.mode,
+            resume=st.resume,
+            last_error=last_error,
+            now=self.clock.epoch(),
+            event=event,
+            data=data,
+        )
+        self._robots[name] = robot
+        self.publisher.pub("robots", self._robot_view(name))
+        if st.status is not S.OFFLINE:
+            rt.offline_since = None
+        elif rt.offline_since is None:
+            rt.offline_since = self.clock.epoch()
+        if st.status is S.OFFLINE and robot.current_task is not None:
+            self.reports.arm_handover(rt)
+        else:
+            self.reports.disarm_handover(rt)
+        if st.status is S.AWAITING:
+            rt.idle_since = self.clock.now()
+            self.dispatcher.kick()
+        return robot
+
+    # -- hand-over of the trip of a robot gone too long ---------------------------------------
+
+    async def _hand_over(self, rt: Runtime) -> None:
+        """Give the trip of a robot Offline past ``handover_after`` back to the dispatcher.
+
+        The task is requeued whole (its orders stay ``assigned`` to it, stops not served go
+        back to ``pending``) and the next free robot takes it. The away robot keeps no trip:
+        on its return it goes home (a robot that was Stopped or in Error stays so, for staff
+        to look at, and ``continue`` sends it home).
+        """
+        task_id = self._robots[rt.name].current_task
+        if rt.state.status is not S.OFFLINE or task_id is None:
+            return
+        limit = self.config.handover_after
+        reason = f"offline for over {limit:g} s: trip {task_id} handed to another robot"
+        log.warning("%s: %s", rt.name, reason)
+        await self.trips.hand_back(rt.name, task_id, reason)
+        resume = rt.state.resume
+        if resume in (S.DELIVERING, S.DELIVERED):
+            resume = S.TRANSIT
+        await self._save_state(
+            rt.name,
+            replace(rt.state, resume=resume),
+            event="robot.handover",
+            error=reason,
+            data={"task": task_id},
+        )
+        self.dispatcher.kick()
+
+    async def _event(self, rt: Runtime, ev: Event, *, error: str | None = None) -> Robot:
+        new = apply(rt.state, ev)
+        log.info("%s: %s --%s--> %s", rt.name, rt.state.status.value, ev.value, new.status.value)
+        return await self._save_state(rt.name, new, error=error, data={"event": ev.value})
+
+    async def flush_events(self) -> None:
+        """Push the events recorded since the last flush to ``events`` subscribers."""
+        await self.publisher.flush_events()
+
+    def robot_statuses(self) -> list[tuple[str, RobotStatus]]:
+        return [(n, rt.state.status) for n, rt in sorted(self._rt.items())]
+
+    # -- snapshots --------------------------------------------------------------------------
+
+    async def snapshot(self, topic: str) -> Any:
+        if topic == "robots":
+            return [self._robot_view(n) for n in sorted(self._rt)]
+        if topic == "orders":
+            return await self.store.list_orders(status=[OrderStatus.PENDING, OrderStatus.ASSIGNED])
+        if topic == "tasks":
+            return await self.store.list_tasks(status=[TaskStatus.QUEUED, TaskStatus.ACTIVE])
+        if topic == "waypoints":
+            return list(self.places.waypoints.values())
+        if topic == "events":
+            return await self.publisher.events_snapshot()
+        if topic == "map":
+            return self.places.map_snapshot()
+        kind, _, robot = topic.partition(":")
+        rt = self._runtime(robot)
+        if kind == "pose":
+            return pose_dict(rt.pose, self.clock.epoch()) if rt.pose else None
+        return None  # scan: the next frame arrives as an update
+
+    # -- instructions -----------------------------------------------------------------------
+
+    def _runtime(self, name: str) -> Runtime:
+        rt = self._rt.get(name)
+        if rt is None:
+            raise NotFound(f"no robot named {name!r}", robot=name)
+        return rt
+
+    async def handle(self, msg: P.ClientMessage) -> dict[str, Any]:
+        """Carry out one instruction; the reply payload, or a ServeurError."""
+        try:
+            return await self._handle(msg)
+        finally:
+            await self.flush_events()
+
+    async def _handle(self, msg: P.ClientMessage) -> dict[str, Any]:
+        verb = msg.clientmsg
+        if verb == "create":
+            return await self._create(msg)
+        if verb == "order":
+            return await self._order(msg)
+        robot = P.robot_of(msg)
+        action = P.action_of(msg)
+        if robot is None or action is None:
+            raise InvalidField(f"{verb!r} needs a robot")
+        rt = self._runtime(robot)
+        async with rt.lock:
+            check_allowed(rt.state.status, action)
+            await self._act(rt, action, msg)
+            return {"robot": self._robot_view(rt.name)}
+
+    async def _act(self, rt: Runtime, action: Action, msg: Any) -> None:
+        link = rt.link
+        assert link is not None
+        if action is Action.AUTO:
+            home = self._robots[rt.name].home
+            if home is None:
+                raise Conflict(f"robot {rt.name} has no home waypoint; set one first")
+            await self._event(rt, Event.AUTO)
+            await self._go_home_if_away(rt)
+        elif action is Action.MANUAL:
+            if self._robots[rt.name].current_task is not None:
+                await self.trips.abandon(rt.name, "manual control taken")
+            with contextlib.suppress(LinkError):
+                await link.cancel_goal()
+            rt.dest = None
+            await self._event(rt, Event.MANUAL)
+        elif action is Action.TELEOP:
+            await link.teleop(msg.vx, msg.vy, msg.wz)
+        elif action is Action.INITIALPOSE:
+            await link.initial_pose(msg.x, msg.y, msg.yaw)
+        elif action in (Action.GOAL, Action.GOTO):
+            if action is Action.GOTO:
+                wp = self.places.waypoint(msg.waypoint)
+                dest = Destination("manual", wp.name, wp.x, wp.y, wp.yaw)
+            else:
+                dest = Destination("manual", "", msg.x, msg.y, msg.yaw)
+            await self._drive(rt, dest)
+        elif action is Action.READY:
+            if rt.state.status is S.MANUAL:
+                with contextlib.suppress(LinkError):
+                    await link.cancel_goal()
+                    await link.teleop(0.0, 0.0, 0.0)
+            rt.dest = None
+            await self._event(rt, Event.RELEASE)
+        elif action is Action.NEXT:
+            await self._next(rt)
+        elif action is Action.STOP:
+            await link.cancel_goal()
+            rt.goal_id = None
+            await self._event(rt, Event.STOP)
+        elif action is Action.CONTINUE:
+            if rt.state.resume is None:
+                # What to resume is lost when a Stopped/Error robot's link drops (the status
+                # column holds one "resume"); the trip tells: dishes aboard -> back to the table.
+                has_trip = self._robots[rt.name].current_task is not None
+                rt.state = replace(rt.state, resume=S.DELIVERING if has_trip else S.TRANSIT)
+            await self._event(rt, Event.CONTINUE)
+            await self._resume_move(rt)
+        elif action is Action.CANCEL:
+            if self._robots[rt.name].current_task is not None:
+                await self.trips.abandon(rt.name, "cancelled by staff")
+            await self._event(rt, Event.CANCEL)
+            await self._drive(rt, self._home_dest(rt))
+
+    async def _next(self, rt: Runtime) -> None:
+        task = await self.trips.serve_stop(rt.name)
+        if task.current_stop < len(task.stops):
+            await self._event(rt, Event.NEXT_TABLE)
+            await self._drive(rt, self._stop_dest(task))
+        else:
+            await self._event(rt, Event.NEXT_HOME)
+            await self._drive(rt, self._home_dest(rt))
+
+    def _stop_dest(self, task: Task) -> Destination:
+        wp = self.places.waypoint(task.stops[task.current_stop].table)
+        return Destination("table", wp.name, wp.x, wp.y, wp.yaw)
+
+    def _home_dest(self, rt: Runtime) -> Destination:
+        home = self._robots[rt.name].home
+        if home is None:
+            raise Conflict(f"robot {rt.name} has no home waypoint")
+        wp = self.places.waypoint(home)
+        return Destination("home", wp.name, wp.x, wp.y, wp.yaw)
+
+    def _near(self, rt: Runtime, dest: Destination) -> bool:
+        if rt.pose is None:
+            return False
+        return math.hypot(rt.pose[0] - dest.x, rt.pose[1] - dest.y) <= self.config.arrive_tolerance
+
+    async def _drive(self, rt: Runtime, dest: Destination) -> None:
+        rt.dest = dest
+        assert rt.link is not None
+        try:
+            rt.goal_id = await rt.link.send_goal(dest.x, dest.y, dest.yaw)
+        except LinkError as exc:
+            rt.goal_id = None  # re-sent when the link is back (resume)
+            log.warning("%s: goal to %s not sent: %s", rt.name, dest.name, exc)
+
+    async def _go_home_if_away(self, rt: Runtime) -> None:
+        dest = self._home_dest(rt)
+        if rt.state.status is S.AWAITING and not self._near(rt, dest):
+            await self._event(rt, Event.GO_HOME)
+            await self._drive(rt, dest)
+
+    async def _resume_move(self, rt: Runtime) -> None:
+        """Re-send the goal for the current move (after continue, or when the link returns)."""
+        status = rt.state.status
+        if status is S.DELIVERING:
+            task = await self.trips.current(rt.name)
+            dest = self._stop_dest(task)
+            if self._near(rt, dest):
+                await self._arrived(rt)
+            else:
+                await self._drive(rt, dest)
+        elif status is S.TRANSIT:
+            dest = self._home_dest(rt)
+            if self._near(rt, dest):
+                rt.dest = dest
+                await self._event(rt, Event.ARRIVED)
+            else:
+                await self._drive(rt, dest)
+
+    async def _arrived(self, rt: Runtime) -> None:
+        if rt.state.status is S.DELIVERING:
+            await self.trips.arrive(rt.name)
+        await self._event(rt, Event.ARRIVED)
+
+    async def _create(self, msg: Any) -> dict[str, Any]:
+        kind = msg.type
+        if kind == "order":
+            return {"order": await self.creation.order(msg.dish, msg.table, msg.key)}
+        if kind == "task":
+            return {"tasks": await self.creation.tasks(list(msg.orders), msg.key)}
+        if kind == "waypoint":
+            if getattr(msg, "robot", None):
+                rt = self._runtime(msg.robot)
+                async with rt.lock:
+                    check_allowed(rt.state.status, Action.SAVE_WAYPOINT)
+                    if rt.pose is None:
+                        raise Conflict(f"robot {rt.name} has not reported a pose yet")
+                    x, y, yaw = rt.pose
+            else:
+                x, y, yaw = msg.x, msg.y, msg.yaw
+            wp = WaypointRecord(name=msg.name, x=x, y=y, yaw=yaw, kind=WaypointKind(msg.kind))
+            return {"waypoint": await self.creation.waypoint(wp, replace=msg.replace)}
+        if kind == "robot":
+            if msg.home is not None:
+                self.places.waypoint(msg.home)
+            robot = await self.store.add_robot(
+                msg.name, msg.url, home=msg.home, kinematics=msg.kinematics, now=self.clock.epoch()
+            )
+            if robot.name not in self._rt:
+                self._add_runtime(robot)
+                self._start_link(self._rt[robot.name])
+            self.publish_robot(robot.name)
+            return {"robot": self._robot_view(robot.name)}
+        raise InvalidField(f"cannot create {kind!r}")
+
+    async def _order(self, msg: Any) -> dict[str, Any]:
+        if getattr(msg, "table", None):
+            self.places.waypoint(msg.table)
+            return {"orders": await self.store.cart(msg.table)}
+        rt = self._runtime(msg.robot)
+        return {"orders": await self.trips.stop_orders(rt.name)}
+
+    # -- dispatcher (scheduler.Fleet) -------------------------------------------------------
+
+    async def queued_task_ids(self) -> list[int]:
+        return [t.id for t in await self.store.list_tasks(status=TaskStatus.QUEUED)]
+
+    def free_robots(self) -> list[Candidate]:
+        return [
+            Candidate(rt.name, rt.idle_since, rt.battery)
+            for rt in self._rt.values()
+            if rt.state.status is S.AWAITING
+            and rt.link is not None
+            and rt.link.up
+            and self._robots[rt.name].current_task is None
+            # Locked robots are listed too: start_trip waits for the lock and re-checks, so a
+            # robot freed inside a locked section is not missed by the kick it caused.
+        ]
+
+    async def start_trip(self, task_id: int, robot: str) -> bool:
+        rt = self._rt[robot]
+        async with rt.lock:
+            if rt.state.status is not S.AWAITING:
+                return False
+            task = await self.trips.take(task_id, robot)
+            if task is None:
+                return False
+            await self._event(rt, Event.DISPATCH)
+            await self._drive(rt, self._stop_dest(task))
+        await self.flush_events()
+        return True
+
+    # -- link reports, queued per robot (link_reports.ReportHandler) --------------------------
+
+    async def on_report(self, rt: Runtime, kind: str, args: tuple[Any, ...]) -> None:
+        """One queued link report, under the robot's lock."""
+        if kind == "up":
+            await self._event(rt, Event.LINK_UP)
+            if rt.state.status is S.AWAITING:
+                await self._go_home_if_away(rt)
+            else:
+                await self._resume_move(rt)
+        elif kind == "down":
+            rt.goal_id = None
+            if rt.state.status is not S.OFFLINE:
+                await self._save_state(
+                    rt.name, apply(rt.state, Event.LINK_DOWN), error=f"link lost: {args[0]}"
+                )
+        elif kind == "goal":
+            await self._on_goal(rt, *args)
+        elif kind == "handover":
+            await self._hand_over(rt)
+        elif kind == "persist_pose":
+            await self._save_pose(rt)
+
+    async def _on_goal(self, rt: Runtime, goal_id: str, status: rb.GoalStatus, text: str) -> None:
+        if goal_id != rt.goal_id:
+            return  # a goal we already replaced or cancelled
+        rt.goal_id = None
+        dest = rt.dest
+        st = rt.state.status
+        if status is rb.GoalStatus.SUCCEEDED and dest is not None:
+            if rt.pose is not None:
+                off = math.hypot(rt.pose[0] - dest.x, rt.pose[1] - dest.y)
+                if off > self.config.far_tolerance:
+                    reason = f"robot reports arriving {off:.2f} m from {dest.name or 'its goal'}"
+                    await self._failed(rt, reason)
+                    return
+            if st in (S.DELIVERING, S.TRANSIT):
+                await self._arrived(rt)
+            elif st is S.MANUAL:
+                await self._save_state(rt.name, rt.state, error=None, event="robot.goal_reached")
+            return
+        what = {rb.GoalStatus.LOST: "goal lost"}.get(status, f"move_base {status.name}")
+        await self._failed(rt, f"{what}: {text}" if text else what)
+
+    async def _failed(self, rt: Runtime, reason: str) -> None:
+        if rt.state.status in (S.DELIVERING, S.TRANSIT):
+            await self._event(rt, Event.NAV_FAILED, error=reason)
+        else:
+            await self._save_state(rt.name, rt.state, error=reason, event="robot.goal_failed")

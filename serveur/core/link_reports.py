@@ -1,0 +1,218 @@
+"""The robot links' side of the core: reports received, queued per robot, handled in order.
+
+A :class:`~serveur.robots.ros1.link.RobotLink` calls its listener on the event loop and must not be
+blocked, while what a report means — a goal reached, a link lost — has to be decided under the
+robot's lock, against the store. :class:`LinkReports` is that listener. It splits reports in
+two:
+
+* the frequent ones that only update live state or screens (pose, battery, laser scan, the
+  map) are applied at once, without the lock;
+* the ones that change a robot's status (link up/down, goal results, the hand-over timer, the
+  periodic pose save) go on the robot's queue; one worker task per robot takes them in arrival
+  order under the robot's lock and hands each to the :class:`ReportHandler` (the core), then
+  publishes the events that wrote.
+
+It also turns the hub's "someone watches / nobody watches" signals into the links' stream
+rates (laser scans only while watched, poses slowed while unwatched).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import Mapping
+from typing import Any, Protocol
+
+from serveur import protocol as P
+from serveur.clock import Clock
+from serveur.core.hub import Hub
+from serveur.core.places import Places
+from serveur.core.publisher import Publisher
+from serveur.core.runtime import CoreConfig, Runtime, pose_dict
+from serveur.robots import rosbridge as rb
+from serveur.scheduler import MIN_BATTERY
+
+__all__ = ["HANDOVER_GRACE", "LinkReports", "ReportHandler"]
+
+log = logging.getLogger(__name__)
+
+#: Seconds a robot restored Offline at start is given to connect before a hand-over, however
+#: long it was away before the restart (its link needs a connection and a first status).
+HANDOVER_GRACE = 10.0
+
+
+class ReportHandler(Protocol):
+    """What a queued report becomes: the core's decision, made under the robot's lock."""
+
+    async def on_report(self, rt: Runtime, kind: str, args: tuple[Any, ...]) -> None:
+        """Handle one report: ``up``, ``down``, ``goal``, ``handover`` or ``persist_pose``."""
+
+    def battery_changed(self, name: str) -> None:
+        """The robot's battery moved by a percent or more since last published, or crossed
+        the dispatch threshold: publish its record, and let the dispatcher look again (a
+        robot charging at home may be usable for trips now)."""
+
+
+class LinkReports:
+    """Every robot link's listener (:class:`~serveur.robots.ros1.link.LinkListener`)."""
+
+    def __init__(
+        self,
+        runtimes: Mapping[str, Runtime],
+        handler: ReportHandler,
+        *,
+        hub: Hub,
+        clock: Clock,
+        config: CoreConfig,
+        places: Places,
+        publisher: Publisher,
+    ) -> None:
+        self._rt = runtimes
+        self._handler = handler
+        self._hub = hub
+        self._clock = clock
+        self._config = config
+        self._places = places
+        self._publisher = publisher
+        self._closing = False
+        self._battery_shown: dict[str, float] = {}  # the level last published, per robot
+
+    # -- the per-robot queue and worker ------------------------------------------------------
+
+    def post(self, robot: str, kind: str, *args: Any) -> None:
+        """Queue a report for the robot's worker (dropped once shutting down)."""
+        rt = self._rt.get(robot)
+        if rt is not None and not self._closing:
+            rt.events.put_nowait((kind, args))
+
+    def start_worker(self, rt: Runtime) -> asyncio.Task[None]:
+        """The task that handles the robot's queued reports, for the life of the server."""
+        return asyncio.create_task(self._worker(rt), name=f"robot-{rt.name}")
+
+    def stop_queueing(self) -> None:
+        """Shutting down: reports arriving from now on are dropped."""
+        self._closing = True
+
+    async def stop_worker(self, rt: Runtime) -> None:
+        """Cancel the robot's worker and wait for it to end."""
+        if rt.worker is not None:
+            rt.worker.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await rt.worker
+
+    # -- the hand-over timer: a report the server sends itself -------------------------------
+
+    def arm_handover(self, rt: Runtime) -> None:
+        """The robot is Offline with a trip: queue ``handover`` once it is gone too long."""
+        if self._config.handover_after is None or rt.handover is not None or self._closing:
+            return
+        rt.handover = asyncio.create_task(self._handover_timer(rt), name=f"handover-{rt.name}")
+
+    def disarm_handover(self, rt: Runtime) -> None:
+        """The robot is back or has no trip left to hand over."""
+        timer, rt.handover = rt.handover, None
+        if timer is not None and timer is not asyncio.current_task():
+            timer.cancel()
+
+    async def _handover_timer(self, rt: Runtime) -> None:
+        limit = self._config.handover_after
+        assert limit is not None
+        away = self._clock.epoch() - (rt.offline_since or self._clock.epoch())
+        # What is left of the limit, but never less than a short grace (a robot restored at
+        # start needs a moment to connect before its trip can be judged), nor more than the
+        # limit (a stored time ahead of this clock: an accelerated run, restarted).
+        grace = min(limit, HANDOVER_GRACE)
+        await self._clock.sleep(min(limit, max(grace, limit - away)))
+        rt.handover = None
+        # Through the robot's queue, like a link report: a link-up already queued is handled
+        # first, and the hand-over then sees the robot back and does nothing.
+        self.post(rt.name, "handover")
+
+    async def _worker(self, rt: Runtime) -> None:
+        while True:
+            kind, args = await rt.events.get()
+            try:
+                async with rt.lock:
+                    await self._handler.on_report(rt, kind, args)
+                await self._publisher.flush_events()
+            except asyncio.CancelledError:
+                raise
+            except Exception:
+                log.exception("%s: handling %s failed", rt.name, kind)
+
+    # -- robot_link.LinkListener -------------------------------------------------------------
+
+    def link_up(self, robot: str) -> None:
+        self.post(robot, "up")
+
+    def link_down(self, robot: str, reason: str) -> None:
+        self.post(robot, "down", reason)
+
+    def goal_done(self, robot: str, goal_id: str, status: rb.GoalStatus, text: str) -> None:
+        self.post(robot, "goal", goal_id, status, text)
+
+    def goal_lost(self, robot: str, goal_id: str, reason: str) -> None:
+        self.post(robot, "goal", goal_id, rb.GoalStatus.LOST, reason)
+
+    def pose(self, robot: str, x: float, y: float, yaw: float, stamp: float) -> None:
+        rt = self._rt.get(robot)
+        if rt is None:
+            return
+        rt.pose = (x, y, yaw)
+        topic = f"pose:{robot}"
+        if self._hub.watched(topic):
+            self._hub.publish(topic, P.dump(pose_dict(rt.pose, stamp)))
+        if self._clock.now() - rt.pose_saved_at > self._config.pose_persist_period:
+            rt.pose_saved_at = self._clock.now()
+            self.post(robot, "persist_pose")
+
+    def battery(self, robot: str, fraction: float) -> None:
+        rt = self._rt.get(robot)
+        if rt is None:
+            return
+        rt.battery = fraction
+        # Against the level last *published*: a robot's battery moves by far less than 1 %
+        # between two messages (5 s apart), so comparing with the previous message never
+        # published a slow change. Crossing the dispatch threshold counts whatever its size.
+        shown = self._battery_shown.get(robot)
+        if (
+            shown is None
+            or abs(shown - fraction) >= 0.01
+            or (shown < MIN_BATTERY) != (fraction < MIN_BATTERY)
+        ):
+            self._battery_shown[robot] = fraction
+            self._handler.battery_changed(robot)
+
+    def scan(self, robot: str, msg: Mapping[str, Any]) -> None:
+        rt = self._rt.get(robot)
+        if rt is None or not self._hub.watched(f"scan:{robot}"):
+            return
+        x, y, yaw = rt.pose or (0.0, 0.0, 0.0)
+        data = {
+            "stamp": rb.from_ros_time(msg["header"]["stamp"]),
+            "x": x,
+            "y": y,
+            "yaw": yaw,
+            "angle_min": msg["angle_min"],
+            "angle_increment": msg["angle_increment"],
+            "range_max": msg["range_max"],
+            "ranges": msg["ranges"],
+        }
+        self._hub.publish(f"scan:{robot}", P.dump(data))
+
+    def map(self, robot: str, msg: Mapping[str, Any]) -> None:
+        self._places.adopt_map(robot, msg)
+
+    # -- hub watch signals -------------------------------------------------------------------
+
+    def on_watch(self, topic: str, on: bool) -> None:
+        """Scans stream only while watched; poses slow to 1 Hz while unwatched and parked."""
+        if topic.startswith("scan:"):
+            rt = self._rt.get(topic[5:])
+            if rt is not None and rt.link is not None:
+                asyncio.get_running_loop().create_task(rt.link.want_scan(on))
+        elif topic.startswith("pose:"):
+            rt = self._rt.get(topic[5:])
+            if rt is not None and rt.link is not None:
+                asyncio.get_running_loop().create_task(rt.link.want_pose(on))

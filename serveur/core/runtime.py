@@ -1,0 +1,84 @@
+"""Values the server core and its collaborators share: tunables, destinations, a robot's runtime.
+
+They live apart from :mod:`serveur.core.engine` so that the core's collaborators
+(:mod:`serveur.core.link_reports`, :mod:`serveur.core.trips`, :mod:`serveur.core.creation`)
+can name them without importing the core, which imports them.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from dataclasses import dataclass, field
+from typing import Any
+
+from serveur.robots.ros1.link import RobotLink
+from serveur.status import RobotState
+
+__all__ = ["CoreConfig", "Destination", "Runtime", "pose_dict"]
+
+
+@dataclass
+class CoreConfig:
+    """Tunables; times are simulated seconds."""
+
+    capacity: int = 4
+    heartbeat: float = 1.0
+    ack_timeout: float = 2.0
+    ack_retries: int = 2
+    arrive_tolerance: float = 0.35  # a robot this close to its goal is "there" (reconciliation)
+    far_tolerance: float = 0.6  # SUCCEEDED this far from the goal is an error, not an arrival
+    pose_persist_period: float = 5.0
+    #: rosbridge throttles (ms) of a moving robot's unwatched pose, move_base status and the
+    #: battery; 0 for real robots, raised by accelerated replays (serveur.replay.service).
+    moving_pose_ms: int = 0
+    status_ms: int = 0
+    battery_ms: int = 0
+    robot_radius: float = 0.2
+    #: A robot Offline this long (simulated seconds) with a trip has the trip handed to another
+    #: robot; ``None`` never hands over. Two minutes: long enough for a Wi-Fi dead spot or a
+    #: rosbridge restart (seconds) to resume in place, short enough that food is still warm
+    #: when the kitchen re-plates it for another robot.
+    handover_after: float | None = 120.0
+    #: "serveur": trips by area, stops in shortest-route order (scheduler.plan_trips);
+    #: "baseline": the design report's behaviour, stops in the order of the cart (replay A/B).
+    policy: str = "serveur"
+
+
+@dataclass(frozen=True, slots=True)
+class Destination:
+    """Where a robot was last sent: the goal a SUCCEEDED result is checked against."""
+
+    kind: str  # "table" | "home" | "manual"
+    name: str
+    x: float
+    y: float
+    yaw: float
+
+
+@dataclass
+class Runtime:
+    """One robot's live state in this server process (the store holds what must survive it).
+
+    ``lock`` serialises everything that touches the robot; ``events`` is its queue of link
+    reports, drained in arrival order by ``worker`` (see :mod:`serveur.core.link_reports`).
+    """
+
+    name: str
+    state: RobotState
+    link: RobotLink | None = None
+    lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+    events: asyncio.Queue[tuple[str, tuple[Any, ...]]] = field(default_factory=asyncio.Queue)
+    worker: asyncio.Task[None] | None = None
+    dest: Destination | None = None
+    goal_id: str | None = None
+    idle_since: float = 0.0
+    pose: tuple[float, float, float] | None = None
+    battery: float | None = None
+    pose_saved_at: float = -1e9
+    handover: asyncio.Task[None] | None = None  # the hand-over timer while Offline with a trip
+    offline_since: float | None = None  # epoch (clock) the robot was last seen, while Offline
+
+
+def pose_dict(pose: tuple[float, float, float], stamp: float) -> dict[str, float]:
+    """A pose as the ``pose:<robot>`` topic carries it."""
+    return {"x": pose[0], "y": pose[1], "yaw": pose[2], "stamp": stamp}

@@ -1,0 +1,178 @@
+"""A robot's trip as the store keeps it: taken, stops reached and served, abandoned, handed back.
+
+Each step of a trip is one store transaction followed by the same chores — refresh the robot's
+record (the store frees or binds it in that transaction), publish the trip and the orders it
+touched. The core decides *when* a step happens, under the robot's lock and with the robot's
+status change; :class:`Trips` does the step. That keeps the core about robots and this module
+about trips, including what a crash between two transactions leaves behind
+(:meth:`Trips.reconcile`).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, MutableMapping
+
+from serveur.clock import Clock
+from serveur.core.places import Places
+from serveur.core.publisher import Publisher
+from serveur.core.runtime import CoreConfig
+from serveur.domain import Order, Robot, StopStatus, Task, TaskStatus
+from serveur.errors import Conflict
+from serveur.scheduler import order_stops
+from serveur.status import RobotMode, RobotStatus
+from serveur.store.base import Store
+
+__all__ = ["Trips"]
+
+log = logging.getLogger(__name__)
+
+S = RobotStatus
+_RESUMABLE = {S.DELIVERING, S.DELIVERED, S.STOPPED, S.TRANSIT, S.ERROR}
+
+
+class Trips:
+    """The store side of robots' trips; callers hold the robot's lock."""
+
+    def __init__(
+        self,
+        store: Store,
+        clock: Clock,
+        config: CoreConfig,
+        *,
+        robots: MutableMapping[str, Robot],
+        places: Places,
+        publisher: Publisher,
+        origin: Callable[[], str],
+    ) -> None:
+        """``robots`` is the core's robot records by name, refreshed here after every step
+        that binds or frees a robot; ``origin`` names where trips start."""
+        self._store = store
+        self._clock = clock
+        self._config = config
+        self._robots = robots
+        self._places = places
+        self._publisher = publisher
+        self._origin = origin
+
+    async def reconcile(
+        self, robot: Robot, resume: RobotStatus | None
+    ) -> tuple[Robot, RobotStatus | None]:
+        """The status to resume after a restart, made consistent with the robot's trip.
+
+        Each step of a trip is its own transaction, and the robot's status another one, so a
+        crash (SIGKILL, power cut) can fall between them. The trip in the store is the truth;
+        the status to resume is derived from it:
+
+        * a trip whose stops are all done but which is still active (crash after the last
+          "food collected"): finish it, the robot goes home;
+        * a trip taken but the robot not yet Delivering (crash right after dispatch), or
+          Delivered although the current stop is not reached (crash after "food collected"
+          at a middle stop): the robot delivers to the current stop;
+        * Delivering or Delivered without a trip (crash after a hand-over or a cancel): the
+          robot goes home.
+
+        Where the robot really is decides the rest on link-up (the core's ``_resume_move``:
+        already at the goal counts as arrived, otherwise the goal is sent again).
+        """
+        if resume not in _RESUMABLE:
+            resume = None
+        task_id = robot.current_task
+        if task_id is not None:
+            task = await self._store.get_task(task_id)
+            if task.status is not TaskStatus.ACTIVE:  # the store frees robots in the same tx
+                log.error("%s holds trip %d, which is %s", robot.name, task_id, task.status)
+            elif task.current_stop >= len(task.stops):
+                log.warning("%s: closing trip %d, served before the restart", robot.name, task_id)
+                await self._store.finish_task(task_id, now=self._clock.epoch())
+                robot = await self._store.get_robot(robot.name)
+            else:
+                reached = task.stops[task.current_stop].status is StopStatus.ARRIVED
+                on_trip = (S.DELIVERING, S.DELIVERED, S.STOPPED, S.ERROR)
+                if resume not in on_trip or (resume is S.DELIVERED and not reached):
+                    resume = S.DELIVERING
+        if robot.current_task is None and resume in (S.DELIVERING, S.DELIVERED):
+            resume = S.TRANSIT if robot.mode is RobotMode.AUTO else None
+        return robot, resume
+
+    async def current(self, robot: str) -> Task:
+        """The robot's trip; Conflict if it has none."""
+        task_id = self._robots[robot].current_task
+        if task_id is None:
+            raise Conflict(f"robot {robot} has no trip")
+        return await self._store.get_task(task_id)
+
+    async def stop_orders(self, robot: str) -> list[Order]:
+        """The orders for the robot's current stop (none without a trip or once all served)."""
+        task_id = self._robots[robot].current_task
+        if task_id is None:
+            return []
+        task = await self._store.get_task(task_id)
+        if task.current_stop >= len(task.stops):
+            return []
+        ids = set(task.stops[task.current_stop].orders)
+        return [o for o in await self._store.list_orders(task_id=task_id) if o.id in ids]
+
+    async def take(self, task_id: int, robot: str) -> Task | None:
+        """Give a queued trip to the robot, stops in route order; None if it was taken."""
+        home = self._robots[robot].home or self._origin()
+        task = await self._store.get_task(task_id)
+        order = [s.table for s in task.stops]
+        if self._config.policy == "baseline":
+            stop_order = order  # the cart's order, as the design report's robot does
+        else:
+            stop_order = order_stops(home, order, self._places.distance, end=home)
+        try:
+            task = await self._store.start_task(
+                task_id, robot, stop_order=stop_order, now=self._clock.epoch()
+            )
+        except Conflict:
+            return None
+        self._robots[robot] = await self._store.get_robot(robot)
+        self._publisher.pub_task(task)
+        await self._publisher.pub_orders([o for s in task.stops for o in s.orders])
+        return task
+
+    async def arrive(self, robot: str) -> None:
+        """The robot reached the current stop of its trip."""
+        task = await self.current(robot)
+        task = await self._store.arrive_stop(
+            task.id, task.stops[task.current_stop].seq, now=self._clock.epoch()
+        )
+        self._publisher.pub_task(task)
+
+    async def serve_stop(self, robot: str) -> Task:
+        """Food collected at the current stop; the trip, finished (``done``) after the last."""
+        task = await self.current(robot)
+        stop = task.stops[task.current_stop]
+        task = await self._store.complete_stop(task.id, stop.seq, now=self._clock.epoch())
+        self._publisher.pub_task(task)
+        await self._publisher.pub_orders(stop.orders)
+        if task.current_stop >= len(task.stops):
+            task = await self._store.finish_task(task.id, now=self._clock.epoch())
+            self._robots[robot] = await self._store.get_robot(robot)
+            self._publisher.pub_task(task)
+        return task
+
+    async def abandon(self, robot: str, reason: str) -> None:
+        """Cancel the robot's trip (staff took over): undelivered orders go back to pending."""
+        task_id = self._robots[robot].current_task
+        if task_id is None:
+            return
+        aboard = [o.id for o in await self._store.list_orders(task_id=task_id)]
+        task = await self._store.cancel_task(task_id, now=self._clock.epoch(), reason=reason)
+        self._robots[robot] = await self._store.get_robot(robot)
+        self._publisher.pub_task(task)
+        await self._publisher.pub_orders(aboard)
+
+    async def hand_back(self, robot: str, task_id: int, reason: str) -> None:
+        """Take the trip off a robot gone too long and requeue it whole for another robot."""
+        now = self._clock.epoch()
+        try:
+            task = await self._store.requeue_task(task_id, now=now, reason=reason)
+        except Conflict:
+            # Every stop was served before the link dropped: the trip is over, not handed on.
+            task = await self._store.finish_task(task_id, now=now)
+        self._robots[robot] = await self._store.get_robot(robot)
+        self._publisher.pub_task(task)
+        await self._publisher.pub_orders([o for s in task.stops for o in s.orders])

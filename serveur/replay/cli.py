@@ -1,0 +1,114 @@
+"""``serveur replay`` on the command line: its options, the run and the report files.
+
+Split from :mod:`serveur.replay.service` so that the service itself stays readable;
+:mod:`serveur.cli` registers the subcommand through :func:`add_replay_parser`. The replay and the
+report are imported when the command runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from serveur.replay.client import ReplayError
+from serveur.replay.model import POLICIES, ReplayOptions
+from serveur.replay.orders import OrderLogError, read_orders
+
+__all__ = ["add_replay_parser"]
+
+
+def _cmd_replay(ns: argparse.Namespace) -> int:
+    root = logging.getLogger()
+    level = root.level
+    if not ns.verbose:  # every status change is logged at INFO: too much for a whole service
+        root.setLevel(logging.ERROR)
+    try:
+        return _replay_command(ns)
+    finally:
+        root.setLevel(level)
+
+
+def _replay_command(ns: argparse.Namespace) -> int:
+    opts = ReplayOptions(
+        robots=ns.robots,
+        time_scale=ns.time_scale,
+        map_path=ns.map,
+        seed=ns.seed,
+        capacity=ns.capacity,
+        kinematics=ns.kinematics,
+        hold=ns.hold,
+        hold_max=ns.hold_max,
+        rank=ns.rank,
+        progress=not ns.quiet,
+    )
+    from serveur.replay.service import run_replay
+    from serveur.replay.world import load_world
+
+    try:
+        _, waypoints, _ = load_world(ns.map)
+        tables = {w.name for w in waypoints.values() if w.kind == "table"}
+        orders = read_orders(ns.log, tables=tables)
+    except (OrderLogError, ReplayError) as exc:
+        print(f"serveur replay: {exc}", file=sys.stderr)
+        return 2
+    policies = list(POLICIES) if ns.policy == "both" else [ns.policy]
+    try:
+        results = run_replay(orders, opts, policies)
+    except ReplayError as exc:
+        print(f"serveur replay: {exc}", file=sys.stderr)
+        return 1
+    from serveur.replay.report import write_outputs
+
+    text = write_outputs(results, ns.log, opts, Path(ns.out))
+    print(text, end="")
+    print(f"report, summary and plots in {ns.out}/")
+    return 0 if all(r.undelivered == 0 for r in results.values()) else 1
+
+
+def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register ``serveur replay`` (called once from :mod:`serveur.cli`)."""
+    p = sub.add_parser(
+        "replay",
+        help="replay an order log through the server and simulated robots",
+        description="Run the real server and N simulated robots on one accelerated clock, "
+        "feed the log's dishes at their times, play staff and guests, and write report.json, "
+        "summary.txt and PNG plots to --out. Exit 1 if any dish was left undelivered.",
+    )
+    p.add_argument("log", help="order log CSV (ready_at,table,dish)")
+    p.add_argument("--robots", type=int, default=3, help="simulated robots (default 3)")
+    p.add_argument(
+        "--time-scale",
+        type=float,
+        default=None,
+        help="follow the wall clock, this many times faster (default: virtual time, as fast "
+        "as the CPU allows and deterministic)",
+    )
+    p.add_argument("--policy", choices=[*POLICIES, "both"], default="serveur")
+    p.add_argument("--map", default=None, help="map YAML (waypoints: <stem>_waypoints.json)")
+    p.add_argument("--seed", type=int, default=0, help="robots' and guests' seed (default 0)")
+    p.add_argument("--capacity", type=int, default=4, help="tables per tray (default 4)")
+    p.add_argument("--kinematics", choices=["omni", "diff"], default="omni")
+    p.add_argument(
+        "--hold",
+        type=float,
+        default=10.0,
+        help="serveur staff: seconds a table may wait for its next dish (default 10)",
+    )
+    p.add_argument(
+        "--hold-max",
+        type=float,
+        default=60.0,
+        help="serveur staff: ... growing to this as tables queue (default 60; = --hold: fixed)",
+    )
+    p.add_argument(
+        "--rank",
+        choices=["fifo", "wspt", "best"],
+        default="best",
+        help="serveur staff: tables first-ready, by plates per robot-second, or the better "
+        "(default best)",
+    )
+    p.add_argument("--out", default="replay-out", help="output directory (default replay-out)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_replay, is_async=False)

@@ -1,0 +1,242 @@
+"""The replayed staff: the kitchen's pass, the carts each policy's staff confirm, rescues.
+
+Split from :mod:`serveur.replay.service` because this is the part the comparison is about — what
+people at the pass do under each policy — and it reads best on its own. :class:`Staff` acts
+only through a :class:`~serveur.replay.client.Console` (the robots and trips the server's
+updates show, and protocol instructions); the service tells it when a robot leaves or comes
+back (:meth:`Staff.robot_left`, :meth:`Staff.robot_home`), when the pass is worth another
+look (:meth:`Staff.look_again`) and when a dish came back from a cancelled trip
+(:meth:`Staff.on_order`).
+
+* the ``baseline`` staff fill each cart first-in first-out up to the tray's tables
+  (:func:`serveur.scheduler.fifo_cart`, the design report);
+* the ``serveur`` staff follow :func:`serveur.scheduler.suggest_carts`: each table on the
+  trip that collects it soonest (a free robot now, or one due back from its trip), with a
+  hold for a table's next dish seen on the kitchen display.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+from collections.abc import Sequence
+from typing import Any
+
+from serveur.replay.client import Console, ReplayError
+from serveur.replay.model import ReplayOptions
+from serveur.replay.orders import LogOrder
+from serveur.scheduler import Dish, TripEstimate, fifo_cart, suggest_carts
+
+__all__ = ["MAX_CART", "Staff"]
+
+MAX_CART = 50  # dishes in one ``create task`` (protocol limit)
+
+
+class Staff:
+    """The kitchen and the staff at the pass, for one policy, over one order log.
+
+    ``line_of`` (server order id -> log line) is filled as the kitchen creates dishes; the
+    guests key their dwell by it and the service its records. :attr:`recoveries` counts the
+    robots staff had to take in manual control.
+    """
+
+    def __init__(
+        self,
+        console: Console,
+        log: Sequence[LogOrder],
+        opts: ReplayOptions,
+        policy: str,
+        finished: asyncio.Event,
+    ) -> None:
+        self.console = console
+        self.log = log
+        self.opts = opts
+        self.policy = policy
+        self.finished = finished
+        self.line_of: dict[int, int] = {}  # server order id -> log line (dwell key)
+        self.pending: dict[int, Dish] = {}  # server order id -> dish, not yet carted
+        self.created = 0  # dishes of the log the kitchen has put on the pass
+        self.carted: set[int] = set()
+        self.eta: dict[str, float] = {}  # busy robot -> when staff expect it back (service s)
+        self.retries: dict[str, int] = {}
+        self.recoveries = 0
+        self.wake = asyncio.Event()
+
+    # what the service tells the staff ----------------------------------------------------
+
+    def look_again(self) -> None:
+        """A robot freed or taken: the staff look at the pass again."""
+        self.wake.set()
+
+    def robot_left(self, name: str, robot: dict[str, Any]) -> None:
+        """When staff expect a robot that just left to be back, from its trip's stops.
+
+        What a waiter sees on the console (the trip's tables and dishes) and a rule of
+        thumb per leg and per stop (:class:`serveur.scheduler.TripEstimate`); the serveur
+        staff use it to decide whether a table should wait for that robot.
+        """
+        c = self.console
+        task = c.tasks.get(robot.get("current_task") or -1)
+        home = robot.get("home")
+        if task is None or not home:
+            return
+        stops = [(s["table"], len(s["orders"])) for s in task["stops"]]
+        self.eta[name] = c.now() + TripEstimate().trip(home, stops, c.distance)
+
+    def robot_home(self, name: str) -> None:
+        """The robot is back and Awaiting: nobody expects it anymore."""
+        self.eta.pop(name, None)
+
+    def on_order(self, order: dict[str, Any]) -> None:
+        """A dish back to ``pending`` after its trip was cancelled goes on a new cart."""
+        oid = order["id"]
+        if order["status"] == "pending" and oid in self.carted and oid in self.line_of:
+            self.carted.discard(oid)
+            line = self.line_of[oid]
+            ready = next(o.ready_at for o in self.log if o.line == line)
+            self.pending[oid] = Dish(oid, order["table"], ready)
+
+    # the pass --------------------------------------------------------------------------
+
+    async def run(self) -> None:
+        """The pass, in simulated-time order: dishes appear, then staff decide on carts.
+
+        One loop does both so that what is on the pass at a decision is a function of the
+        decision's simulated time (every dish of the log ready by then), not of how the
+        kitchen's and the staff's requests happened to interleave on the event loop. Staff
+        look again at each dish's ready time, whenever a robot changes status, and every
+        5 s (a held table's hold running out).
+        """
+        c = self.console
+        while not self.finished.is_set():
+            nxt = self.log[self.created].ready_at if self.created < len(self.log) else math.inf
+            delay = min(nxt - c.now(), 5.0)
+            self.wake.clear()
+            if delay > 0:
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(self.wake.wait(), c.clock.wall(delay))
+            t = c.now()
+            if nxt <= t:
+                await self._create_due(t)
+                t = max(nxt, self.log[self.created - 1].ready_at)
+            for cart in self.carts(t):
+                for oid in cart:
+                    del self.pending[oid]
+                    self.carted.add(oid)
+                for i in range(0, len(cart), MAX_CART):  # the protocol's limit per cart
+                    reply = await c.call("create", type="task", orders=cart[i : i + MAX_CART])
+                    for task in reply["tasks"]:
+                        c.tasks.setdefault(task["id"], task)
+
+    async def _create_due(self, t: float) -> None:
+        """The kitchen: every dish of the log ready by ``t`` appears at the pass, in order."""
+        while self.created < len(self.log) and self.log[self.created].ready_at <= t:
+            o = self.log[self.created]
+            reply = await self.console.call(
+                "create", type="order", dish=o.dish, table=o.table, key=f"log-{o.line}"
+            )
+            oid = reply["order"]["id"]
+            self.line_of[oid] = o.line
+            self.pending[oid] = Dish(oid, o.table, o.ready_at)
+            self.created += 1
+
+    def free_robots(self) -> int:
+        """Robots Awaiting with no trip, less the trips already queued for them."""
+        c = self.console
+        idle = sum(
+            1 for r in c.robots.values() if r["status"] == "Awaiting" and r["current_task"] is None
+        )
+        return idle - sum(1 for t in c.tasks.values() if t["status"] == "queued")
+
+    def carts(self, now: float) -> list[list[int]]:
+        """The carts this policy's staff confirm at ``now`` (order ids, one list per trip)."""
+        free = self.free_robots()
+        if free < 1 or not self.pending:
+            return []
+        dishes = list(self.pending.values())
+        if self.policy == "baseline":
+            carts: list[list[int]] = []
+            for _ in range(free):
+                cart = fifo_cart(dishes, self.opts.capacity)
+                if not cart:
+                    break
+                carts.append(cart)
+                dishes = [d for d in dishes if d.id not in set(cart)]
+            return carts
+        horizon = now + self.opts.lookahead
+        coming = [
+            Dish(-1 - i, o.table, o.ready_at)
+            for i, o in enumerate(self.log[self.created :])
+            if o.ready_at <= horizon
+        ]
+        return suggest_carts(
+            dishes,
+            free,
+            self.console.distance,
+            now=now,
+            origin=self._origin(),
+            capacity=self.opts.capacity,
+            coming=coming,
+            hold=self.opts.hold,
+            hold_max=self.opts.hold_max,
+            busy=self._busy(now),
+            rank=self.opts.rank,
+        )
+
+    def _busy(self, now: float) -> list[float]:
+        """Seconds until each robot out on a trip is expected back at the pass.
+
+        Only robots on a normal trip count, and only until they are 15 s late: one stuck,
+        in manual control or offline may be gone for minutes, and a table left on the pass
+        for it would wait while a free robot idles.
+        """
+        out = []
+        for name, r in self.console.robots.items():
+            eta = self.eta.get(name)
+            if eta is None or r["status"] not in ("Delivering", "Delivered", "Transit"):
+                continue
+            if now - eta <= 15.0:
+                out.append(max(1.0, eta - now))
+        return out
+
+    def _origin(self) -> str:
+        """Where trips start: the free robots' home spots sit at the pass; the first one's."""
+        robots = sorted(self.console.robots.items())
+        homes = [r["home"] for _, r in robots if r.get("home") and r["status"] == "Awaiting"]
+        homes = homes or [r["home"] for _, r in robots if r.get("home")]
+        return str(homes[0]) if homes else "pass"
+
+    # rescues ---------------------------------------------------------------------------
+
+    async def rescue(self, robot: str) -> None:
+        """Staff walk over to a robot that gave up a move (10 s later) and sort it out.
+
+        With dishes aboard they press Continue, twice at most; a robot that still fails, or
+        was only going home, is taken in manual control, backed off whatever it bumped with
+        the joystick and put back in automatic mode (it then drives home). Taking manual
+        control cancels a trip: its dishes are pending again and go on a new cart.
+        """
+        with contextlib.suppress(ReplayError):  # the link dropped meanwhile: it resumes itself
+            await self._rescue(robot)
+
+    async def _rescue(self, robot: str) -> None:
+        c = self.console
+        await c.clock.sleep(10.0)
+        r = c.robots[robot]
+        if r["status"] != "Error":
+            return
+        tries = self.retries.get(robot, 0)
+        if r["current_task"] is not None and tries < 2:
+            self.retries[robot] = tries + 1
+            await c.call("continue", robot=robot)
+            return
+        self.retries[robot] = 0
+        self.recoveries += 1
+        await c.call("control", robot=robot, action="manual")
+        for _ in range(5):
+            await c.call("control", robot=robot, action="teleop", vx=-0.25, vy=0.0, wz=0.0)
+            await c.clock.sleep(0.3)
+        await c.call("control", robot=robot, action="teleop", vx=0.0, vy=0.0, wz=0.0)
+        await c.call("ready", robot=robot)
+        await c.call("control", robot=robot, action="auto")

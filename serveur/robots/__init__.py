@@ -1,0 +1,11 @@
+"""Talking to robots: the rosbridge v2 wire, and a link per kind of robot.
+
+Owns :mod:`~serveur.robots.rosbridge` (rosbridge ops and ROS message JSON, pure; shared with
+the simulator so both ends build the same frames) and :mod:`serveur.robots.ros1` (the link
+to a ROS1 robot running move_base and AMCL). Nothing here knows about trips, orders or
+clients: the core listens to a link's reports and tells it where to go.
+
+May import: serveur.clock.
+"""
+
+__all__: list[str] = []

@@ -1,0 +1,501 @@
+"""The server's rosbridge v2 client to one robot: pose, goals with acknowledgement, reconnect.
+
+A real ROS1 robot (or ``serveur sim``) is driven exactly as RViz and move_base expect: goals on
+``/move_base/goal`` with our own ``goal_id``, cancel on ``/move_base/cancel``, teleop on
+``/cmd_vel``, calibration on ``/initialpose``.
+
+Two failure modes users of other fleet managers report are designed out here:
+
+* **A goal the robot never confirmed.** Every goal is tracked until its id appears in
+  ``/move_base/status``; if it does not within ``ack_timeout`` it is re-sent under a fresh id,
+  and after ``ack_retries`` re-sends it is reported failed — never left hanging.
+* **A robot silently gone.** move_base publishes its status list at several Hz even when idle,
+  so that stream is the heartbeat: no status for ``heartbeat`` seconds (simulated time) and the
+  link is declared down, the socket closed and reconnection starts with backoff.
+
+The link is "up" only once both a status and a pose have arrived, so the server never acts on
+a robot whose position it does not know. Everything the robot sends is treated as untrusted:
+malformed frames are logged and dropped, never allowed to kill the link.
+
+A ``wss://`` robot is verified like any TLS server — its certificate must chain to the given
+CA (or the system store) and name the URL's host — because whoever answers as the robot gets
+to report its position and receive its goals. A robot failing verification stays Offline and
+the link keeps retrying (the certificate may be fixed), logging the reason once, not per try.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import itertools
+import logging
+import math
+import secrets
+import ssl as ssl_module
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import websockets
+from websockets.asyncio.client import ClientConnection, connect
+
+from serveur.clock import Clock
+from serveur.errors import LinkError, RosbridgeError
+from serveur.robots import rosbridge as rb
+
+__all__ = ["LinkListener", "RobotLink"]
+
+log = logging.getLogger(__name__)
+
+_SUBSCRIPTIONS = ("/move_base/result",)
+#: /amcl_pose throttle (ms) while nobody watches the robot's pose and it is not moving: the
+#: server then only needs to know where the robot stands (a 10 Hz AMCL stream costs ~90 us a
+#: message to decode and apply, most of an idle server's CPU with ten robots).
+IDLE_POSE_MS = 1000
+#: /move_base/status throttle (ms) while the robot has no goal and no joystick command, capped
+#: at half the heartbeat: an idle move_base repeats an empty status list 5 times a second, which
+#: is only a heartbeat then, and half of those prove life as well (goal acks need the full rate,
+#: restored before a goal goes out).
+IDLE_STATUS_MS = 500
+#: /battery_state throttle floor (ms): staff see whole percent, which takes minutes to change;
+#: a robot's 1 Hz battery stream would be a tenth of an idle server's messages for nothing.
+BATTERY_MS = 5000
+_PUBLICATIONS = ("/move_base/goal", "/move_base/cancel", "/cmd_vel", "/initialpose")
+
+
+class LinkListener(Protocol):
+    """What a link reports. Called on the event loop; must not block."""
+
+    def link_up(self, robot: str) -> None: ...
+
+    def link_down(self, robot: str, reason: str) -> None: ...
+
+    def pose(self, robot: str, x: float, y: float, yaw: float, stamp: float) -> None: ...
+
+    def battery(self, robot: str, fraction: float) -> None: ...
+
+    def goal_done(self, robot: str, goal_id: str, status: rb.GoalStatus, text: str) -> None:
+        """The goal reached a terminal state (SUCCEEDED, ABORTED, PREEMPTED, REJECTED...)."""
+
+    def goal_lost(self, robot: str, goal_id: str, reason: str) -> None:
+        """The goal was never acknowledged after every re-send."""
+
+    def scan(self, robot: str, msg: Mapping[str, Any]) -> None: ...
+
+    def map(self, robot: str, msg: Mapping[str, Any]) -> None: ...
+
+
+@dataclass(slots=True)
+class _Goal:
+    handle: str  # the first id: what callers hold, stable across re-sends
+    id: str  # the id on the wire now
+    x: float
+    y: float
+    yaw: float
+    sent_at: float
+    attempts: int = 1
+    acked: bool = False
+
+
+class RobotLink:
+    """One robot's rosbridge connection, kept up for the life of the server."""
+
+    def __init__(
+        self,
+        name: str,
+        url: str,
+        listener: LinkListener,
+        clock: Clock,
+        *,
+        heartbeat: float = 1.0,
+        ack_timeout: float = 2.0,
+        ack_retries: int = 2,
+        want_map: bool = False,
+        backoff_min: float = 0.2,
+        backoff_max: float = 5.0,
+        open_timeout: float = 5.0,
+        ssl: ssl_module.SSLContext | None = None,
+        idle_pose_ms: int = IDLE_POSE_MS,
+        pose_watched: bool = False,
+        moving_pose_ms: int = 0,
+        status_ms: int = 0,
+        battery_ms: int = 0,
+    ) -> None:
+        self.name = name
+        self.url = url
+        self._listener = listener
+        self._clock = clock
+        self._heartbeat = heartbeat
+        self._ack_timeout = ack_timeout
+        self._ack_retries = ack_retries
+        self._want_map = want_map
+        self._backoff = (backoff_min, backoff_max)
+        self._open_timeout = open_timeout
+        # Only for wss:// (websockets refuses a context for ws://); None there means the
+        # system trust store, which websockets' own default context uses.
+        self._ssl = ssl if url[:6].lower() == "wss://" else None
+        self._ws: ClientConnection | None = None
+        self._task: asyncio.Task[None] | None = None
+        self._goal: _Goal | None = None
+        self._seq = itertools.count(1)
+        self._token = secrets.token_hex(3)
+        self._last_status = 0.0
+        self._have_status = False
+        self._have_pose = False
+        self._up = False
+        self._scan_wanted = False
+        # Throttles (ms, robot clock) that accelerated replays raise to cut rosbridge traffic:
+        # the pose of an unwatched moving robot, move_base status (heartbeat, goal acks;
+        # terminal goal states come unthrottled on /move_base/result) and the battery.
+        # 0: every message.
+        self._idle_pose_ms = max(idle_pose_ms, moving_pose_ms)
+        self._moving_pose_ms = moving_pose_ms
+        self._status_ms = status_ms
+        self._battery_ms = max(battery_ms, BATTERY_MS)
+        self._pose_watched = pose_watched
+        self._teleop = False
+        self._pose_ms: int | None = None  # the throttle of our /amcl_pose subscription
+        self._idle_status_ms = max(status_ms, min(IDLE_STATUS_MS, int(heartbeat * 500)))
+        self._status_sub_ms: int | None = None  # ... and of our /move_base/status one
+        self._jobs: set[asyncio.Task[None]] = set()
+        self.pose: tuple[float, float, float] | None = None
+        self.battery: float | None = None
+        self.connects = 0
+
+    # -- lifecycle ---------------------------------------------------------------------------
+
+    @property
+    def up(self) -> bool:
+        return self._up
+
+    def start(self) -> None:
+        if self._task is None:
+            self._task = asyncio.create_task(self._run(), name=f"link-{self.name}")
+
+    async def close(self) -> None:
+        task, self._task = self._task, None
+        if task is not None:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+        if self._ws is not None:
+            await self._ws.close()
+            self._ws = None
+
+    async def drop(self) -> None:
+        """Close the socket as if the network failed (the link reconnects by itself)."""
+        if self._ws is not None:
+            await self._ws.close(code=1001, reason="dropped")
+
+    async def _run(self) -> None:
+        delay = self._backoff[0]
+        tls_failure = ""  # the last TLS failure logged, so a bad certificate is said once
+        tls: dict[str, Any] = {"ssl": self._ssl} if self._ssl is not None else {}
+        while True:
+            try:
+                async with connect(
+                    self.url,
+                    open_timeout=self._open_timeout,
+                    max_size=16 * 2**20,
+                    ping_interval=None,  # the move_base status stream is our heartbeat
+                    compression=None,
+                    **tls,
+                ) as ws:
+                    self._ws = ws
+                    self.connects += 1
+                    delay = self._backoff[0]
+                    tls_failure = ""
+                    await self._session(ws)
+                    reason = "connection closed"
+            except asyncio.CancelledError:
+                self._set_down("server shutting down")
+                raise
+            except ssl_module.SSLError as exc:
+                # Not a network blip: retrying will not help until someone fixes a certificate
+                # or --robot-cafile, so tell the operator (once per distinct reason).
+                reason = f"TLS: {exc}"
+                if reason != tls_failure:
+                    tls_failure = reason
+                    log.warning("%s: cannot connect to %s: %s", self.name, self.url, reason)
+                else:
+                    log.debug("%s: cannot connect to %s: %s", self.name, self.url, reason)
+            except (OSError, TimeoutError, websockets.exceptions.WebSocketException) as exc:
+                reason = f"{type(exc).__name__}: {exc}"
+            finally:
+                self._ws = None
+            self._set_down(reason)
+            await asyncio.sleep(delay)
+            delay = min(delay * 2, self._backoff[1])
+
+    async def _session(self, ws: ClientConnection) -> None:
+        self._have_status = self._have_pose = False
+        self._last_status = self._clock.now()
+        for topic in _PUBLICATIONS:
+            await ws.send(rb.encode(rb.op_advertise(topic, rb.TOPIC_TYPES[topic])))
+        for topic in _SUBSCRIPTIONS:
+            await ws.send(rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic])))
+        await ws.send(
+            rb.encode(
+                rb.op_subscribe(
+                    "/battery_state",
+                    rb.TOPIC_TYPES["/battery_state"],
+                    throttle_rate=self._battery_ms,
+                )
+            )
+        )
+        self._pose_ms = self._status_sub_ms = None
+        await self._update_rates(ws)
+        if self._want_map:
+            await ws.send(rb.encode(rb.op_subscribe("/map", rb.TOPIC_TYPES["/map"])))
+        if self._scan_wanted:
+            await self._subscribe_scan(ws, True)
+        watchdog = asyncio.create_task(self._watchdog(ws), name=f"watchdog-{self.name}")
+        try:
+            async for frame in ws:
+                self._handle(frame)
+        except websockets.exceptions.ConnectionClosed:
+            pass
+        finally:
+            watchdog.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await watchdog
+
+    async def _watchdog(self, ws: ClientConnection) -> None:
+        while True:
+            # A goal's ack is checked every quarter of ack_timeout; a parked robot is only
+            # checked for life, every half heartbeat (down within 1.5 heartbeats).
+            tick = (
+                min(self._heartbeat, self._ack_timeout) / 4 if self._goal else self._heartbeat / 2
+            )
+            due = self._clock.now() + tick
+            await self._clock.sleep(tick)
+            now = self._clock.now()
+            if now - due > tick:
+                # Our own event loop was starved: the robot's status frames may be sitting
+                # unread in the socket. Judge the robot on the next, timely tick instead.
+                continue
+            if now - self._last_status > self._heartbeat:
+                log.warning(
+                    "%s: no move_base status for %.1fs, link down", self.name, self._heartbeat
+                )
+                await ws.close(code=1001, reason="heartbeat lost")
+                return
+            goal = self._goal
+            if goal is not None and not goal.acked and now - goal.sent_at > self._ack_timeout:
+                await self._resend(goal)
+
+    def _set_down(self, reason: str) -> None:
+        was_up, self._up = self._up, False
+        if was_up:
+            log.warning("%s: link down (%s)", self.name, reason)
+            self._listener.link_down(self.name, reason)
+
+    # -- incoming ----------------------------------------------------------------------------
+
+    def _handle(self, frame: str | bytes) -> None:
+        try:
+            op = rb.decode(frame)
+            if op["op"] == "publish":
+                self._on_publish(str(op.get("topic")), op.get("msg"))
+            elif op["op"] == "status":
+                log.info("%s: rosbridge says %s: %s", self.name, op.get("level"), op.get("msg"))
+        except (RosbridgeError, KeyError, TypeError, ValueError, AttributeError) as exc:
+            log.warning("%s: dropped malformed frame from robot: %s", self.name, exc)
+
+    def _on_publish(self, topic: str, msg: Any) -> None:
+        if not isinstance(msg, dict):
+            raise RosbridgeError(f"{topic}: msg is not an object")
+        if topic == "/move_base/status":
+            self._on_status(msg)
+        elif topic == "/amcl_pose":
+            x, y, yaw = rb.pose_from_msg(msg["pose"]["pose"])
+            if not all(math.isfinite(v) for v in (x, y, yaw)):
+                raise RosbridgeError("non-finite pose")
+            self.pose = (x, y, yaw)
+            stamp = rb.from_ros_time(msg["header"]["stamp"])
+            self._listener.pose(self.name, x, y, yaw, stamp)
+            if not self._have_pose:
+                self._have_pose = True
+                self._maybe_up()
+        elif topic == "/move_base/result":
+            st = msg["status"]
+            self._on_goal_state(
+                str(st["goal_id"]["id"]), int(st["status"]), str(st.get("text", ""))
+            )
+        elif topic == "/battery_state":
+            pct = msg.get("percentage")
+            if isinstance(pct, int | float) and math.isfinite(pct):
+                self.battery = max(0.0, min(1.0, float(pct)))
+                self._listener.battery(self.name, self.battery)
+        elif topic == "/scan":
+            self._listener.scan(self.name, msg)
+        elif topic == "/map":
+            self._listener.map(self.name, msg)
+
+    def _on_status(self, msg: Mapping[str, Any]) -> None:
+        self._last_status = self._clock.now()
+        for st in msg["status_list"]:
+            self._on_goal_state(
+                str(st["goal_id"]["id"]), int(st["status"]), str(st.get("text", ""))
+            )
+        if not self._have_status:
+            self._have_status = True
+            self._maybe_up()
+
+    def _on_goal_state(self, goal_id: str, status: int, text: str) -> None:
+        goal = self._goal
+        if goal is None or goal_id != goal.id:
+            return
+        goal.acked = True
+        st = rb.GoalStatus(status)
+        if st in rb.TERMINAL_STATUSES:
+            self._goal = None
+            self._listener.goal_done(self.name, goal.handle, st, text)
+            self._rates_changed()
+
+    def _maybe_up(self) -> None:
+        if self._have_status and self._have_pose and not self._up:
+            self._up = True
+            log.info("%s: link up (%s)", self.name, self.url)
+            self._listener.link_up(self.name)
+
+    # -- outgoing ----------------------------------------------------------------------------
+
+    async def _send(self, op: Mapping[str, Any]) -> None:
+        ws = self._ws
+        if ws is None or not self._up:
+            raise LinkError(f"robot {self.name} is not connected")
+        try:
+            await ws.send(rb.encode(op))
+        except websockets.exceptions.ConnectionClosed as exc:
+            raise LinkError(f"robot {self.name}: connection lost while sending") from exc
+
+    def _new_goal_id(self) -> str:
+        return f"serveur-{self.name}-{self._token}-{next(self._seq)}"
+
+    @property
+    def goal_id(self) -> str | None:
+        return self._goal.handle if self._goal else None
+
+    async def send_goal(self, x: float, y: float, yaw: float) -> str:
+        """Send a move_base goal; its fate arrives as ``goal_done`` or ``goal_lost``.
+
+        Returns the goal's handle: re-sends go out under fresh ids, reports use the handle.
+        """
+        gid = self._new_goal_id()
+        goal = _Goal(gid, gid, x, y, yaw, self._clock.now())
+        self._goal = goal
+        await self._update_rates()  # full rates before the robot starts to move
+        await self._send(
+            rb.op_publish(
+                "/move_base/goal",
+                rb.move_base_action_goal(goal.id, x, y, yaw, stamp=self._clock.epoch()),
+            )
+        )
+        return goal.handle
+
+    async def _resend(self, goal: _Goal) -> None:
+        if goal.attempts > self._ack_retries:
+            self._goal = None
+            reason = f"goal not acknowledged by the robot after {goal.attempts} attempts"
+            self._listener.goal_lost(self.name, goal.handle, reason)
+            self._rates_changed()
+            return
+        old = goal.id
+        goal.id = self._new_goal_id()
+        goal.attempts += 1
+        goal.sent_at = self._clock.now()
+        log.warning("%s: goal %s not acknowledged, re-sending as %s", self.name, old, goal.id)
+        with contextlib.suppress(LinkError):
+            await self._send(
+                rb.op_publish(
+                    "/move_base/goal",
+                    rb.move_base_action_goal(
+                        goal.id, goal.x, goal.y, goal.yaw, stamp=self._clock.epoch()
+                    ),
+                )
+            )
+
+    async def cancel_goal(self) -> None:
+        """Cancel every goal on the robot (empty id), as a stop button must."""
+        self._goal = None
+        await self._send(rb.op_publish("/move_base/cancel", {"stamp": rb.ros_time(0.0), "id": ""}))
+        self._rates_changed()
+
+    async def teleop(self, vx: float, vy: float, wz: float) -> None:
+        self._teleop = (vx, vy, wz) != (0.0, 0.0, 0.0)
+        await self._update_rates()
+        await self._send(rb.op_publish("/cmd_vel", rb.twist(vx, vy, wz)))
+
+    async def initial_pose(self, x: float, y: float, yaw: float) -> None:
+        await self._send(
+            rb.op_publish(
+                "/initialpose",
+                rb.pose_with_covariance_stamped(x, y, yaw, stamp=self._clock.epoch()),
+            )
+        )
+
+    async def want_pose(self, on: bool) -> None:
+        """Someone watches this robot's pose (full AMCL rate) or nobody does any more."""
+        self._pose_watched = on
+        await self._update_rates()
+
+    def _moving(self) -> bool:
+        return self._goal is not None or self._teleop
+
+    def _pose_throttle(self) -> int:
+        """Full rate while watched or moving (arrival checks need a fresh pose), else idle."""
+        if self._pose_watched:
+            return 0
+        return self._moving_pose_ms if self._moving() else self._idle_pose_ms
+
+    def _status_throttle(self) -> int:
+        """Full rate while a goal needs its ack and end (or teleop), else heartbeat only."""
+        return self._status_ms if self._moving() else self._idle_status_ms
+
+    def _rates_changed(self) -> None:
+        """From a synchronous callback (a goal ended): re-subscribe soon if a rate changed."""
+        if self._ws is not None and self._rates_stale():
+            with contextlib.suppress(RuntimeError):  # no running loop: the next session will
+                task = asyncio.get_running_loop().create_task(self._update_rates())
+                self._jobs.add(task)  # the loop keeps only a weak reference
+                task.add_done_callback(self._jobs.discard)
+
+    def _rates_stale(self) -> bool:
+        return (
+            self._pose_throttle() != self._pose_ms or self._status_throttle() != self._status_sub_ms
+        )
+
+    async def _update_rates(self, ws: ClientConnection | None = None) -> None:
+        """(Re-)subscribe /amcl_pose and /move_base/status at the wanted throttles; rosbridge
+        replaces a client's earlier subscription to the same topic."""
+        ws = ws or self._ws
+        if ws is None:
+            return
+        with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+            for topic, ms, attr in (
+                ("/move_base/status", self._status_throttle(), "_status_sub_ms"),
+                ("/amcl_pose", self._pose_throttle(), "_pose_ms"),
+            ):
+                if getattr(self, attr) != ms:
+                    setattr(self, attr, ms)
+                    await ws.send(
+                        rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic], throttle_rate=ms))
+                    )
+
+    async def want_scan(self, on: bool) -> None:
+        """Stream /scan only while someone looks at it (it is the heaviest topic)."""
+        if on == self._scan_wanted:
+            return
+        self._scan_wanted = on
+        if self._ws is not None:
+            with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+                await self._subscribe_scan(self._ws, on)
+
+    async def _subscribe_scan(self, ws: ClientConnection, on: bool) -> None:
+        if on:
+            await ws.send(
+                rb.encode(rb.op_subscribe("/scan", rb.TOPIC_TYPES["/scan"], throttle_rate=200))
+            )
+        else:
+            await ws.send(rb.encode(rb.op_unsubscribe("/scan")))

@@ -1,0 +1,12 @@
+"""The simulator's parts: one robot's ROS graph, its rosbridge server, its physics.
+
+Owns :mod:`~serveur.sim.robot` (move_base, AMCL, odometry, laser, battery of one robot),
+:mod:`~serveur.sim.bridge` (its rosbridge v2 server: ops, subscriptions, queues),
+:mod:`~serveur.sim.topics` (frames and subscriptions both share) and
+:mod:`~serveur.sim.kinematics` (omni / differential drive, path following, odometry).
+:mod:`serveur.robot_sim` assembles a fleet from these and is the simulator's entry.
+
+May import: serveur.clock, serveur.maps.navigation, serveur.robots.rosbridge.
+"""
+
+__all__: list[str] = []

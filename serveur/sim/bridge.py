@@ -1,0 +1,522 @@
+"""The rosbridge v2 server side of a simulated robot: its websocket endpoint and clients.
+
+Split from :mod:`serveur.robot_sim` (which keeps the robot's ROS graph, the physics loop and
+the command line) because what a rosbridge_server does with its clients is a subject of its
+own: op parsing and errors as rosbridge_server words them, subscriptions merged per topic with
+``throttle_rate``/``queue_length``, cbor for the clients that ask, advertised services, and
+per-client bounded queues so a slow client only loses its own old messages and never blocks
+the robot or grows memory. :class:`Endpoint` is one robot's server; :class:`Sub` is one
+client's subscription to one of the robot's topics, which the robot feeds
+(:class:`serveur.sim.robot.SimRobot`) with :class:`Frame` objects encoded at most
+once per format.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import socket
+import ssl as ssl_module
+from collections import deque
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any, Final, cast
+
+import cbor2
+from websockets.asyncio.server import Server, ServerConnection, serve
+from websockets.exceptions import ConnectionClosed
+
+from serveur.errors import RosbridgeError, ServeurError
+from serveur.robots import rosbridge as rb
+from serveur.sim.topics import (
+    Frame,
+    Sub,
+    SubParams,
+    consume_exception,
+    next_order,
+)
+
+if TYPE_CHECKING:
+    from serveur.sim.robot import SimRobot
+
+__all__ = [
+    "CONTROL_QUEUE",
+    "MAX_CALLS",
+    "MAX_FRAGMENTED",
+    "MAX_FRAME",
+    "MAX_QUEUE",
+    "MAX_SUB_IDS",
+    "ROBOT_SUBSCRIBES",
+    "SEND_BUFFER",
+    "BridgeClient",
+    "Endpoint",
+]
+
+log = logging.getLogger("serveur.robot_sim")
+
+MAX_FRAME: Final = 1 << 20  # bytes: larger incoming frames close the connection with 1009
+MAX_QUEUE: Final = 100  # cap on a client's queue_length (memory bound)
+CONTROL_QUEUE: Final = 256  # replies (status, service_response) kept for a client that lags
+SEND_BUFFER: Final = 64 * 1024  # SO_SNDBUF of client sockets (the kernel doubles it)
+MAX_FRAGMENTED: Final = 8  # messages being reassembled from fragments at once, per client
+MAX_CALLS: Final = 64  # service calls in progress at once, per client
+MAX_SUB_IDS: Final = 64  # subscribe ids merged into one subscription
+
+#: Topics the robot subscribes to (clients may publish here; anything else is refused).
+ROBOT_SUBSCRIBES: Final = frozenset(
+    {"/move_base/goal", "/move_base_simple/goal", "/move_base/cancel", "/cmd_vel", "/initialpose"}
+)
+_LEVELS: Final = {"none": 0, "error": 1, "warning": 2, "info": 3}
+
+# ---------------------------------------------------------------------------------------------
+# One client connection
+# ---------------------------------------------------------------------------------------------
+
+
+def _op_id(msg: Mapping[str, Any]) -> str | int | None:
+    v = msg.get("id")
+    return v if isinstance(v, str | int) and not isinstance(v, bool) else None
+
+
+def _req_str(msg: Mapping[str, Any], key: str) -> str:
+    v = msg.get(key)
+    if not isinstance(v, str) or not v:
+        raise RosbridgeError(f"'{key}' must be a non-empty string")
+    return v
+
+
+def _opt_int(msg: Mapping[str, Any], key: str) -> int:
+    v = msg.get(key, 0)
+    if v is None:
+        return 0
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
+        raise RosbridgeError(f"'{key}' must be a non-negative number")
+    return int(v)
+
+
+class BridgeClient:
+    """One websocket client of a robot: its subscriptions, its send queues, its op handlers."""
+
+    def __init__(self, endpoint: Endpoint, ws: ServerConnection) -> None:
+        self.endpoint = endpoint
+        self.robot = endpoint.robot
+        self.clock = endpoint.robot._clock
+        self.ws = ws
+        self.subs: dict[str, Sub] = {}
+        self.advertised: set[str] = set()
+        self.control: deque[tuple[int, Frame]] = deque(maxlen=CONTROL_QUEUE)
+        self.wake = asyncio.Event()
+        self.level = _LEVELS["error"]
+        self.fragments: dict[str | int, dict[int, str]] = {}
+        self.calls: dict[str, asyncio.Future[tuple[Any, bool]]] = {}  # calls we forwarded to it
+        self.tasks: set[asyncio.Task[None]] = set()
+
+    # -- sending -----------------------------------------------------------------------------
+
+    def reply(self, op: Mapping[str, Any]) -> None:
+        self.control.append((next_order(), Frame(op)))
+        self.wake.set()
+
+    def status(self, level: str, text: str, id: str | int | None) -> None:
+        if _LEVELS[level] <= self.level:
+            self.reply(rb.op_status(level, text, id))
+
+    def _pop_next(self, now: float) -> tuple[bytes, bool] | float | None:
+        """The next frame to send (bytes, binary); else when a throttled one is due; else None."""
+        best: deque[tuple[int, Frame]] | None = None
+        best_sub: Sub | None = None
+        best_seq = 0
+        due: float | None = None
+        if self.control:
+            best, best_seq = self.control, self.control[0][0]
+        for sub in self.subs.values():
+            q = sub.queue
+            if not q:
+                continue
+            if sub.throttle > 0.0 and sub.qlen > 0:
+                ready = sub.last_sent + sub.throttle
+                if now < ready - 1e-6:
+                    due = ready if due is None else min(due, ready)
+                    continue
+            if best is None or q[0][0] < best_seq:
+                best, best_sub, best_seq = q, sub, q[0][0]
+        if best is None:
+            return due
+        _, frame = best.popleft()
+        if best_sub is None:
+            return frame.text(), False
+        best_sub.last_sent = now
+        return (frame.cbor(), True) if best_sub.cbor else (frame.text(), False)
+
+    async def writer(self) -> None:
+        """Send queued frames in order; only this task waits on the socket, never the robot."""
+        ws, clock, wake = self.ws, self.clock, self.wake
+        while True:
+            nxt = self._pop_next(clock.now())
+            if isinstance(nxt, tuple):
+                data, binary = nxt
+                await ws.send(data, text=not binary)
+                continue
+            wake.clear()
+            if nxt is None:
+                await wake.wait()
+                continue
+            waiter = asyncio.ensure_future(wake.wait())
+            sleeper = asyncio.ensure_future(clock.sleep(nxt - clock.now()))
+            try:
+                await asyncio.wait({waiter, sleeper}, return_when=asyncio.FIRST_COMPLETED)
+            finally:
+                waiter.cancel()
+                sleeper.cancel()
+
+    # -- receiving ---------------------------------------------------------------------------
+
+    def handle_frame(self, frame: str | bytes, depth: int = 0) -> None:
+        """Decode and run one frame; every problem becomes a status reply, never an exception."""
+        msg: dict[str, Any] | None = None
+        try:
+            if isinstance(frame, bytes) and frame[:1] not in (b"{", b" ", b"\n", b"\r", b"\t"):
+                msg = self._decode_cbor(frame)
+            else:
+                msg = rb.decode(frame)
+            self.handle_op(msg, depth)
+        except ServeurError as exc:
+            oid = _op_id(msg) if msg is not None else exc.details.get("id")
+            self.status("error", exc.message, oid)
+        except Exception as exc:  # a bug must not take the robot or the connection down
+            log.exception("%s: error handling a frame", self.robot.name)
+            self.status("error", f"internal error: {type(exc).__name__}: {exc}", _op_id(msg or {}))
+
+    @staticmethod
+    def _decode_cbor(frame: bytes) -> dict[str, Any]:
+        try:
+            obj = cbor2.loads(frame)
+        except Exception as exc:
+            raise RosbridgeError(f"binary frame is not CBOR: {exc}") from exc
+        if not isinstance(obj, dict) or not isinstance(obj.get("op"), str):
+            raise RosbridgeError("frame is not an object with a string 'op'")
+        return cast(dict[str, Any], obj)
+
+    def handle_op(self, msg: dict[str, Any], depth: int = 0) -> None:
+        op = msg["op"]
+        oid = _op_id(msg)
+        if op == "publish":
+            self._publish(msg, oid)
+        elif op == "subscribe":
+            self._subscribe(msg, oid)
+        elif op == "unsubscribe":
+            self._unsubscribe(msg, oid)
+        elif op == "advertise":
+            self._advertise(msg)
+        elif op == "unadvertise":
+            topic = _req_str(msg, "topic")
+            if topic not in self.advertised:
+                self.status("warning", f"{topic} is not advertised by this client", oid)
+            self.advertised.discard(topic)
+        elif op == "call_service":
+            service = _req_str(msg, "service")
+            if len(self.tasks) >= MAX_CALLS:
+                why = f"more than {MAX_CALLS} service calls in progress"
+                self.reply(rb.op_service_response(service, oid, why, result=False))
+                raise RosbridgeError(why)
+            task = asyncio.ensure_future(self._call_service(msg, oid))
+            self.tasks.add(task)
+            task.add_done_callback(self.tasks.discard)
+        elif op == "service_response":
+            self._service_response(msg, oid)
+        elif op == "advertise_service":
+            self._advertise_service(msg)
+        elif op == "unadvertise_service":
+            service = _req_str(msg, "service")
+            if self.endpoint.services.get(service) is self:
+                del self.endpoint.services[service]
+        elif op == "fragment":
+            self._fragment(msg, depth)
+        elif op == "set_level":
+            level = msg.get("level")
+            if level not in _LEVELS:
+                raise RosbridgeError(f"level must be one of {sorted(_LEVELS)}")
+            self.level = _LEVELS[level]
+        else:
+            raise RosbridgeError(f"unknown op {op!r}")
+
+    def _publish(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
+        topic = _req_str(msg, "topic")
+        if "msg" not in msg:
+            raise RosbridgeError("publish needs a 'msg'")
+        body = msg["msg"]
+        if not isinstance(body, Mapping):
+            raise RosbridgeError("'msg' must be an object")
+        if topic not in ROBOT_SUBSCRIBES:
+            if topic in rb.TOPIC_TYPES:
+                raise RosbridgeError(
+                    f"{topic} is published by the robot; it does not subscribe to it"
+                )
+            raise RosbridgeError(f"unknown topic {topic}: the robot does not subscribe to it")
+        warning = self.robot.handle_publish(topic, body)
+        if warning:
+            self.status("warning", warning, oid)
+
+    def _subscribe(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
+        topic = _req_str(msg, "topic")
+        known = rb.TOPIC_TYPES.get(topic)
+        if known is None:
+            raise RosbridgeError(f"unknown topic {topic}")
+        typ = msg.get("type")
+        if typ not in (None, "") and (not isinstance(typ, str) or rb.normalize_type(typ) != known):
+            raise RosbridgeError(f"{topic} is of type {known}, not {typ!r}")
+        throttle = _opt_int(msg, "throttle_rate") / 1000.0
+        qlen = min(_opt_int(msg, "queue_length"), MAX_QUEUE)
+        _opt_int(msg, "fragment_size")
+        compression = msg.get("compression") or "none"
+        if compression not in ("none", "cbor", "png", "cbor-raw"):
+            raise RosbridgeError(f"unknown compression {compression!r}")
+        if compression in ("png", "cbor-raw"):
+            self.status(
+                "warning", f"compression {compression!r} is not supported; sending JSON", oid
+            )
+        sub = self.subs.get(topic)
+        new = sub is None
+        if sub is None:
+            sub = self.subs[topic] = Sub(self, topic)
+        if oid not in sub.params and len(sub.params) >= MAX_SUB_IDS:
+            raise RosbridgeError(f"more than {MAX_SUB_IDS} subscriptions to {topic}")
+        sub.params.pop(oid, None)  # re-subscribing with an id makes it the latest
+        sub.params[oid] = SubParams(throttle, qlen, compression == "cbor")
+        sub.recompute()
+        if new:
+            self.robot._add_sub(sub)
+        self.robot._offer_latched(sub)
+
+    def _unsubscribe(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
+        topic = _req_str(msg, "topic")
+        sub = self.subs.get(topic)
+        if sub is None:
+            self.status("warning", f"not subscribed to {topic}", oid)
+            return
+        if oid is not None and oid in sub.params and len(sub.params) > 1:
+            del sub.params[oid]
+            sub.recompute()
+            return
+        if oid is not None and oid not in sub.params:
+            self.status("warning", f"no subscription {oid!r} on {topic}", oid)
+            return
+        self._drop_sub(sub)
+
+    def _drop_sub(self, sub: Sub) -> None:
+        self.subs.pop(sub.topic, None)
+        self.robot._remove_sub(sub)
+
+    def _advertise(self, msg: Mapping[str, Any]) -> None:
+        topic = _req_str(msg, "topic")
+        typ = _req_str(msg, "type")
+        known = rb.TOPIC_TYPES.get(topic)
+        if known is None or topic not in ROBOT_SUBSCRIBES:
+            raise RosbridgeError(f"cannot advertise {topic}: the robot does not subscribe to it")
+        if rb.normalize_type(typ) != known:
+            raise RosbridgeError(f"{topic} is of type {known}, not {typ!r}")
+        self.advertised.add(topic)
+
+    # -- services ----------------------------------------------------------------------------
+
+    async def _call_service(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
+        service = cast(str, msg["service"])
+        args = msg.get("args")
+        try:
+            if args is not None and not isinstance(args, Mapping | list):
+                raise RosbridgeError("'args' must be an object or a list")
+            builtin = _ROSAPI.get(service)
+            if builtin is not None:
+                values, ok = builtin(self, args), True
+            elif service in self.endpoint.services:
+                values, ok = await self._forward_call(service, args, msg.get("timeout"))
+            else:
+                raise RosbridgeError(f"service {service} does not exist")
+        except ServeurError as exc:
+            self.reply(rb.op_service_response(service, oid, exc.message, result=False))
+            self.status("error", exc.message, oid)
+            return
+        self.reply(rb.op_service_response(service, oid, values, result=ok))
+
+    async def _forward_call(self, service: str, args: Any, limit_s: object) -> tuple[Any, bool]:
+        provider = self.endpoint.services[service]
+        fid = f"service_request:{service}:{next_order()}"
+        fut: asyncio.Future[tuple[Any, bool]] = asyncio.get_running_loop().create_future()
+        fut.add_done_callback(consume_exception)  # the caller may be gone when it fails
+        provider.calls[fid] = fut
+        provider.reply({"op": "call_service", "service": service, "args": args or {}, "id": fid})
+        limit = float(limit_s) if isinstance(limit_s, int | float) and limit_s > 0 else 10.0
+        try:
+            return await asyncio.wait_for(fut, self.clock.wall(limit))
+        except TimeoutError as exc:
+            raise RosbridgeError(f"service {service} did not answer within {limit} s") from exc
+        finally:
+            provider.calls.pop(fid, None)
+
+    def _service_response(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
+        fut = self.calls.get(oid) if isinstance(oid, str) else None
+        if fut is None:
+            raise RosbridgeError("service_response for no call this server made")
+        result = msg.get("result", True)
+        if not fut.done():
+            fut.set_result((msg.get("values"), result is not False))
+
+    def _advertise_service(self, msg: Mapping[str, Any]) -> None:
+        service = _req_str(msg, "service")
+        _req_str(msg, "type")
+        if service in _ROSAPI:
+            raise RosbridgeError(f"{service} is provided by rosapi")
+        self.endpoint.services[service] = self
+
+    def _fragment(self, msg: Mapping[str, Any], depth: int) -> None:
+        fid = msg.get("id")
+        data, num, total = msg.get("data"), msg.get("num"), msg.get("total")
+        if not isinstance(fid, str | int) or isinstance(fid, bool):
+            raise RosbridgeError("a fragment needs an 'id'")
+        if not isinstance(data, str) or not isinstance(num, int) or not isinstance(total, int):
+            raise RosbridgeError("a fragment needs 'data' (string), 'num' and 'total' (integers)")
+        if not 0 <= num < total or total > MAX_FRAME:
+            raise RosbridgeError("fragment 'num' must be in [0, total)")
+        parts = self.fragments.get(fid)
+        if parts is None:
+            if len(self.fragments) >= MAX_FRAGMENTED:  # forget the oldest incomplete message
+                self.fragments.pop(next(iter(self.fragments)))
+            parts = self.fragments[fid] = {}
+        parts[num] = data
+        if sum(len(p) for p in parts.values()) > MAX_FRAME:
+            del self.fragments[fid]
+            raise RosbridgeError("fragmented message is larger than the frame limit")
+        if len(parts) == total:
+            del self.fragments[fid]
+            if depth >= 2:
+                raise RosbridgeError("fragments nested too deeply")
+            self.handle_frame("".join(parts[i] for i in range(total)), depth + 1)
+
+    def close(self) -> None:
+        for sub in list(self.subs.values()):
+            self._drop_sub(sub)
+        for name, provider in list(self.endpoint.services.items()):
+            if provider is self:
+                del self.endpoint.services[name]
+        for fut in self.calls.values():
+            if not fut.done():
+                fut.set_exception(RosbridgeError("the service provider disconnected"))
+        for task in list(self.tasks):
+            task.cancel()
+
+
+def _rosapi_topics(client: BridgeClient, args: Any) -> dict[str, Any]:
+    topics = sorted(rb.TOPIC_TYPES)
+    return {"topics": topics, "types": [rb.TOPIC_TYPES[t] for t in topics]}
+
+
+def _rosapi_get_time(client: BridgeClient, args: Any) -> dict[str, Any]:
+    return {"time": rb.ros_time(client.clock.epoch())}
+
+
+def _rosapi_topic_type(client: BridgeClient, args: Any) -> dict[str, Any]:
+    topic = args.get("topic") if isinstance(args, Mapping) else (args[0] if args else None)
+    return {"type": rb.TOPIC_TYPES.get(topic, "") if isinstance(topic, str) else ""}
+
+
+def _rosapi_services(client: BridgeClient, args: Any) -> dict[str, Any]:
+    return {"services": sorted([*_ROSAPI, *client.endpoint.services])}
+
+
+_ROSAPI: Final[dict[str, Callable[[BridgeClient, Any], dict[str, Any]]]] = {
+    "/rosapi/topics": _rosapi_topics,
+    "/rosapi/get_time": _rosapi_get_time,
+    "/rosapi/topic_type": _rosapi_topic_type,
+    "/rosapi/services": _rosapi_services,
+}
+
+
+# ---------------------------------------------------------------------------------------------
+# One robot's websocket endpoint
+# ---------------------------------------------------------------------------------------------
+
+
+class Endpoint:
+    """The rosbridge websocket server of one robot; can be stopped and restarted on its port.
+
+    With ``ssl`` it speaks only TLS (``wss://``), as a robot whose rosbridge_server was started
+    with ``ssl:=true`` does, so the server's certificate checks are exercised for real.
+    """
+
+    def __init__(
+        self, robot: SimRobot, host: str, port: int, ssl: ssl_module.SSLContext | None = None
+    ) -> None:
+        self.robot = robot
+        self.host = host
+        self.port = port
+        self.ssl = ssl
+        self.server: Server | None = None
+        self.clients: set[BridgeClient] = set()
+        self.services: dict[str, BridgeClient] = {}
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        scheme = "wss" if self.ssl is not None else "ws"
+        return f"{scheme}://{host}:{self.port}"
+
+    async def start(self) -> None:
+        if self.server is not None:
+            return
+        self.server = await serve(
+            self._handler,
+            self.host,
+            self.port,
+            compression=None,  # rosbridge_server does not deflate; it would cost CPU per client
+            max_size=MAX_FRAME,
+            close_timeout=2.0,
+            reuse_address=True,
+            ssl=self.ssl,
+        )
+        if self.port == 0:
+            self.port = int(self.server.sockets[0].getsockname()[1])
+
+    async def stop(self, close_timeout: float = 2.0) -> None:
+        """Stop listening and close every connection with 1001 (Going Away).
+
+        websockets' own ``Server.close`` waits for each close handshake while flushing what is
+        queued, and a client that stopped reading never lets that flush end; so each client
+        gets ``close_timeout`` wall seconds, then its TCP connection is aborted.
+        """
+        server, self.server = self.server, None
+        if server is None:
+            return
+        server.close(close_connections=False)
+
+        async def close_one(ws: ServerConnection) -> None:
+            try:
+                await asyncio.wait_for(ws.close(1001, "endpoint stopped"), close_timeout)
+            except TimeoutError:
+                ws.transport.abort()
+
+        await asyncio.gather(*(close_one(c.ws) for c in list(self.clients)))
+        await server.wait_closed()
+
+    async def _handler(self, ws: ServerConnection) -> None:
+        sock = ws.transport.get_extra_info("socket")
+        if sock is not None:
+            # A small kernel send buffer: a client that stops reading then backs up into our
+            # bounded per-topic queues (which drop the oldest) within a few frames, instead of
+            # into megabytes of stale scans in the kernel (loopback autotunes up to 4 MiB).
+            with contextlib.suppress(OSError):
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER)
+        client = BridgeClient(self, ws)
+        self.clients.add(client)
+        writer = asyncio.ensure_future(client.writer())
+        try:
+            async for frame in ws:
+                client.handle_frame(frame)
+        except ConnectionClosed:
+            pass
+        finally:
+            client.close()
+            self.clients.discard(client)
+            writer.cancel()
+            with contextlib.suppress(asyncio.CancelledError, ConnectionClosed):
+                await writer

@@ -1,0 +1,691 @@
+"""One simulated waiter robot's ROS graph: move_base, AMCL, odometry, laser, battery.
+
+Split from :mod:`serveur.robot_sim` (the fleet, its physics loop and ``serveur sim``) because a
+robot is a subject of its own: what a ROS1 robot with move_base and AMCL does with the goals,
+cancels, ``cmd_vel`` and initial poses it is sent, and what it publishes, at which rates, with
+which quirks (actionlib's status list, terminal goals kept 5 s, a blocked robot aborting its
+goal, noisy AMCL poses and laser scans). Its rosbridge side is :mod:`serveur.sim.bridge`.
+Everything is stepped by the fleet at :data:`TICK` of simulated time.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import logging
+import math
+import random
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Final
+
+import numpy as np
+import numpy.typing as npt
+
+from serveur.clock import Clock
+from serveur.errors import RosbridgeError, ServeurError
+from serveur.maps.navigation import OccupancyMap, Planner, raycast
+from serveur.robots import rosbridge as rb
+from serveur.robots.rosbridge import GoalStatus
+from serveur.sim.kinematics import (
+    Kind,
+    Limits,
+    MotionModel,
+    OdometryModel,
+    PathFollower,
+    wrap_angle,
+)
+from serveur.sim.topics import Frame, Sub, consume_exception
+
+__all__ = ["AMCL_TICKS", "MAX_CATCH_UP", "TICK", "SimRobot"]
+
+log = logging.getLogger("serveur.robot_sim")
+
+#: Physics step in simulated seconds (20 Hz); publish periods are whole numbers of ticks.
+TICK: Final = 0.05
+_ODOM_TICKS: Final = 1  # 20 Hz
+AMCL_TICKS: Final = 2  # 10 Hz
+_FEEDBACK_TICKS: Final = 2  # 10 Hz while a goal is active
+_SCAN_TICKS: Final = 4  # 5 Hz
+_STATUS_TICKS: Final = 4  # 5 Hz (actionlib's default status_frequency)
+_BATTERY_TICKS: Final = 20  # 1 Hz
+#: Most physics steps taken in one loop pass when the loop fell behind; beyond, sim time slips.
+MAX_CATCH_UP: Final = 20
+
+CMD_VEL_TIMEOUT: Final = 0.5  # s sim: a teleop command older than this is stale, the robot stops
+TERMINAL_KEEP: Final = 5.0  # s sim a finished goal stays in the status list (actionlib's default)
+BLOCKED_ABORT_AFTER: Final = 1.0  # s sim a blocked robot waits before aborting its goal
+STUCK_ABORT_AFTER: Final = 3.0  # s sim pushing against an obstacle before aborting
+
+SCAN_RAYS: Final = 360
+SCAN_RANGE_MIN: Final = 0.12
+SCAN_RANGE_MAX: Final = 8.0
+SCAN_NOISE: Final = 0.01  # m, sigma
+AMCL_NOISE_XY: Final = 0.01  # m, sigma
+AMCL_NOISE_YAW: Final = 0.005  # rad, sigma
+_MAP_FRAMES: Final = frozenset({"map", "/map", ""})
+
+
+# ---------------------------------------------------------------------------------------------
+# Goals
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(slots=True)
+class _Goal:
+    id: str
+    stamp: float  # the goal's own ROS stamp (cancel-by-time compares it)
+    x: float
+    y: float
+    yaw: float
+    status: GoalStatus = GoalStatus.PENDING
+    text: str = ""
+    ended: float = math.inf  # sim time when it became terminal
+
+    @property
+    def terminal(self) -> bool:
+        return self.status in rb.TERMINAL_STATUSES
+
+
+# ---------------------------------------------------------------------------------------------
+# The robot
+# ---------------------------------------------------------------------------------------------
+
+
+class SimRobot:
+    """One simulated robot: its body, its move_base, its sensors, and what it publishes.
+
+    Public read-only state: ``name``, ``pose`` (true pose), ``kinematics``, ``battery``
+    (0..1), ``home``, ``velocity``. Fault hooks: :meth:`block_path`, :meth:`ignore_goals`.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        index: int,
+        grid: OccupancyMap,
+        planner: Planner,
+        home: tuple[float, float, float],
+        kinematics: Kind,
+        clock: Clock,
+        seed: int,
+        limits: Limits | None = None,
+        map_frame: Frame | None = None,
+        plan_lock: threading.Lock | None = None,
+    ) -> None:
+        self.name = name
+        self.index = index
+        self.kinematics: Kind = kinematics
+        self.home = home
+        self.limits = limits or Limits()
+        self._map = grid
+        self._planner = planner
+        self._clock = clock
+        self._rng = random.Random(seed)
+        self._np_rng = np.random.default_rng(seed)
+        self._motion = MotionModel(kinematics, self.limits, *home)
+        self._odom = OdometryModel(self._rng)
+        self._battery = 1.0
+        self._charging = False
+        self._map_frame = map_frame
+        self._subs: dict[str, list[Sub]] = {}
+        self._seqs: dict[str, int] = {}
+        self._t = clock.now()  # sim time of the last physics step
+        self._ticks = index  # staggers publishing across robots
+        # move_base
+        self._goals: list[_Goal] = []
+        self._pending: _Goal | None = None
+        self._plan_fut: asyncio.Future[list[tuple[float, float]]] | None = None
+        self._plan_goal: _Goal | None = None
+        self._plan_lock = plan_lock or threading.Lock()
+        self._active: _Goal | None = None
+        self._follower: PathFollower | None = None
+        self._goal_deadline = math.inf
+        self._blocked_since: float | None = None
+        self._stuck_for = 0.0
+        self._goal_counter = itertools.count(1)
+        # teleop
+        self._teleop: tuple[float, float, float] | None = None
+        self._teleop_t = -math.inf
+        # faults
+        self._block_path = False
+        self._ignore_goals = False
+        # laser
+        self._scan_rel = -math.pi + (2.0 * math.pi / SCAN_RAYS) * np.arange(SCAN_RAYS)
+        self._scan_cache: tuple[tuple[float, float, float], npt.NDArray[np.float64]] | None = None
+
+    # -- public state ----------------------------------------------------------------------
+
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """True pose (x, y, yaw) in the map frame."""
+        m = self._motion
+        return m.x, m.y, m.yaw
+
+    @property
+    def velocity(self) -> tuple[float, float, float]:
+        """True body velocity (vx, vy, wz)."""
+        m = self._motion
+        return m.vx, m.vy, m.wz
+
+    @property
+    def battery(self) -> float:
+        """State of charge, 0..1 (sensor_msgs/BatteryState.percentage)."""
+        return self._battery
+
+    @battery.setter
+    def battery(self, value: float) -> None:
+        self._battery = min(1.0, max(0.0, float(value)))
+
+    @property
+    def goal_statuses(self) -> list[tuple[str, GoalStatus, str]]:
+        """What ``/move_base/status`` lists now: (goal id, status, text)."""
+        return [(g.id, g.status, g.text) for g in self._goals]
+
+    def block_path(self, on: bool) -> None:
+        """Fault hook: while on, the active goal (or the next one) ABORTs as if the aisle were
+        blocked — the robot stops and gives up after ``BLOCKED_ABORT_AFTER`` s of sim time."""
+        self._block_path = bool(on)
+        if not on:
+            self._blocked_since = None
+
+    def ignore_goals(self, on: bool) -> None:
+        """Fault hook: while on, goals are never acknowledged — status keeps publishing without
+        them, no result ever comes (a hung move_base)."""
+        self._ignore_goals = bool(on)
+
+    def teleport(self, x: float, y: float, yaw: float) -> None:
+        """Put the robot somewhere else (like /initialpose, for tests)."""
+        self._relocalise(x, y, yaw)
+
+    # -- subscriptions -----------------------------------------------------------------------
+
+    def _add_sub(self, sub: Sub) -> None:
+        self._subs.setdefault(sub.topic, []).append(sub)
+
+    def _remove_sub(self, sub: Sub) -> None:
+        subs = self._subs.get(sub.topic)
+        if subs and sub in subs:
+            subs.remove(sub)
+            if not subs:
+                del self._subs[sub.topic]
+
+    def _next_seq(self, topic: str) -> int:
+        s = self._seqs.get(topic, 0)
+        self._seqs[topic] = s + 1
+        return s
+
+    def _publish(
+        self,
+        topic: str,
+        build: Callable[[int, float], dict[str, Any]],
+        stamp: float | None = None,
+    ) -> None:
+        """Build (only if a subscriber takes it now) and hand one frame to every subscriber.
+
+        ``stamp`` defaults to now; ticks pass their own sim time.
+        """
+        subs = self._subs.get(topic)
+        if not subs:
+            return
+        t = self._t
+        wanting = [s for s in subs if s.wants(t)]
+        if not wanting:
+            return
+        if stamp is None:
+            stamp = self._clock.epoch()
+        frame = Frame(rb.op_publish(topic, build(self._next_seq(topic), stamp)))
+        for s in wanting:
+            s.push(frame, t)
+
+    def _relay(self, topic: str, msg: Mapping[str, Any]) -> None:
+        """A client's publish on a robot topic also reaches that topic's subscribers (ROS does)."""
+        if topic in self._subs:
+            frame = Frame(rb.op_publish(topic, msg))
+            t = self._clock.now()
+            for s in list(self._subs[topic]):
+                if s.wants(t):
+                    s.push(frame, t)
+
+    def _offer_latched(self, sub: Sub) -> None:
+        if sub.topic == "/map" and self._map_frame is not None:
+            sub.push(self._map_frame, self._t)
+
+    # -- incoming messages (raise RosbridgeError on shapes the ROS type cannot hold) ----------
+
+    def handle_publish(self, topic: str, msg: Mapping[str, Any]) -> str | None:
+        """Apply a client's message on a topic the robot subscribes; returns a warning or None."""
+        if topic == "/cmd_vel":
+            warn = self._on_cmd_vel(msg)
+        elif topic == "/move_base/goal":
+            warn = self._on_action_goal(msg)
+        elif topic == "/move_base_simple/goal":
+            warn = self._on_simple_goal(msg)
+        elif topic == "/move_base/cancel":
+            warn = self._on_cancel(msg)
+        elif topic == "/initialpose":
+            warn = self._on_initialpose(msg)
+        else:  # pragma: no cover - the endpoint checks ROBOT_SUBSCRIBES first
+            raise RosbridgeError(f"the robot does not subscribe to {topic}")
+        self._relay(topic, msg)
+        return warn
+
+    def _on_cmd_vel(self, msg: Mapping[str, Any]) -> str | None:
+        vx, vy, wz = rb.twist_from_msg(msg)
+        if not all(math.isfinite(v) for v in (vx, vy, wz)):
+            raise RosbridgeError("cmd_vel holds a non-finite velocity")
+        self._cancel_goals(GoalStatus.PREEMPTED, "preempted by teleoperation (cmd_vel)")
+        self._teleop = (vx, vy, wz)
+        self._teleop_t = self._clock.now()
+        return None
+
+    def _on_initialpose(self, msg: Mapping[str, Any]) -> str | None:
+        m = _obj(msg, "initialpose")
+        frame = _header_frame(m)
+        x, y, yaw = rb.pose_from_msg(_obj(_obj(m.get("pose"), "pose").get("pose"), "pose.pose"))
+        if frame not in _MAP_FRAMES:
+            raise RosbridgeError(f"initialpose must be in the map frame, not {frame!r}")
+        if not all(math.isfinite(v) for v in (x, y, yaw)):
+            raise RosbridgeError("initialpose holds a non-finite value")
+        self._relocalise(x, y, yaw)
+        return None
+
+    def _on_action_goal(self, msg: Mapping[str, Any]) -> str | None:
+        m = _obj(msg, "goal")
+        gid, gstamp = rb.goal_id_from_msg(_obj(m.get("goal_id"), "goal_id"))
+        target = _obj(_obj(m.get("goal"), "goal").get("target_pose"), "goal.target_pose")
+        return self._new_goal(gid, gstamp, target)
+
+    def _on_simple_goal(self, msg: Mapping[str, Any]) -> str | None:
+        target = _obj(msg, "goal")
+        stamp = rb.from_ros_time(_obj(target.get("header"), "header").get("stamp") or {})
+        return self._new_goal("", stamp, target)
+
+    def _new_goal(self, gid: str, gstamp: float, target: Mapping[str, Any]) -> str | None:
+        frame = _header_frame(target)
+        pose = _obj(target.get("pose"), "pose")
+        x, y, _ = rb.point_from_msg(_obj(pose.get("position"), "position"))
+        q = rb.quaternion_from_msg(_obj(pose.get("orientation"), "orientation"))
+        if self._ignore_goals:
+            return None
+        if not gid:
+            t = self._clock.epoch()
+            gid = f"/move_base-{next(self._goal_counter)}-{t:.9f}"
+        if any(g.id == gid for g in self._goals):
+            return f"goal {gid} is a duplicate; ignored"
+        goal = _Goal(gid, gstamp or self._clock.epoch(), x, y, 0.0)
+        reason = _goal_problem(frame, x, y, q)
+        if reason is not None:
+            self._goals.append(goal)
+            self._finish(goal, GoalStatus.REJECTED, reason)
+            return None
+        goal.yaw = rb.yaw_from_quaternion({"x": q[0], "y": q[1], "z": q[2], "w": q[3]})
+        # A newer goal preempts the current one (SimpleActionServer semantics).
+        self._cancel_goals(GoalStatus.PREEMPTED, "preempted by a newer goal")
+        self._teleop = None
+        self._goals.append(goal)
+        self._pending = goal
+        self._publish_status()
+        return None
+
+    def _on_cancel(self, msg: Mapping[str, Any]) -> str | None:
+        gid, stamp = rb.goal_id_from_msg(_obj(msg, "cancel"))
+        if not gid and stamp == 0.0:
+            self._cancel_goals(GoalStatus.PREEMPTED, "canceled")
+            return None
+        for g in list(self._goals):
+            if not g.terminal and (g.id == gid or (stamp != 0.0 and g.stamp <= stamp)):
+                self._cancel_one(g, "canceled")
+        return None
+
+    # -- move_base ---------------------------------------------------------------------------
+
+    def _cancel_goals(self, status: GoalStatus, text: str) -> None:
+        for g in list(self._goals):
+            if not g.terminal:
+                self._cancel_one(g, text, status)
+
+    def _cancel_one(self, g: _Goal, text: str, status: GoalStatus = GoalStatus.PREEMPTED) -> None:
+        # actionlib: a goal never started is RECALLED, a started one PREEMPTED.
+        self._finish(g, GoalStatus.RECALLED if g.status == GoalStatus.PENDING else status, text)
+
+    def _finish(self, g: _Goal, status: GoalStatus, text: str) -> None:
+        g.status, g.text, g.ended = status, text, self._t
+        if g is self._active:
+            self._active = None
+            self._follower = None
+            self._blocked_since = None
+        if g is self._pending:
+            self._pending = None
+        if g is self._plan_goal:
+            self._plan_fut = self._plan_goal = None
+        stamp = self._clock.epoch()
+        self._publish(
+            "/move_base/result",
+            lambda seq, _s: rb.move_base_result(
+                g.id, status, text, stamp=stamp, seq=seq, goal_stamp=g.stamp
+            ),
+        )
+        self._publish_status()
+
+    def _plan_blocking(
+        self, start: tuple[float, float], goal: tuple[float, float]
+    ) -> list[tuple[float, float]]:
+        with self._plan_lock:  # the shared Planner's cache is not thread-safe
+            return self._planner.plan(start, goal)
+
+    def _request_plan(self, g: _Goal) -> None:
+        """Plan off the event loop (a new distance field takes tens of ms, like move_base's
+        global planner thread); the goal stays PENDING, or ACTIVE and stopped, meanwhile.
+
+        With the goal's distance field cached the plan is a pointer walk of a millisecond or
+        two: it runs right here. A round trip through a worker thread would cost more than
+        that in GIL hand-overs, and in an accelerated replay every wall millisecond a robot
+        waits for its plan is a robot standing still for a tenth of a simulated second.
+        """
+        x, y, _ = self.pose
+        loop = asyncio.get_running_loop()
+        fut: asyncio.Future[list[tuple[float, float]]]
+        if self._planner.has_field((g.x, g.y)):
+            fut = loop.create_future()
+            try:
+                fut.set_result(self._planner.plan((x, y), (g.x, g.y)))  # thread-safe
+            except Exception as exc:
+                fut.set_exception(exc)
+        else:
+            fut = loop.run_in_executor(None, self._plan_blocking, (x, y), (g.x, g.y))
+        fut.add_done_callback(consume_exception)
+        self._plan_fut, self._plan_goal = fut, g
+
+    def _take_plan(self) -> None:
+        fut, g = self._plan_fut, self._plan_goal
+        self._plan_fut = self._plan_goal = None
+        assert fut is not None and g is not None
+        if g.terminal or (g is not self._pending and g is not self._active):
+            return
+        exc = fut.exception()
+        if exc is not None:
+            why = exc.message if isinstance(exc, ServeurError) else repr(exc)
+            self._finish(g, GoalStatus.ABORTED, f"no path to the goal: {why}")
+            return
+        path = fut.result()
+        x, y, _ = self.pose
+        self._follower = PathFollower(path, g.yaw, self.kinematics, self.limits)
+        self._stuck_for = 0.0
+        length = sum(
+            math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in itertools.pairwise([(x, y), *path])
+        )
+        self._goal_deadline = self._t + 30.0 + 3.0 * length / self.limits.max_speed
+        if g is self._pending:
+            self._pending = None
+            self._active = g
+            g.status = GoalStatus.ACTIVE
+            g.text = "This goal has been accepted by the simple action server"
+            self._publish_status()
+
+    def _relocalise(self, x: float, y: float, yaw: float) -> None:
+        self._motion.teleport(x, y, yaw)
+        self._scan_cache = None
+        g = self._active or self._pending
+        if g is not None:  # move_base replans from the new pose
+            self._follower = None
+            self._request_plan(g)
+
+    def _command(self, now: float) -> tuple[float, float, float]:
+        if self._teleop is not None:
+            if now - self._teleop_t > CMD_VEL_TIMEOUT:
+                self._teleop = None  # stale: stop, as a velocity watchdog does
+                return 0.0, 0.0, 0.0
+            return self._teleop
+        if self._plan_fut is not None and self._plan_fut.done():
+            self._take_plan()
+        if self._pending is not None and self._plan_fut is None:
+            self._request_plan(self._pending)
+            if self._plan_fut is not None and self._plan_fut.done():  # planned at once
+                self._take_plan()
+        g, f = self._active, self._follower
+        if g is None or f is None:
+            return 0.0, 0.0, 0.0
+        if self._block_path:
+            if self._blocked_since is None:
+                self._blocked_since = self._t
+            elif self._t - self._blocked_since >= BLOCKED_ABORT_AFTER:
+                self._finish(
+                    g, GoalStatus.ABORTED, "path blocked: no valid plan (aisle obstructed)"
+                )
+            return 0.0, 0.0, 0.0
+        if self._t > self._goal_deadline:
+            self._finish(g, GoalStatus.ABORTED, "the robot did not reach the goal in time")
+            return 0.0, 0.0, 0.0
+        m = self._motion
+        cmd = f.command(m.x, m.y, m.yaw)
+        if f.done and m.speed < 0.01 and abs(m.wz) < 0.02:
+            dx, dy = g.x - m.x, g.y - m.y
+            if (
+                math.hypot(dx, dy) <= f.xy_tolerance
+                and abs(wrap_angle(g.yaw - m.yaw)) <= f.yaw_tolerance
+            ):
+                self._finish(g, GoalStatus.SUCCEEDED, "Goal reached.")
+                return 0.0, 0.0, 0.0
+        return cmd
+
+    # -- physics -----------------------------------------------------------------------------
+
+    def _step(self, dt: float) -> None:
+        self._t += dt
+        m = self._motion
+        if (
+            self._teleop is None
+            and self._active is None
+            and self._pending is None
+            and self._plan_fut is None
+            and m.vx == 0.0
+            and m.vy == 0.0
+            and m.wz == 0.0
+        ):
+            # Parked (most of a robot's service): no command to compute, nothing to integrate,
+            # odometry reads zero; only the battery and the goal list age. Same state as the
+            # general path below, at a fraction of its cost (five robots x 20 Hz, replayed at
+            # 300x, are 30,000 steps a wall second).
+            self._odom.update(0.0, 0.0, 0.0, dt)
+            self._stuck_for = 0.0
+            self._battery_tick(dt)
+            if self._goals and self._goals[0].ended < self._t - TERMINAL_KEEP:
+                self._goals = [g for g in self._goals if g.ended >= self._t - TERMINAL_KEEP]
+            return
+        now = self._clock.now()
+        cmd = self._command(now)
+        if cmd == (0.0, 0.0, 0.0) and m.vx == 0.0 and m.vy == 0.0 and m.wz == 0.0:
+            moved_ok = True  # at rest: nothing to integrate
+            self._odom.update(0.0, 0.0, 0.0, dt)
+        else:
+            x0, y0 = m.x, m.y
+            moved_ok = m.step(*cmd, dt, self._planner.is_traversable)
+            if (
+                abs(m.vx) < 1e-4
+                and abs(m.vy) < 1e-4
+                and abs(m.wz) < 1e-4
+                and cmd == (0.0, 0.0, 0.0)
+            ):
+                m.vx = m.vy = m.wz = 0.0
+            self._odom.update(m.vx, m.vy, m.wz, dt)
+            self._battery_drain(math.hypot(m.x - x0, m.y - y0))
+        if not moved_ok and self._active is not None:
+            self._stuck_for += dt
+            if self._stuck_for >= STUCK_ABORT_AFTER:
+                self._finish(
+                    self._active, GoalStatus.ABORTED, "the robot is stuck against an obstacle"
+                )
+        elif moved_ok:
+            self._stuck_for = 0.0
+        self._battery_tick(dt)
+        if self._goals and self._goals[0].ended < self._t - TERMINAL_KEEP:
+            self._goals = [g for g in self._goals if g.ended >= self._t - TERMINAL_KEEP]
+
+    def _battery_drain(self, distance: float) -> None:
+        self._battery = max(0.0, self._battery - distance / 4000.0)  # ~4 km of driving a charge
+
+    def _battery_tick(self, dt: float) -> None:
+        m = self._motion
+        hx, hy, _ = self.home
+        at_home = (
+            m.vx == 0.0
+            and m.vy == 0.0
+            and self._active is None
+            and self._teleop is None
+            and math.hypot(m.x - hx, m.y - hy) < 0.25
+        )
+        self._charging = at_home
+        if at_home:
+            self._battery = min(1.0, self._battery + dt / 7200.0)  # full in 2 h
+        else:
+            self._battery = max(0.0, self._battery - dt / 43200.0)  # 12 h idle
+
+    # -- publishing --------------------------------------------------------------------------
+
+    def _advance(self, steps: int) -> None:
+        """Take ``steps`` physics steps, each followed by what falls due at its tick.
+
+        Publishing per tick (not once per pass) keeps publish rates and stamps tied to sim
+        time when the loop has to catch up several ticks at once (high time scales, load).
+        """
+        for _ in range(steps):
+            self._step(TICK)
+            self._ticks = k = self._ticks + 1
+            if self._subs:
+                self._publish_due(k)
+
+    def _publish_due(self, k: int) -> None:
+        stamp = self._tick_stamp()
+        if k % _ODOM_TICKS == 0:
+            self._publish("/odom", self._build_odom, stamp)
+        if k % AMCL_TICKS == 0:
+            self._publish("/amcl_pose", self._build_amcl, stamp)
+        if k % _FEEDBACK_TICKS == 0 and self._active is not None:
+            self._publish("/move_base/feedback", self._build_feedback, stamp)
+        if k % _SCAN_TICKS == 0:
+            self._publish("/scan", self._build_scan, stamp)
+        if k % _STATUS_TICKS == 0:
+            self._publish("/move_base/status", self._build_status, stamp)
+        if k % _BATTERY_TICKS == 0:
+            self._publish("/battery_state", self._build_battery, stamp)
+
+    def _tick_stamp(self) -> float:
+        """ROS stamp (Unix time of the clock) of the last physics step."""
+        clock = self._clock
+        return clock.epoch() - clock.now() + self._t
+
+    def _publish_status(self) -> None:
+        self._publish("/move_base/status", self._build_status)
+
+    def _build_status(self, seq: int, stamp: float) -> dict[str, Any]:
+        return rb.goal_status_array(
+            [(g.id, g.status, g.text, g.stamp) for g in self._goals], stamp=stamp, seq=seq
+        )
+
+    def _build_odom(self, seq: int, stamp: float) -> dict[str, Any]:
+        o = self._odom
+        return rb.odometry(o.x, o.y, o.yaw, o.vx, o.vy, o.wz, stamp=stamp, seq=seq)
+
+    def _build_amcl(self, seq: int, stamp: float) -> dict[str, Any]:
+        x, y, yaw = self.pose
+        g = self._rng.gauss
+        return rb.pose_with_covariance_stamped(
+            x + g(0.0, AMCL_NOISE_XY),
+            y + g(0.0, AMCL_NOISE_XY),
+            wrap_angle(yaw + g(0.0, AMCL_NOISE_YAW)),
+            stamp=stamp,
+            seq=seq,
+            covariance=_AMCL_COVARIANCE,
+        )
+
+    def _build_feedback(self, seq: int, stamp: float) -> dict[str, Any]:
+        g = self._active
+        assert g is not None
+        x, y, yaw = self.pose
+        return rb.move_base_feedback(
+            g.id, g.status, x, y, yaw, stamp=stamp, seq=seq, goal_stamp=g.stamp
+        )
+
+    def _build_scan(self, seq: int, stamp: float) -> dict[str, Any]:
+        pose = self.pose
+        cache = self._scan_cache
+        if cache is None or cache[0] != pose:
+            # Ray-cast only when the robot moved: at rest the room looks the same.
+            x, y, yaw = pose
+            clean = np.asarray(
+                raycast(self._map, x, y, self._scan_rel + yaw, SCAN_RANGE_MAX), dtype=np.float64
+            )
+            self._scan_cache = cache = (pose, clean)
+        ranges = cache[1] + self._np_rng.normal(0.0, SCAN_NOISE, SCAN_RAYS)
+        ranges[ranges < SCAN_RANGE_MIN] = SCAN_RANGE_MIN
+        ranges[ranges > SCAN_RANGE_MAX] = np.inf  # no return within range: +Inf (REP 117)
+        return rb.laser_scan(
+            ranges,
+            stamp=stamp,
+            seq=seq,
+            angle_min=-math.pi,
+            angle_increment=2.0 * math.pi / SCAN_RAYS,
+            range_min=SCAN_RANGE_MIN,
+            range_max=SCAN_RANGE_MAX,
+            scan_time=TICK * _SCAN_TICKS,
+            time_increment=TICK * _SCAN_TICKS / SCAN_RAYS,
+        )
+
+    def _build_battery(self, seq: int, stamp: float) -> dict[str, Any]:
+        m = self._motion
+        pct = self._battery
+        if self._charging:
+            status, current = (
+                (rb.BatteryStatus.FULL, 0.0) if pct >= 1.0 else (rb.BatteryStatus.CHARGING, 5.0)
+            )
+        else:
+            status, current = rb.BatteryStatus.DISCHARGING, -(1.5 + 4.0 * m.speed)
+        return rb.battery_state(
+            pct,
+            stamp=stamp,
+            seq=seq,
+            voltage=21.0 + 4.2 * pct,
+            current=current,
+            status=status,
+            serial_number=self.name,
+        )
+
+
+_AMCL_COVARIANCE: Final = [0.0] * 36
+_AMCL_COVARIANCE[0] = _AMCL_COVARIANCE[7] = AMCL_NOISE_XY**2
+_AMCL_COVARIANCE[35] = AMCL_NOISE_YAW**2
+
+
+def _obj(v: object, what: str) -> Mapping[str, Any]:
+    """A nested message object; a missing one takes ROS defaults (empty), others are errors."""
+    if v is None:
+        return {}
+    if not isinstance(v, Mapping):
+        raise RosbridgeError(f"{what} must be an object, not {type(v).__name__}")
+    return v
+
+
+def _header_frame(msg: Mapping[str, Any]) -> str:
+    frame = _obj(msg.get("header"), "header").get("frame_id", "")
+    if not isinstance(frame, str):
+        raise RosbridgeError("header.frame_id must be a string")
+    return frame
+
+
+def _goal_problem(
+    frame: str, x: float, y: float, q: tuple[float, float, float, float]
+) -> str | None:
+    """Why move_base would reject this goal, or None."""
+    if frame not in _MAP_FRAMES:
+        return f"goal frame {frame!r} is not the global frame 'map'"
+    if not all(math.isfinite(v) for v in (x, y, *q)):
+        return "goal contains a NaN or infinite value"
+    norm = math.sqrt(sum(v * v for v in q))
+    if abs(norm - 1.0) > 1e-2:
+        return f"goal orientation is not a unit quaternion (norm {norm:.4g})"
+    if abs(q[0]) > 1e-3 or abs(q[1]) > 1e-3:
+        return "goal orientation is not a rotation about z"
+    return None

@@ -1,0 +1,127 @@
+"""Published frames and subscriptions: what a simulated robot's graph hands its rosbridge clients.
+
+Split from :mod:`serveur.sim.bridge` (the rosbridge server) and :mod:`serveur.sim.robot` (the
+ROS graph) because both sides use these: the robot publishes a :class:`Frame` to every
+:class:`Sub` of a topic, and the bridge's client task drains the subscriptions' queues. With
+them here, the robot needs nothing of the bridge and the two modules import no circle.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import math
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Final, Protocol
+
+from serveur.robots import rosbridge as rb
+
+__all__ = [
+    "DEFAULT_QUEUE",
+    "Frame",
+    "Sub",
+    "SubParams",
+    "Subscriber",
+    "consume_exception",
+    "next_order",
+]
+
+DEFAULT_QUEUE: Final = 10  # per-topic buffer of a subscription without queue_length
+_seq = itertools.count()  # global order of queued frames, so a client gets them in publish order
+
+
+def next_order() -> int:
+    """The next number of the one order every queued frame (published or a reply) is sent in."""
+    return next(_seq)
+
+
+class Subscriber(Protocol):
+    """What a subscription needs of its client: an event to wake the client's sender task."""
+
+    wake: asyncio.Event
+
+
+def consume_exception(fut: asyncio.Future[Any]) -> None:
+    """Mark a dropped future's exception as seen (a plan for a goal that was since cancelled)."""
+    if not fut.cancelled():
+        fut.exception()
+
+
+class Frame:
+    """One published op, encoded at most once per format whatever the number of subscribers."""
+
+    __slots__ = ("_cbor", "_text", "op")
+
+    def __init__(self, op: Mapping[str, Any]) -> None:
+        self.op = op
+        self._text: bytes | None = None
+        self._cbor: bytes | None = None
+
+    def text(self) -> bytes:
+        if self._text is None:
+            self._text = rb.encode(self.op).encode()
+        return self._text
+
+    def cbor(self) -> bytes:
+        if self._cbor is None:
+            self._cbor = rb.encode_cbor(self.op)
+        return self._cbor
+
+
+@dataclass(slots=True)
+class SubParams:
+    throttle: float  # s sim
+    queue_length: int
+    cbor: bool
+
+
+class Sub:
+    """A client's subscription to one topic (all its subscribe ids merged, as rosbridge does)."""
+
+    __slots__ = (
+        "cbor",
+        "client",
+        "last_offer",
+        "last_sent",
+        "params",
+        "qlen",
+        "queue",
+        "throttle",
+        "topic",
+    )
+
+    def __init__(self, client: Subscriber, topic: str) -> None:
+        self.client = client
+        self.topic = topic
+        self.params: dict[str | int | None, SubParams] = {}
+        self.throttle = 0.0
+        self.qlen = 0
+        self.cbor = False
+        self.queue: deque[tuple[int, Frame]] = deque(maxlen=DEFAULT_QUEUE)
+        self.last_offer = -math.inf
+        self.last_sent = -math.inf
+
+    def recompute(self) -> None:
+        """Lowest throttle_rate, highest queue_length, compression of the latest subscribe."""
+        ps = list(self.params.values())
+        self.throttle = min(p.throttle for p in ps)
+        self.qlen = max(p.queue_length for p in ps)
+        self.cbor = ps[-1].cbor
+        maxlen = self.qlen if self.qlen > 0 else DEFAULT_QUEUE
+        if self.queue.maxlen != maxlen:
+            self.queue = deque(self.queue, maxlen=maxlen)
+
+    def wants(self, t: float) -> bool:
+        """Whether a message published at sim time ``t`` is not throttled away at once.
+
+        Without a queue, rosbridge's throttle drops what comes too soon after the last message;
+        with a queue, messages wait in it (newest kept) and leave one per throttle period.
+        """
+        return self.throttle <= 0.0 or self.qlen > 0 or t - self.last_offer >= self.throttle - 1e-6
+
+    def push(self, frame: Frame, t: float) -> None:
+        self.last_offer = t
+        self.queue.append((next_order(), frame))  # a full deque drops its oldest entry
+        self.client.wake.set()

@@ -1,0 +1,373 @@
+"""Users, access tokens and the audit trail: written once, for every SQL backend.
+
+These tables have no cross-row invariants beyond what the schema's constraints enforce, so
+their SQL is plain and portable. Each backend only supplies :meth:`AccountsMixin._portable`:
+run a unit of work in one transaction on a :class:`SqlTx` that speaks ``?`` placeholders and
+returns rows as dicts. (The delivery tables keep their hand-tuned per-backend SQL; this is
+also the shape they could move to, one day.)
+"""
+
+from __future__ import annotations
+
+import json
+from abc import abstractmethod
+from collections.abc import Awaitable, Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol, TypeVar
+
+from serveur.domain import AuditRecord
+from serveur.errors import Conflict, InvalidField, NotFound
+
+__all__ = ["AccountsMixin", "SqlTx", "TokenRecord", "UserRecord"]
+
+T = TypeVar("T")
+
+_USER_ROLES = ("owner", "staff")
+_USER = "SELECT name, role, created_at, changed_at FROM users"
+_TOKEN = (
+    "SELECT id, kind, user_name, role, robot, tbl, scopes, label, created_at, expires_at,"
+    " revoked_at, last_used_at FROM tokens"
+)
+_AUDIT = "SELECT id, ts, actor, role, peer, verb, target, outcome, data FROM audit"
+
+
+class SqlTx(Protocol):
+    """One transaction, portable: ``?`` placeholders, rows as dicts."""
+
+    async def all(self, sql: str, params: Sequence[Any] = ()) -> list[dict[str, Any]]: ...
+
+    async def run(self, sql: str, params: Sequence[Any] = ()) -> int: ...
+
+    async def insert(self, sql: str, params: Sequence[Any]) -> int: ...
+
+
+@dataclass(frozen=True, slots=True)
+class UserRecord:
+    name: str
+    role: str
+    created_at: float
+    changed_at: float
+
+
+@dataclass(frozen=True, slots=True)
+class TokenRecord:
+    """A token as stored (without the token itself: only its digest is kept)."""
+
+    id: int
+    kind: str  # "session" (a person's login) or "device" (screens, scripts, kiosks)
+    user: str | None
+    role: str
+    robot: str | None
+    table: str | None
+    scopes: tuple[str, ...]
+    label: str
+    created_at: float
+    expires_at: float | None
+    revoked_at: float | None
+    last_used_at: float | None
+
+    def usable(self, now: float) -> bool:
+        return self.revoked_at is None and (self.expires_at is None or now < self.expires_at)
+
+
+def _user(row: dict[str, Any]) -> UserRecord:
+    return UserRecord(row["name"], row["role"], row["created_at"], row["changed_at"])
+
+
+def _token(row: dict[str, Any]) -> TokenRecord:
+    scopes = tuple(s for s in str(row["scopes"]).split(",") if s)
+    return TokenRecord(
+        id=int(row["id"]),
+        kind=row["kind"],
+        user=row["user_name"],
+        role=row["role"],
+        robot=row["robot"],
+        table=row["tbl"],
+        scopes=scopes,
+        label=row["label"],
+        created_at=row["created_at"],
+        expires_at=row["expires_at"],
+        revoked_at=row["revoked_at"],
+        last_used_at=row["last_used_at"],
+    )
+
+
+def _audit(row: dict[str, Any]) -> AuditRecord:
+    return AuditRecord(
+        id=int(row["id"]),
+        ts=row["ts"],
+        actor=row["actor"],
+        role=row["role"],
+        peer=row["peer"],
+        verb=row["verb"],
+        target=row["target"],
+        outcome=row["outcome"],
+        data=json.loads(row["data"]),
+    )
+
+
+async def _one(db: SqlTx, sql: str, params: Sequence[Any]) -> dict[str, Any] | None:
+    rows = await db.all(sql, params)
+    return rows[0] if rows else None
+
+
+class AccountsMixin:
+    """Account, token and audit methods of :class:`~serveur.store.base.Store`."""
+
+    @abstractmethod
+    async def _portable(self, work: Callable[[SqlTx], Awaitable[T]], *, write: bool) -> T:
+        """Run ``work`` in one transaction (a write transaction if ``write``)."""
+
+    # -- users ------------------------------------------------------------------------------
+
+    async def add_user(self, name: str, role: str, pw_hash: str, *, now: float) -> UserRecord:
+        if role not in _USER_ROLES:
+            raise InvalidField(f"a user's role is owner or staff, not {role!r}", role=role)
+        if not name or len(name) > 64 or name != name.strip():
+            raise InvalidField("a user name has 1 to 64 characters, no outer spaces")
+
+        async def work(db: SqlTx) -> UserRecord:
+            if await _one(db, f"{_USER} WHERE name = ?", (name,)):
+                raise Conflict(f"user {name!r} already exists", user=name)
+            await db.run(
+                "INSERT INTO users (name, role, pw_hash, created_at, changed_at)"
+                " VALUES (?, ?, ?, ?, ?)",
+                (name, role, pw_hash, now, now),
+            )
+            return UserRecord(name, role, now, now)
+
+        return await self._portable(work, write=True)
+
+    async def user_credentials(self, name: str) -> tuple[UserRecord, str] | None:
+        """The user and their password hash, or None (for login only)."""
+
+        async def work(db: SqlTx) -> tuple[UserRecord, str] | None:
+            row = await _one(
+                db,
+                "SELECT name, role, created_at, changed_at, pw_hash FROM users WHERE name = ?",
+                (name,),
+            )
+            return None if row is None else (_user(row), str(row["pw_hash"]))
+
+        return await self._portable(work, write=False)
+
+    async def list_users(self) -> list[UserRecord]:
+        async def work(db: SqlTx) -> list[UserRecord]:
+            return [_user(r) for r in await db.all(f"{_USER} ORDER BY name")]
+
+        return await self._portable(work, write=False)
+
+    async def count_users(self) -> int:
+        async def work(db: SqlTx) -> int:
+            row = await _one(db, "SELECT COUNT(*) AS n FROM users", ())
+            return int(row["n"]) if row else 0
+
+        return await self._portable(work, write=False)
+
+    async def remove_user(self, name: str) -> list[int]:
+        """Delete a user and their sessions; the ids of the sessions that ended."""
+
+        async def work(db: SqlTx) -> list[int]:
+            user = await _one(db, f"{_USER} WHERE name = ?", (name,))
+            if user is None:
+                raise NotFound(f"no user named {name!r}", user=name)
+            if user["role"] == "owner":
+                owners = await db.all("SELECT name FROM users WHERE role = 'owner'", ())
+                if len(owners) == 1:
+                    raise Conflict("cannot remove the last owner", user=name)
+            ids = [
+                int(r["id"])
+                for r in await db.all("SELECT id FROM tokens WHERE user_name = ?", (name,))
+            ]
+            await db.run("DELETE FROM tokens WHERE user_name = ?", (name,))
+            await db.run("DELETE FROM users WHERE name = ?", (name,))
+            return ids
+
+        return await self._portable(work, write=True)
+
+    async def set_password(self, name: str, pw_hash: str, *, now: float) -> list[int]:
+        """Change a password and end every session of that user (ids returned)."""
+
+        async def work(db: SqlTx) -> list[int]:
+            n = await db.run(
+                "UPDATE users SET pw_hash = ?, changed_at = ? WHERE name = ?",
+                (pw_hash, now, name),
+            )
+            if n != 1:
+                raise NotFound(f"no user named {name!r}", user=name)
+            return await _revoke_where(db, "user_name = ? AND kind = 'session'", (name,), now)
+
+        return await self._portable(work, write=True)
+
+    # -- tokens -----------------------------------------------------------------------------
+
+    async def add_token(
+        self,
+        digest: str,
+        *,
+        kind: str,
+        role: str,
+        now: float,
+        user: str | None = None,
+        robot: str | None = None,
+        table: str | None = None,
+        scopes: Sequence[str] = (),
+        label: str = "",
+        expires_at: float | None = None,
+    ) -> TokenRecord:
+        async def work(db: SqlTx) -> TokenRecord:
+            if robot is not None and not await _one(
+                db, "SELECT name FROM robot_info WHERE name = ?", (robot,)
+            ):
+                raise NotFound(f"no robot named {robot!r}", robot=robot)
+            if table is not None and not await _one(
+                db, "SELECT name FROM waypoints WHERE name = ? AND kind = 'table'", (table,)
+            ):
+                raise NotFound(f"no table named {table!r}", table=table)
+            tid = await db.insert(
+                "INSERT INTO tokens (digest, kind, user_name, role, robot, tbl, scopes, label,"
+                " created_at, expires_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (
+                    digest,
+                    kind,
+                    user,
+                    role,
+                    robot,
+                    table,
+                    ",".join(sorted(scopes)),
+                    label,
+                    now,
+                    expires_at,
+                ),
+            )
+            row = await _one(db, f"{_TOKEN} WHERE id = ?", (tid,))
+            assert row is not None
+            return _token(row)
+
+        return await self._portable(work, write=True)
+
+    async def token_by_digest(self, digest: str) -> TokenRecord | None:
+        async def work(db: SqlTx) -> TokenRecord | None:
+            row = await _one(db, f"{_TOKEN} WHERE digest = ?", (digest,))
+            return None if row is None else _token(row)
+
+        return await self._portable(work, write=False)
+
+    async def touch_token(self, token_id: int, *, now: float) -> None:
+        async def work(db: SqlTx) -> None:
+            await db.run("UPDATE tokens SET last_used_at = ? WHERE id = ?", (now, token_id))
+
+        await self._portable(work, write=True)
+
+    async def list_tokens(
+        self, *, include_ended: bool = False, now: float = 0.0
+    ) -> list[TokenRecord]:
+        async def work(db: SqlTx) -> list[TokenRecord]:
+            if include_ended:
+                rows = await db.all(f"{_TOKEN} ORDER BY id")
+            else:
+                rows = await db.all(
+                    f"{_TOKEN} WHERE revoked_at IS NULL AND (expires_at IS NULL OR expires_at > ?)"
+                    " ORDER BY id",
+                    (now,),
+                )
+            return [_token(r) for r in rows]
+
+        return await self._portable(work, write=False)
+
+    async def revoke_token(self, token_id: int, *, now: float) -> TokenRecord:
+        async def work(db: SqlTx) -> TokenRecord:
+            if not await _revoke_where(db, "id = ?", (token_id,), now):
+                row = await _one(db, f"{_TOKEN} WHERE id = ?", (token_id,))
+                if row is None:
+                    raise NotFound(f"no token {token_id}", token=token_id)
+            row = await _one(db, f"{_TOKEN} WHERE id = ?", (token_id,))
+            assert row is not None
+            return _token(row)
+
+        return await self._portable(work, write=True)
+
+    async def tokens_alive(self, token_ids: Sequence[int], *, now: float) -> set[int]:
+        """Which of ``token_ids`` still exist, unrevoked and unexpired (for sweeps)."""
+        ids = [int(t) for t in token_ids]
+        if not ids:
+            return set()
+
+        async def work(db: SqlTx) -> set[int]:
+            marks = ", ".join("?" * len(ids))
+            rows = await db.all(
+                f"SELECT id FROM tokens WHERE id IN ({marks}) AND revoked_at IS NULL"
+                " AND (expires_at IS NULL OR expires_at > ?)",
+                (*ids, now),
+            )
+            return {int(r["id"]) for r in rows}
+
+        return await self._portable(work, write=False)
+
+    # -- audit ------------------------------------------------------------------------------
+
+    async def add_audit(
+        self,
+        *,
+        ts: float,
+        actor: str,
+        role: str,
+        peer: str,
+        verb: str,
+        outcome: str,
+        target: str | None = None,
+        data: dict[str, Any] | None = None,
+    ) -> AuditRecord:
+        body = json.dumps(data or {}, separators=(",", ":"), allow_nan=False, default=str)
+
+        async def work(db: SqlTx) -> AuditRecord:
+            aid = await db.insert(
+                "INSERT INTO audit (ts, actor, role, peer, verb, target, outcome, data)"
+                " VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                (ts, actor[:255], role[:16], peer[:255], verb[:32], target, outcome[:32], body),
+            )
+            return AuditRecord(
+                id=aid,
+                ts=ts,
+                actor=actor[:255],
+                role=role[:16],
+                peer=peer[:255],
+                verb=verb[:32],
+                target=target,
+                outcome=outcome[:32],
+                data=json.loads(body),
+            )
+
+        return await self._portable(work, write=True)
+
+    async def list_audit(self, *, since_id: int = 0, limit: int = 1000) -> list[AuditRecord]:
+        if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
+            raise InvalidField("limit must be a positive integer", field="limit")
+
+        async def work(db: SqlTx) -> list[AuditRecord]:
+            rows = await db.all(f"{_AUDIT} WHERE id > ? ORDER BY id LIMIT ?", (since_id, limit))
+            return [_audit(r) for r in rows]
+
+        return await self._portable(work, write=False)
+
+    async def recent_audit(self, limit: int = 100) -> list[AuditRecord]:
+        """The latest ``limit`` audit records, oldest first."""
+        if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
+            raise InvalidField("limit must be a positive integer", field="limit")
+
+        async def work(db: SqlTx) -> list[AuditRecord]:
+            rows = await db.all(f"{_AUDIT} ORDER BY id DESC LIMIT ?", (limit,))
+            return [_audit(r) for r in reversed(rows)]
+
+        return await self._portable(work, write=False)
+
+
+async def _revoke_where(db: SqlTx, where: str, params: Sequence[Any], now: float) -> list[int]:
+    rows = await db.all(f"SELECT id FROM tokens WHERE revoked_at IS NULL AND {where}", params)
+    ids = [int(r["id"]) for r in rows]
+    if ids:
+        await db.run(
+            f"UPDATE tokens SET revoked_at = ? WHERE revoked_at IS NULL AND {where}",
+            (now, *params),
+        )
+    return ids

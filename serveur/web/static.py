@@ -1,0 +1,183 @@
+"""The web UI's static files, served over plain HTTP by the websocket server's ``process_request``.
+
+Every file under ``serveur/web/site/`` is read into memory once, when the site is loaded at start,
+so answering a request never touches the disk (nor blocks the event loop). A request can only
+ever get one of those in-memory files: the path is looked up in a dict of known names, so
+``..``, ``%2e%2e``, absolute paths or symlinks cannot reach anything else.
+
+Pages: ``/`` and ``/staff`` (staff console), ``/robot/<name>`` (a robot's screen; also
+``/robot.html?robot=<name>``) and ``/table/<name>`` (a table's screen). The page's script reads
+the name from its own URL, so the server does not template anything.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import http
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from urllib.parse import unquote
+
+from websockets.datastructures import Headers
+from websockets.http11 import Request, Response
+
+__all__ = ["SECURITY_HEADERS", "Asset", "StaticSite", "default_site"]
+
+WEB_ROOT = Path(__file__).with_name("site")
+
+# The UI loads only its own scripts, styles and images, and talks only to its own server's
+# websocket: nothing else is needed offline, and nothing else can be injected.
+CONTENT_SECURITY_POLICY = (
+    "default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
+    "connect-src 'self' ws: wss:; object-src 'none'; base-uri 'none'; form-action 'self'; "
+    "frame-ancestors 'none'"
+)
+SECURITY_HEADERS = (
+    ("Content-Security-Policy", CONTENT_SECURITY_POLICY),
+    ("X-Content-Type-Options", "nosniff"),
+    ("X-Frame-Options", "DENY"),
+    ("Referrer-Policy", "no-referrer"),
+)
+
+CONTENT_TYPES = {
+    ".html": "text/html; charset=utf-8",
+    ".js": "text/javascript; charset=utf-8",
+    ".css": "text/css; charset=utf-8",
+    ".svg": "image/svg+xml",
+    ".png": "image/png",
+    ".json": "application/json",
+    ".txt": "text/plain; charset=utf-8",
+    ".ico": "image/x-icon",
+    ".woff2": "font/woff2",
+}
+
+# Pages whose last path segment is a robot's or table's name, read by the page's own script.
+NAMED_PAGES = {"robot": "/robot.html", "table": "/table.html"}
+ALIASES = {"/": "/staff.html", "/staff": "/staff.html"}
+MAX_NAME = 64
+
+
+@dataclass(frozen=True)
+class Asset:
+    body: bytes
+    content_type: str
+    etag: str
+
+    @classmethod
+    def of(cls, name: str, body: bytes) -> Asset:
+        ctype = CONTENT_TYPES.get(Path(name).suffix.lower(), "application/octet-stream")
+        return cls(body, ctype, '"' + hashlib.sha256(body).hexdigest()[:32] + '"')
+
+
+def _response(status: http.HTTPStatus, headers: list[tuple[str, str]], body: bytes) -> Response:
+    return Response(status.value, status.phrase, Headers(headers), body)
+
+
+def _plain(
+    status: http.HTTPStatus, text: str, *extra: tuple[str, str], head: bool = False
+) -> Response:
+    body = text.encode()
+    headers = [
+        ("Content-Type", "text/plain; charset=utf-8"),
+        ("Content-Length", str(len(body))),
+        ("Cache-Control", "no-store"),
+        ("Connection", "close"),
+        *SECURITY_HEADERS,
+        *extra,
+    ]
+    return _response(status, headers, b"" if head else body)
+
+
+def _valid_name(segment: str) -> bool:
+    return (
+        0 < len(segment) <= MAX_NAME
+        and segment not in (".", "..")
+        and segment.strip() == segment
+        and not any(ch in segment for ch in "/\\")
+        and all(ch.isprintable() for ch in segment)
+    )
+
+
+class StaticSite:
+    """A fixed set of files in memory, answered by path."""
+
+    def __init__(self, assets: Mapping[str, Asset]) -> None:
+        self.assets = dict(assets)
+
+    @classmethod
+    def load(cls, root: Path = WEB_ROOT) -> StaticSite:
+        """Read every regular file under ``root`` (not following symlinks out of it)."""
+        assets: dict[str, Asset] = {}
+        base = root.resolve()
+        for path in sorted(root.rglob("*")):
+            if not path.is_file() or path.name.startswith("."):
+                continue
+            real = path.resolve()
+            if not real.is_relative_to(base):
+                continue  # a symlink pointing outside the web root is not served
+            name = "/" + path.relative_to(root).as_posix()
+            assets[name] = Asset.of(name, real.read_bytes())
+        return cls(assets)
+
+    def resolve(self, raw_path: str) -> Asset | None:
+        """The asset for a request path (query string ignored), or None for a 404."""
+        path = raw_path.split("?", 1)[0].split("#", 1)[0]
+        if not path.startswith("/"):
+            return None
+        if path in ALIASES:
+            return self.assets.get(ALIASES[path])
+        segments = path[1:].split("/")
+        if len(segments) == 2 and segments[0] in NAMED_PAGES:
+            name = unquote(segments[1], errors="strict") if "%" in segments[1] else segments[1]
+            return self.assets.get(NAMED_PAGES[segments[0]]) if _valid_name(name) else None
+        # Plain files: the decoded path must be exactly one of the loaded names. Reject
+        # dot segments explicitly too, so a mistake here can never turn into a traversal.
+        try:
+            decoded = unquote(path, errors="strict")
+        except UnicodeDecodeError:
+            return None
+        if any(seg in ("", ".", "..") for seg in decoded[1:].split("/")) or "\\" in decoded:
+            return None
+        return self.assets.get(decoded)
+
+    def respond(self, request: Request) -> Response:
+        """The HTTP response for a GET or HEAD request of a UI file (404 for anything else)."""
+        head = request.method == "HEAD"
+        if request.method not in ("GET", "HEAD"):
+            return _plain(
+                http.HTTPStatus.METHOD_NOT_ALLOWED, "method not allowed\n", ("Allow", "GET, HEAD")
+            )
+        try:
+            asset = self.resolve(request.path)
+        except UnicodeDecodeError:
+            asset = None
+        if asset is None:
+            return _plain(http.HTTPStatus.NOT_FOUND, "not found\n", head=head)
+        headers = [
+            ("Content-Type", asset.content_type),
+            ("ETag", asset.etag),
+            # Revalidate every time (a 304 is cheap on a LAN): a tablet never keeps running an
+            # old UI against an upgraded server.
+            ("Cache-Control", "no-cache"),
+            ("Connection", "close"),
+            *SECURITY_HEADERS,
+        ]
+        tags = _etags(request.headers.get("If-None-Match", ""))
+        if asset.etag in tags or "*" in tags:
+            return _response(http.HTTPStatus.NOT_MODIFIED, headers, b"")
+        headers.append(("Content-Length", str(len(asset.body))))
+        body = b"" if head else asset.body
+        return _response(http.HTTPStatus.OK, headers, body)
+
+
+def _etags(header: str) -> set[str]:
+    # Weak comparison (RFC 9110 13.1.2): W/"x" matches "x".
+    return {t.strip().removeprefix("W/") for t in header.split(",") if t.strip()}
+
+
+@functools.cache
+def default_site() -> StaticSite:
+    """The packaged UI, read from disk once per process (at the first server's start)."""
+    return StaticSite.load(WEB_ROOT)

@@ -1,0 +1,270 @@
+"""The server's side of the ``/ws`` protocol: reply, error and update models, and the framing.
+
+Part of :mod:`serveur.protocol` (which re-exports all of it). The models document and
+validate (in tests, and in ``serveur schema``) what the server sends; the hot path does not
+build them: :func:`ok_frame`, :func:`error_frame` and :func:`update_frame` write the JSON
+directly, ``update_frame`` by concatenation because it runs once per subscriber of a fan-out.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from typing import Annotated, Any, Final, Literal, TypeAlias
+
+import pydantic_core
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
+
+from serveur.domain import AuditRecord, EventRecord, Order, Robot, Task, WaypointRecord
+from serveur.errors import ServeurError
+from serveur.wire.fields import RequestId, Topic
+
+__all__ = [
+    "SERVER_ADAPTER",
+    "ErrorCode",
+    "ErrorReply",
+    "MapSnapshot",
+    "OkReply",
+    "PoseData",
+    "ScanData",
+    "ServerMessage",
+    "Session",
+    "Snapshot",
+    "UpdateData",
+    "UpdateMsg",
+    "dump",
+    "error_frame",
+    "ok_frame",
+    "update_frame",
+]
+
+
+class _ServerModel(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class PoseData(_ServerModel):
+    """A robot's map pose, as pushed on ``pose:<robot>``."""
+
+    x: float
+    y: float
+    yaw: float = Field(description="radians, (-pi, pi]")
+    stamp: float = Field(description="Unix time of the measurement, seconds")
+
+
+class ScanData(_ServerModel):
+    """One laser scan in the map frame, as pushed on ``scan:<robot>``.
+
+    Beam ``i`` points at ``yaw + angle_min + i * angle_increment`` from ``(x, y)``; ``None``
+    means no hit within ``range_max`` (ROS sends inf or NaN, which JSON cannot carry).
+    """
+
+    stamp: float
+    x: float
+    y: float
+    yaw: float
+    angle_min: float
+    angle_increment: float
+    range_max: float
+    ranges: list[float | None]
+
+
+class MapSnapshot(_ServerModel):
+    """The occupancy grid: ``data`` is base64 of ``width * height`` int8 cells, row-major.
+
+    Row 0 is the lowest y (ROS OccupancyGrid order); -1 unknown, 0 free .. 100 occupied. The
+    cell at column ``i``, row ``j`` covers ``origin + (i, j) * resolution`` (origin yaw is 0 for
+    maps made by ROS map_server).
+    """
+
+    resolution: float = Field(gt=0, description="metres per cell")
+    origin: tuple[float, float, float] = Field(description="map pose of cell (0, 0): x, y, yaw")
+    width: int = Field(ge=0)
+    height: int = Field(ge=0)
+    encoding: Literal["int8-base64"] = "int8-base64"
+    data: str
+
+
+#: What one ``data`` snapshot holds per topic: a list of records for state topics, the map,
+#: or the latest pose/scan (null until the robot has reported one).
+Snapshot: TypeAlias = (
+    list[Robot]
+    | list[Order]
+    | list[Task]
+    | list[WaypointRecord]
+    | list[EventRecord]
+    | list[AuditRecord]
+    | MapSnapshot
+    | PoseData
+    | ScanData
+    | None
+)
+
+#: What one ``update`` carries: one upserted record, the map, a pose or a scan.
+UpdateData: TypeAlias = (
+    Robot
+    | Order
+    | Task
+    | WaypointRecord
+    | EventRecord
+    | AuditRecord
+    | MapSnapshot
+    | PoseData
+    | ScanData
+)
+
+ErrorCode: TypeAlias = Literal[
+    "unauthorized",
+    "forbidden",
+    "rate_limited",
+    "bad_json",
+    "unknown_message",
+    "invalid_field",
+    "not_found",
+    "not_allowed_in_status",
+    "conflict",
+    "store_error",
+    "map_error",
+    "navigation_error",
+    "unreachable",
+    "rosbridge_error",
+    "link_error",
+    "internal_error",
+]
+
+
+class OkReply(_ServerModel):
+    """The success reply to one request; which payload field is present depends on the verb."""
+
+    servermsg: Literal["ok"]
+    id: RequestId | None = None
+    data: dict[str, Snapshot] | None = Field(default=None, description="data: topic -> snapshot")
+    waypoint: WaypointRecord | None = Field(default=None, description="create waypoint")
+    order: Order | None = Field(default=None, description="create order")
+    tasks: list[Task] | None = Field(default=None, description="create task: the trips made")
+    robot: Robot | None = Field(
+        default=None, description="create robot, control, ready, next, stop, continue, cancel"
+    )
+    orders: list[Order] | None = Field(default=None, description="order")
+    session: Session | None = Field(default=None, description="login, logout")
+
+
+class Session(_ServerModel):
+    """Who this connection is. ``token`` only in the reply to a password login."""
+
+    user: str | None = None
+    role: Literal["owner", "staff", "robot-screen", "table-screen", "integration"]
+    robot: str | None = None
+    table: str | None = None
+    scopes: list[str]
+    expires: float | None = Field(default=None, description="epoch seconds; null: never")
+    token: str | None = None
+
+
+class ErrorReply(_ServerModel):
+    """The failure reply to one request (or to a frame that could not be read)."""
+
+    servermsg: Literal["error"]
+    id: RequestId | None = None
+    code: ErrorCode
+    message: str
+    details: dict[str, Any] | None = None
+
+
+class UpdateMsg(_ServerModel):
+    """A pushed change on a subscribed topic. ``seq`` is +1 per update on this connection."""
+
+    servermsg: Literal["update"]
+    topic: Topic
+    seq: int = Field(ge=1)
+    data: UpdateData
+
+
+ServerMessage: TypeAlias = Annotated[
+    OkReply | ErrorReply | UpdateMsg, Field(discriminator="servermsg")
+]
+SERVER_ADAPTER: TypeAdapter[ServerMessage] = TypeAdapter(ServerMessage)
+_OK_PAYLOAD: Final = frozenset(OkReply.model_fields) - {"servermsg", "id"}
+
+
+# --------------------------------------------------------------------------- serialising
+
+
+def _to_json(obj: object, fallback: Callable[[Any], Any] | None = None) -> str:
+    return pydantic_core.to_json(obj, inf_nan_mode="null", fallback=fallback).decode()
+
+
+def dump(obj: object) -> str:
+    """Compact JSON of a model, a list of them or a dict; NaN and ±inf become ``null``.
+
+    Enums become their values, tuples arrays. Non-ASCII text is kept as UTF-8, not escaped.
+    """
+    return _to_json(obj)
+
+
+def ok_frame(request_id: str | int | None, **payload: object) -> str:
+    """The success reply. ``payload`` keys must be :class:`OkReply` fields (else TypeError),
+    so that what the server sends cannot drift from the documented schema."""
+    unknown = payload.keys() - _OK_PAYLOAD
+    if unknown:
+        raise TypeError(f"not an OkReply field: {', '.join(sorted(unknown))}")
+    frame: dict[str, object] = {"servermsg": "ok"}
+    if request_id is not None:
+        frame["id"] = request_id
+    frame.update(payload)
+    return _to_json(frame)
+
+
+def error_frame(request_id: str | int | None, exc: ServeurError) -> str:
+    """The error reply for ``exc``; ``request_id`` defaults to ``exc.request_id``.
+
+    Never raises: details that are not JSON-able are sent as their ``str``, and text that UTF-8
+    cannot carry (a lone surrogate a client sent as ``"\\ud800"``) with ``?`` in its place.
+    """
+    rid = request_id if request_id is not None else exc.request_id
+    frame: dict[str, object] = {"servermsg": "error"}
+    if rid is not None:
+        frame["id"] = rid
+    frame.update(exc.to_dict())
+    try:
+        return _to_json(frame, fallback=str)
+    except ValueError:  # text that UTF-8 cannot carry (a lone surrogate from a \ud800 escape)
+        return _to_json(_scrub(frame), fallback=str)
+
+
+def _scrub(value: Any) -> Any:
+    """``value`` with every string made UTF-8-safe (lone surrogates become ``?``)."""
+    if isinstance(value, str):
+        return value.encode("utf-8", "replace").decode("utf-8")
+    if isinstance(value, dict):
+        return {_scrub(k): _scrub(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_scrub(v) for v in value]
+    return value
+
+
+_topic_json: dict[str, str] = {}
+
+
+def update_frame(topic: str, seq: int, data_json: str) -> str:
+    """One update frame, from data serialised once per fan-out (``dump``).
+
+    Equal to the compact ``json.dumps`` of ``{"servermsg": "update", "topic": topic, "seq":
+    seq, "data": data}``; built by concatenation because it runs once per subscriber.
+    """
+    if type(seq) is not int:
+        raise TypeError(f"seq must be an int, not {type(seq).__name__}")
+    quoted = _topic_json.get(topic)
+    if quoted is None:
+        quoted = json.dumps(topic, ensure_ascii=False)
+        if len(_topic_json) < 4096:
+            _topic_json[topic] = quoted
+    return (
+        '{"servermsg":"update","topic":'
+        + quoted
+        + ',"seq":'
+        + str(seq)
+        + ',"data":'
+        + data_json
+        + "}"
+    )

@@ -1,0 +1,219 @@
+"""Check serveur's package layout: no import circles, a short top level, declared dependencies.
+
+Run from the project root (``.ci/run`` does, and ``tests/test_layout.py`` runs it too)::
+
+    python3 tools/check_layout.py
+
+Every ``import`` of a ``serveur`` module counts — at module level, inside functions and under
+``if TYPE_CHECKING:`` alike — because a circle hidden in a function is still a circle in the
+design. Importing ``serveur.a.b`` also imports the packages ``serveur`` and ``serveur.a``
+(their ``__init__``), so those edges count too. The rules:
+
+1. no circle of imports among serveur's modules;
+2. at most ``MAX_TOP`` modules directly under ``serveur/`` (``__init__`` included);
+3. every subpackage's ``__init__`` has a docstring with a ``May import:`` line, and every
+   module inside it imports, outside the subpackage, only what that line names (a module
+   or a package prefix; ``serveur.errors`` is always allowed);
+4. the pure rules (``PURE``) import, directly or not, only pure serveur modules and no I/O
+   library.
+
+Exit status 0 when all hold; otherwise each broken rule is printed and the status is 1.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+import sys
+from collections.abc import Iterable
+from pathlib import Path
+
+MAX_TOP = 12
+# What the design card calls the pure rules: the protocol, the status machine, scheduling.
+PURE = ("serveur.protocol", "serveur.status", "serveur.scheduler")
+# Modules the pure rules may lean on (themselves pure: no sockets, no files, no database).
+PURE_ALLOWED = ("serveur.domain", "serveur.errors", "serveur.wire", *PURE)
+IO_LIBRARIES = ("websockets", "aiosqlite", "asyncmy", "sqlite3", "socket", "ssl", "http")
+ALWAYS_ALLOWED = ("serveur.errors",)
+
+
+def module_name(root: Path, path: Path) -> str:
+    parts = list(path.relative_to(root.parent).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def discover(root: Path) -> dict[str, Path]:
+    return {module_name(root, p): p for p in sorted(root.rglob("*.py"))}
+
+
+def _ancestors(name: str) -> list[str]:
+    parts = name.split(".")
+    return [".".join(parts[:i]) for i in range(1, len(parts))]
+
+
+def imports(name: str, path: Path, modules: dict[str, Path]) -> tuple[set[str], set[str]]:
+    """(serveur modules, third-party top-level names) that ``name`` imports anywhere."""
+    tree = ast.parse(path.read_text("utf-8"), str(path))
+    is_package = path.name == "__init__.py"
+    own: set[str] = set()
+    foreign: set[str] = set()
+    for node in ast.walk(tree):
+        targets: list[str] = []
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = name.split(".")
+                base = base if is_package else base[:-1]
+                base = base[: len(base) - (node.level - 1)]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            targets = [mod]
+            # ``from pkg import sub`` imports the submodule pkg.sub
+            targets += [f"{mod}.{a.name}" for a in node.names if f"{mod}.{a.name}" in modules]
+        for t in targets:
+            if t == "serveur" or t.startswith("serveur."):
+                while t not in modules and "." in t:
+                    t = t.rsplit(".", 1)[0]
+                own.add(t)
+                own.update(a for a in _ancestors(t) if a in modules)
+            elif t:
+                foreign.add(t.split(".")[0])
+    own.discard(name)
+    return own, foreign
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan, iterative)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+    counter = 0
+    for start in sorted(graph):
+        if start in index:
+            continue
+        work: list[tuple[str, Iterable[str]]] = [(start, iter(sorted(graph[start])))]
+        index[start] = low[start] = counter
+        counter += 1
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            node, children = work[-1]
+            for child in children:
+                if child not in index:
+                    index[child] = low[child] = counter
+                    counter += 1
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph.get(child, ())))))
+                    break
+                if child in on_stack:
+                    low[node] = min(low[node], index[child])
+            else:
+                work.pop()
+                if work:
+                    parent = work[-1][0]
+                    low[parent] = min(low[parent], low[node])
+                if low[node] == index[node]:
+                    comp: list[str] = []
+                    while True:
+                        m = stack.pop()
+                        on_stack.discard(m)
+                        comp.append(m)
+                        if m == node:
+                            break
+                    if len(comp) > 1:
+                        found.append(sorted(comp))
+    return found
+
+
+def _allowed(target: str, prefixes: Iterable[str]) -> bool:
+    """``target`` is one of ``prefixes``, inside one, or a package on the way to one.
+
+    Importing ``serveur.store.base`` runs ``serveur/store/__init__.py`` first, so allowing a
+    module allows the packages above it (their ``__init__`` imports nothing of serveur here).
+    """
+    return any(
+        target == p or target.startswith(p + ".") or p.startswith(target + ".") for p in prefixes
+    )
+
+
+_MAY_IMPORT = re.compile(r"^May import:(.*?)(?:\n\s*\n|\Z)", re.M | re.S)
+
+
+def declared(path: Path) -> list[str] | None:
+    doc = ast.get_docstring(ast.parse(path.read_text("utf-8"))) or ""
+    m = _MAY_IMPORT.search(doc)
+    if m is None:
+        return None
+    names = re.findall(r"serveur(?:\.\w+)*", m.group(1))
+    return names
+
+
+def check(root: Path) -> list[str]:
+    modules = discover(root)
+    graph: dict[str, set[str]] = {}
+    foreign: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        graph[name], foreign[name] = imports(name, path, modules)
+    problems: list[str] = []
+    for comp in cycles(graph):
+        problems.append("import circle: " + " <-> ".join(comp))
+    top = sorted(p.name for p in root.glob("*.py"))
+    if len(top) > MAX_TOP:
+        problems.append(f"{len(top)} modules directly under serveur/ (at most {MAX_TOP}): {top}")
+    packages = [n for n, p in modules.items() if p.name == "__init__.py" and n != "serveur"]
+    for pkg in packages:
+        allowed = declared(modules[pkg])
+        if allowed is None:
+            problems.append(f"{pkg}: its docstring has no 'May import:' line")
+            continue
+        outer = pkg.rsplit(".", 1)[0]
+        for name in modules:
+            if not (name == pkg or name.startswith(pkg + ".")):
+                continue
+            for target in sorted(graph[name]):
+                inside = target == pkg or target.startswith(pkg + ".")
+                if inside or target in _ancestors(pkg) or target == outer:
+                    continue
+                if not _allowed(target, [*allowed, *ALWAYS_ALLOWED]):
+                    problems.append(f"{name} imports {target}, which {pkg} does not declare")
+    for pure in PURE:
+        seen: set[str] = set()
+        todo = [pure]
+        while todo:
+            m = todo.pop()
+            if m in seen:
+                continue
+            seen.add(m)
+            if m != "serveur" and not _allowed(m, PURE_ALLOWED):
+                problems.append(f"{pure} (pure) reaches {m}, which is not pure")
+                continue
+            bad = foreign[m] & set(IO_LIBRARIES)
+            if bad:
+                problems.append(f"{pure} (pure) reaches {m}, which imports {sorted(bad)}")
+            todo.extend(graph[m])
+    return problems
+
+
+def main() -> int:
+    root = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent
+    root = root / "serveur" if (root / "serveur").is_dir() else root
+    problems = check(root)
+    for p in problems:
+        print(p)
+    modules = discover(root)
+    print(
+        f"{len(modules)} modules, {sum(1 for p in root.glob('*.py'))} at the top, "
+        f"{len(problems)} problem(s)"
+    )
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
