@@ -1,6 +1,6 @@
 """Crash-safety soak: a longer service with more SIGKILLs of the server (loopback only).
 
-The CI variant is ``tests/test_crash.py`` (20 kills, 15 orders); this runs the same service,
+The CI variant is ``tests/store/test_crash.py`` (20 kills, 15 orders); this runs the same service,
 kill points and checks (``tests/crash_service.py``) at any size, for several seeds, and prints
 a summary. It stops by itself; any violated invariant ends it with the assertion and exit 1.
 

@@ -1,6 +1,7 @@
 """A dinner service during which the server is SIGKILLed again and again.
 
-Used by ``tests/test_crash.py`` (bounded, for CI) and ``bench/crash.py`` (longer, configurable).
+Used by ``tests/store/test_crash.py`` (bounded, for CI) and ``bench/crash.py`` (longer,
+configurable).
 
 Three actors share one event loop, the server runs in its own process:
 

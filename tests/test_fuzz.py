@@ -260,7 +260,7 @@ def test_frames_never_break_the_parser(step: Send) -> None:
 
 
 #: Verbs the fuzzer does not send: ``logout`` would leave the rest of a connection's examples
-#: answering ``unauthorized`` only (tests/test_security.py covers it).
+#: answering ``unauthorized`` only (tests/security/test_security.py covers it).
 NOT_FUZZED_YET = frozenset({"logout"})
 
 

@@ -2,7 +2,7 @@
 by two servers, two servers racing for the same dishes and robots, a database restarted (or
 killed) under load, least-privilege users, and backups to SQLite.
 
-The behaviour shared with SQLite is tested by tests/test_store.py, parametrised over both.
+The behaviour shared with SQLite is tested by tests/store/test_store.py, parametrised over both.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from serveur.store.mariadb.store import MariaDBStore
 from serveur.store.migrations import load_migrations
 from serveur.store.sqlite.store import SQLiteStore
 from tests.mariadb_server import PASSWORD, MariaDBServer, query
-from tests.test_store import T0, TABLES, orders, seed
+from tests.store.test_store import T0, TABLES, orders, seed
 
 pytestmark = pytest.mark.timeout(60)
 

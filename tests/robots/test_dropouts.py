@@ -1,7 +1,8 @@
 """Robots that drop off the network mid-delivery: no order is lost or served twice.
 
-A robot back within ``CoreConfig.handover_after`` resumes its trip (tests/test_link_faults.py);
-one away longer has the trip handed to another robot and, on its return, goes home.
+A robot back within ``CoreConfig.handover_after`` resumes its trip
+(tests/robots/test_link_faults.py); one away longer has the trip handed to another robot
+and, on its return, goes home.
 """
 
 from __future__ import annotations

@@ -49,7 +49,7 @@ CHROMIUM_ARGS = [
 ]
 TABLET = {"width": 1280, "height": 800}  # a 10-inch tablet in landscape
 # Screenshots are always taken (that exercises rendering) but only land in docs/screenshots when
-# asked: `SERVEUR_SCREENSHOTS=docs/screenshots python3 -m pytest tests/test_ui.py`, so a test
+# asked: `SERVEUR_SCREENSHOTS=docs/screenshots python3 -m pytest tests/web/test_ui.py`, so a test
 # run does not rewrite tracked files.
 SHOTS = Path(os.environ.get("SERVEUR_SCREENSHOTS") or tempfile.mkdtemp(prefix="serveur-shots-"))
 _, WAYPOINTS = load_demo()

@@ -1,6 +1,6 @@
 """A robot that says it arrived but is not where it was sent ends in Error, not Delivered.
 
-(Goals never acknowledged and goals aborted by a blocked aisle: tests/test_link_faults.py.)
+(Goals never acknowledged and goals aborted by a blocked aisle: tests/robots/test_link_faults.py.)
 """
 
 from __future__ import annotations
