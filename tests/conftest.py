@@ -11,7 +11,7 @@ import contextlib
 import itertools
 import json
 from collections.abc import AsyncIterator, Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +25,7 @@ from serveur.core.engine import CoreConfig
 
 # The private MariaDB server (once per session) and a fresh database for a test that asks.
 from tests.mariadb_server import mariadb_server, mariadb_url  # noqa: F401
+from tests.netproxy import LinkProxy
 
 TIME_SCALE = 10.0
 WAIT = 30.0  # wall seconds: generous for a loaded 2-core CI box; tests end as soon as they can
@@ -147,6 +148,8 @@ class Restaurant:
 
     #: A staff token made at start (the database keeps it across restart_server).
     token: str = ""
+    #: With ``restaurant(..., proxied=True)``: each robot's link goes through one of these.
+    proxies: list[LinkProxy] = field(default_factory=list)
 
     def auth_headers(self) -> dict[str, str]:
         """Handshake headers that authenticate a raw ``connect(self.app.url, ...)`` as staff.
@@ -176,11 +179,18 @@ class Restaurant:
         await self.app.start()
 
 
-def make_app(db: Path | str, clock: ScaledClock, specs: list[RobotSpec], port: int = 0) -> App:
+def make_app(
+    db: Path | str,
+    clock: ScaledClock,
+    specs: list[RobotSpec],
+    port: int = 0,
+    *,
+    config: CoreConfig | None = None,
+) -> App:
     from serveur.maps.navigation import load_demo
 
     nav_map, waypoints = load_demo()
-    cfg = CoreConfig(heartbeat=2.0, ack_timeout=3.0)
+    cfg = config or CoreConfig(heartbeat=2.0, ack_timeout=3.0)
     return App(
         db, port=port, clock=clock, nav_map=nav_map, waypoints=waypoints, robots=specs, config=cfg
     )
@@ -188,24 +198,42 @@ def make_app(db: Path | str, clock: ScaledClock, specs: list[RobotSpec], port: i
 
 @contextlib.asynccontextmanager
 async def restaurant(
-    tmp_path: Path, robots: int = 1, time_scale: float = TIME_SCALE, db_url: str | None = None
+    tmp_path: Path,
+    robots: int = 1,
+    time_scale: float = TIME_SCALE,
+    db_url: str | None = None,
+    *,
+    proxied: bool = False,
+    config: CoreConfig | None = None,
+    **sim_options: Any,
 ) -> AsyncIterator[Restaurant]:
-    """A running restaurant on a SQLite file in ``tmp_path``, or on ``db_url`` if given."""
+    """A running restaurant on a SQLite file in ``tmp_path``, or on ``db_url`` if given.
+
+    ``proxied``: each robot is reached through a :class:`~tests.netproxy.LinkProxy` that a
+    test can blackhole or inject frames into. ``sim_options`` go to ``start_simulation``.
+    """
     from serveur.maps.navigation import demo_map_path
     from serveur.robot_sim import start_simulation
 
     clock = ScaledClock(time_scale)
     sim = await start_simulation(
-        robots, port=0, map_path=demo_map_path(), time_scale=time_scale, clock=clock
+        robots,
+        port=0,
+        map_path=demo_map_path(),
+        time_scale=time_scale,
+        clock=clock,
+        **sim_options,
     )
+    proxies = [await LinkProxy.for_url(url).start() for url in sim.urls] if proxied else []
+    urls = [p.url for p in proxies] if proxied else sim.urls
     specs = [
         RobotSpec(r.name, url, f"home{i + 1}")
-        for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
+        for i, (r, url) in enumerate(zip(sim.robots, urls, strict=True))
     ]
     db = db_url or tmp_path / "serveur.db"
-    app = make_app(db, clock, specs)
+    app = make_app(db, clock, specs, config=config)
     await app.start()
-    r = Restaurant(app, sim, clock, db, specs, [])
+    r = Restaurant(app, sim, clock, db, specs, [], proxies=proxies)
     r.token = await app.issue_token("staff", label="tests")
     try:
         yield r
@@ -213,6 +241,8 @@ async def restaurant(
         for c in r.clients:
             await c.close()
         await r.app.close()
+        for proxy in proxies:
+            await proxy.close()
         await sim.close()
 
 

@@ -102,6 +102,7 @@ class Core:
         self.hub = Hub(on_watch=self._on_watch)
         self.dispatcher = Dispatcher(self)
         self._rt: dict[str, Runtime] = {}
+        self._halted = False  # halt_robots ran: shutting down, robots stopped
         self._robots: dict[str, Robot] = {}
         self.places = Places(
             self.hub,
@@ -161,6 +162,28 @@ class Core:
         for rt in self._rt.values():
             self._start_link(rt)
 
+    async def halt_robots(self, budget: float = 0.4) -> None:
+        """Stop every robot now, before anything else of a shutdown (within ``budget`` wall s).
+
+        Dispatch stops, reports are no longer queued, and each link cancels its goals and
+        sends a zero twist, all robots at once; from then on the links refuse to move a robot.
+        Closing client connections (which may wait seconds for a stalled tablet) comes after,
+        so a robot never drives on while the server says goodbye to its screens.
+        """
+        if self._halted:
+            return
+        self._halted = True
+        self.reports.stop_queueing()
+        links = [rt.link for rt in self._rt.values() if rt.link is not None]
+        halts = [asyncio.create_task(link.halt(), name=f"halt-{link.name}") for link in links]
+        stopping = asyncio.create_task(self.dispatcher.stop())
+        if halts:
+            _, late = await asyncio.wait(halts, timeout=budget)
+            for task in late:
+                task.cancel()
+                log.warning("%s: stop not confirmed sent within %.1fs", task.get_name(), budget)
+        await stopping
+
     async def close(self) -> None:
         """Stop serving robots: no more dispatch, every robot's move cancelled, poses saved.
 
@@ -168,19 +191,11 @@ class Core:
         (a goal whose result no server will read, "Food collected" that nobody can press).
         Their stored status is left as it was, so a restarted server resumes each trip.
         """
-        self.reports.stop_queueing()
+        await self.halt_robots()
         self.places.close()
-        await self.dispatcher.stop()
         for rt in self._rt.values():
             self.reports.disarm_handover(rt)
             await self.reports.stop_worker(rt)
-        # Workers, dispatcher and clients are gone: nothing can send a new goal after this.
-        for rt in self._rt.values():
-            if rt.link is not None and rt.link.up:
-                try:
-                    await asyncio.wait_for(rt.link.cancel_goal(), self.clock.wall(2.0) + 1.0)
-                except (LinkError, TimeoutError) as exc:
-                    log.warning("%s: could not stop the robot on shutdown: %s", rt.name, exc)
         for rt in self._rt.values():
             if rt.link is not None:
                 await rt.link.close()
@@ -388,6 +403,8 @@ class Core:
             await self.flush_events()
 
     async def _handle(self, msg: P.ClientMessage) -> dict[str, Any]:
+        if self._halted:
+            raise LinkError("the server is shutting down: robots are stopped")
         verb = msg.clientmsg
         if verb == "create":
             return await self._create(msg)
@@ -420,6 +437,12 @@ class Core:
             rt.dest = None
             await self._event(rt, Event.MANUAL)
         elif action is Action.TELEOP:
+            if rt.dest is not None or rt.goal_id is not None:
+                # move_base does not listen to /cmd_vel: its goal would keep driving the
+                # robot while staff steer, so the goal goes first.
+                await link.cancel_goal()
+                rt.dest = None
+                rt.goal_id = None
             await link.teleop(msg.vx, msg.vy, msg.wz)
         elif action is Action.INITIALPOSE:
             await link.initial_pose(msg.x, msg.y, msg.yaw)

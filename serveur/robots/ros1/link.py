@@ -10,8 +10,25 @@ Two failure modes users of other fleet managers report are designed out here:
   ``/move_base/status``; if it does not within ``ack_timeout`` it is re-sent under a fresh id,
   and after ``ack_retries`` re-sends it is reported failed — never left hanging.
 * **A robot silently gone.** move_base publishes its status list at several Hz even when idle,
-  so that stream is the heartbeat: no status for ``heartbeat`` seconds (simulated time) and the
-  link is declared down, the socket closed and reconnection starts with backoff.
+  so that stream is the heartbeat: no status for :meth:`RobotLink.heartbeat_timeout` and the
+  link is declared down at once, the socket aborted (a dead path never answers a closing
+  handshake, so waiting for one would take websockets' 10 s close timeout) and reconnection
+  starts with backoff. The timeout is derived from the status rate actually subscribed plus a
+  Wi-Fi stall allowance in wall seconds (``stall``), so ordinary restaurant Wi-Fi jitter never
+  takes a robot Offline.
+
+Goals, cancels and initial poses carry a **zero stamp**. actionlib's SimpleActionServer
+cancels (RECALLED) any goal stamped earlier than the last goal it accepted, and a Raspberry Pi
+has no hardware clock: stamped with the server's time, every goal after a reboot would be
+thrown away whenever the robot had accepted a goal stamped by a clock ahead of ours (its own,
+RViz, roslibpy). A zero stamp is stamped by the robot's own clock when the goal arrives
+(actionlib's ActionServer), which is what roslibpy and roslibjs send; for ``/initialpose`` and
+``target_pose`` a zero stamp asks tf for the latest transform instead of one at a time the
+robot may not have.
+
+**Teleop** is a dead man's switch: a joystick sends twists several times a second, and if none
+comes for ``teleop_timeout`` wall seconds (the tablet slept, the Wi-Fi went) the link sends a
+zero twist itself, because a robot base keeps its last velocity.
 
 The link is "up" only once both a status and a pose have arrived, so the server never acts on
 a robot whose position it does not know. Everything the robot sends is treated as untrusted:
@@ -57,9 +74,21 @@ IDLE_POSE_MS = 1000
 #: is only a heartbeat then, and half of those prove life as well (goal acks need the full rate,
 #: restored before a goal goes out).
 IDLE_STATUS_MS = 500
+#: move_base's own status rate (actionlib's status_frequency, 5 Hz): the period assumed when
+#: the status subscription is not throttled.
+STATUS_PERIOD = 0.2
+#: Wall seconds of silence restaurant Wi-Fi may have (a microwave, a roaming tablet, a busy
+#: access point) without the robot being declared Offline: measured stalls of 0.5-1.5 s are
+#: common on 2.4 GHz, so 2 s keeps a delivery going through them while a robot really gone
+#: still shows Offline within about 3 s.
+STALL_ALLOWANCE = 2.0
+#: Wall seconds without a joystick twist before the server stops the robot itself.
+TELEOP_TIMEOUT = 0.5
 #: /battery_state throttle floor (ms): staff see whole percent, which takes minutes to change;
 #: a robot's 1 Hz battery stream would be a tenth of an idle server's messages for nothing.
 BATTERY_MS = 5000
+#: actionlib's GoalID with an empty id and a zero stamp: cancel every goal of the server.
+_CANCEL_ALL: Mapping[str, Any] = {"stamp": rb.ros_time(0.0), "id": ""}
 _PUBLICATIONS = ("/move_base/goal", "/move_base/cancel", "/cmd_vel", "/initialpose")
 
 
@@ -120,12 +149,19 @@ class RobotLink:
         moving_pose_ms: int = 0,
         status_ms: int = 0,
         battery_ms: int = 0,
+        stall: float = STALL_ALLOWANCE,
+        teleop_timeout: float = TELEOP_TIMEOUT,
     ) -> None:
         self.name = name
         self.url = url
         self._listener = listener
         self._clock = clock
         self._heartbeat = heartbeat
+        self._stall = stall
+        self._teleop_timeout = teleop_timeout
+        self._teleop_sent = 0.0  # clock time of the last non-zero twist sent
+        self._failsafe: asyncio.Task[None] | None = None
+        self._halted = False  # stopped for shutdown: nothing may move the robot any more
         self._ack_timeout = ack_timeout
         self._ack_retries = ack_retries
         self._want_map = want_map
@@ -173,6 +209,7 @@ class RobotLink:
             self._task = asyncio.create_task(self._run(), name=f"link-{self.name}")
 
     async def close(self) -> None:
+        self._stop_failsafe()
         task, self._task = self._task, None
         if task is not None:
             task.cancel()
@@ -196,6 +233,7 @@ class RobotLink:
                 async with connect(
                     self.url,
                     open_timeout=self._open_timeout,
+                    close_timeout=1.0,
                     max_size=16 * 2**20,
                     ping_interval=None,  # the move_base status stream is our heartbeat
                     compression=None,
@@ -264,9 +302,8 @@ class RobotLink:
         while True:
             # A goal's ack is checked every quarter of ack_timeout; a parked robot is only
             # checked for life, every half heartbeat (down within 1.5 heartbeats).
-            tick = (
-                min(self._heartbeat, self._ack_timeout) / 4 if self._goal else self._heartbeat / 2
-            )
+            timeout = self.heartbeat_timeout()
+            tick = min(timeout, self._ack_timeout) / 4 if self._goal else timeout / 4
             due = self._clock.now() + tick
             await self._clock.sleep(tick)
             now = self._clock.now()
@@ -274,15 +311,33 @@ class RobotLink:
                 # Our own event loop was starved: the robot's status frames may be sitting
                 # unread in the socket. Judge the robot on the next, timely tick instead.
                 continue
-            if now - self._last_status > self._heartbeat:
-                log.warning(
-                    "%s: no move_base status for %.1fs, link down", self.name, self._heartbeat
-                )
-                await ws.close(code=1001, reason="heartbeat lost")
+            if now - self._last_status > timeout:
+                reason = f"no move_base status for {now - self._last_status:.1f}s"
+                # Down now, not after a closing handshake a dead path will never answer.
+                self._set_down(reason)
+                ws.transport.abort()
                 return
             goal = self._goal
-            if goal is not None and not goal.acked and now - goal.sent_at > self._ack_timeout:
+            # Unacknowledged means status lists kept coming without our goal for ack_timeout:
+            # a silent link (Wi-Fi stall) says nothing about the goal, and re-sending into it
+            # would only preempt the goal the robot is driving.
+            if (
+                goal is not None
+                and not goal.acked
+                and self._last_status - goal.sent_at > self._ack_timeout
+            ):
                 await self._resend(goal)
+
+    def heartbeat_timeout(self) -> float:
+        """Seconds (clock) of status silence after which the robot is declared Offline.
+
+        Two periods of the status stream as subscribed (a throttled stream arrives once per
+        throttle; an unthrottled one at move_base's 5 Hz), plus the Wi-Fi stall allowance,
+        which is wall time and so scaled to the clock; never less than ``heartbeat``.
+        """
+        period = max((self._status_sub_ms or 0) / 1000.0, STATUS_PERIOD)
+        stall = self._stall * self._clock.time_scale
+        return max(self._heartbeat, 2.0 * period + stall)
 
     def _set_down(self, reason: str) -> None:
         was_up, self._up = self._up, False
@@ -299,8 +354,20 @@ class RobotLink:
                 self._on_publish(str(op.get("topic")), op.get("msg"))
             elif op["op"] == "status":
                 log.info("%s: rosbridge says %s: %s", self.name, op.get("level"), op.get("msg"))
-        except (RosbridgeError, KeyError, TypeError, ValueError, AttributeError) as exc:
+        except (
+            RosbridgeError,
+            KeyError,
+            TypeError,
+            ValueError,
+            AttributeError,
+            ArithmeticError,  # 1e999 is inf (int(inf) overflows), 10**400 overflows float()
+            RecursionError,
+        ) as exc:
             log.warning("%s: dropped malformed frame from robot: %s", self.name, exc)
+        except Exception:
+            # Nothing a robot sends may kill its link: whatever this frame broke, the next
+            # frame is read, and the heartbeat still judges whether the robot is alive.
+            log.exception("%s: error handling a frame from the robot (dropped)", self.name)
 
     def _on_publish(self, topic: str, msg: Any) -> None:
         if not isinstance(msg, dict):
@@ -361,7 +428,23 @@ class RobotLink:
 
     # -- outgoing ----------------------------------------------------------------------------
 
-    async def _send(self, op: Mapping[str, Any]) -> None:
+    async def halt(self) -> None:
+        """Stop the robot for good (shutdown): cancel every goal, send a zero twist.
+
+        After this the link refuses every goal, joystick and pose command, so no report or
+        client still being handled while the server shuts down can set the robot moving.
+        """
+        self._halted = True
+        self._goal = None
+        self._teleop = False
+        self._stop_failsafe()
+        with contextlib.suppress(LinkError):
+            await self._send(rb.op_publish("/move_base/cancel", _CANCEL_ALL), halting=True)
+            await self._send(rb.op_publish("/cmd_vel", rb.twist(0.0, 0.0, 0.0)), halting=True)
+
+    async def _send(self, op: Mapping[str, Any], *, halting: bool = False) -> None:
+        if self._halted and not halting:
+            raise LinkError(f"robot {self.name} is stopped: the server is shutting down")
         ws = self._ws
         if ws is None or not self._up:
             raise LinkError(f"robot {self.name} is not connected")
@@ -389,7 +472,7 @@ class RobotLink:
         await self._send(
             rb.op_publish(
                 "/move_base/goal",
-                rb.move_base_action_goal(goal.id, x, y, yaw, stamp=self._clock.epoch()),
+                rb.move_base_action_goal(goal.id, x, y, yaw, stamp=0.0),  # see module doc
             )
         )
         return goal.handle
@@ -410,28 +493,57 @@ class RobotLink:
             await self._send(
                 rb.op_publish(
                     "/move_base/goal",
-                    rb.move_base_action_goal(
-                        goal.id, goal.x, goal.y, goal.yaw, stamp=self._clock.epoch()
-                    ),
+                    rb.move_base_action_goal(goal.id, goal.x, goal.y, goal.yaw, stamp=0.0),
                 )
             )
 
     async def cancel_goal(self) -> None:
         """Cancel every goal on the robot (empty id), as a stop button must."""
         self._goal = None
-        await self._send(rb.op_publish("/move_base/cancel", {"stamp": rb.ros_time(0.0), "id": ""}))
+        await self._send(rb.op_publish("/move_base/cancel", _CANCEL_ALL))
         self._rates_changed()
 
     async def teleop(self, vx: float, vy: float, wz: float) -> None:
+        """Send a joystick twist; with none after it for ``teleop_timeout``, a zero twist.
+
+        move_base does not listen to ``/cmd_vel`` (its controller drives the base while a goal
+        is active), so callers cancel a goal before steering by hand.
+        """
         self._teleop = (vx, vy, wz) != (0.0, 0.0, 0.0)
         await self._update_rates()
         await self._send(rb.op_publish("/cmd_vel", rb.twist(vx, vy, wz)))
+        if self._teleop:
+            self._teleop_sent = self._clock.now()
+            if self._failsafe is None or self._failsafe.done():
+                self._failsafe = asyncio.create_task(
+                    self._teleop_failsafe(), name=f"teleop-failsafe-{self.name}"
+                )
+        else:
+            self._stop_failsafe()
+
+    async def _teleop_failsafe(self) -> None:
+        timeout = self._teleop_timeout * self._clock.time_scale  # wall seconds on the clock
+        while self._teleop:
+            left = self._teleop_sent + timeout - self._clock.now()
+            if left > 0:
+                await self._clock.sleep(left)
+                continue
+            self._teleop = False
+            log.warning("%s: no joystick command for %.1fs, stopping", self.name, timeout)
+            with contextlib.suppress(LinkError):
+                await self._send(rb.op_publish("/cmd_vel", rb.twist(0.0, 0.0, 0.0)))
+            await self._update_rates()
+
+    def _stop_failsafe(self) -> None:
+        task, self._failsafe = self._failsafe, None
+        if task is not None and task is not asyncio.current_task():
+            task.cancel()
 
     async def initial_pose(self, x: float, y: float, yaw: float) -> None:
         await self._send(
             rb.op_publish(
                 "/initialpose",
-                rb.pose_with_covariance_stamped(x, y, yaw, stamp=self._clock.epoch()),
+                rb.pose_with_covariance_stamped(x, y, yaw, stamp=0.0),
             )
         )
 
