@@ -6,6 +6,7 @@ one way to wire it and the tests exercise the same path that production uses.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import ssl as ssl_module
 from collections.abc import Iterable, Mapping, Sequence
@@ -94,6 +95,20 @@ class App:
         self.first_owner_password: str | None = None
 
     async def start(self) -> App:
+        """Open the store, start the core (robot links, dispatch) and listen.
+
+        If any step fails (the port is taken, the database is unusable), what was started is
+        closed again before the error propagates: a half-started server holds the database
+        and worker threads, and its process would hang at exit instead of failing.
+        """
+        try:
+            return await self._start()
+        except BaseException:
+            with contextlib.suppress(Exception):
+                await self.close()
+            raise
+
+    async def _start(self) -> App:
         await self.store.open()
         now = self.clock.epoch()
         if self._waypoints:
@@ -150,6 +165,9 @@ class App:
         return self.server.url
 
     async def close(self) -> None:
+        """Shut down: robots stopped first (within half a second), then clients, then the rest."""
+        if self.core is not None:
+            await self.core.halt_robots()
         if self.server is not None:
             await self.server.close()
         if self.sessions is not None:

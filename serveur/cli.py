@@ -106,7 +106,15 @@ async def _run(ns: argparse.Namespace) -> int:
         ssl=tls,
         robot_ssl=robot_tls,
     )
-    await app.start()
+    try:
+        await app.start()
+    except OSError as exc:
+        # The port taken, an address not on this host: one line, a non-zero exit, no hang.
+        print(
+            f"serveur run: cannot listen on {ns.host}:{ns.port}: {exc.strerror or exc}",
+            file=sys.stderr,
+        )
+        return 1
     from serveur.maps.memory import freeze_heap
 
     freeze_heap()  # start-up objects out of the collector's way: no 70 ms full collections

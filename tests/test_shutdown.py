@@ -8,7 +8,11 @@ driving a goal nobody watches; the restarted server sends the robot on with its 
 from __future__ import annotations
 
 import asyncio
+import signal
+import socket
 import sqlite3
+import sys
+import time
 from pathlib import Path
 
 from websockets.asyncio.client import connect
@@ -124,3 +128,71 @@ async def test_backup_of_a_live_database(one_robot: Restaurant, tmp_path: Path) 
         assert con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
         assert con.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
     assert not copy.with_name(copy.name + ".tmp").exists()
+
+
+async def test_sigterm_stops_the_robot_first_whatever_a_stalled_tablet_does(
+    tmp_path: Path,
+) -> None:
+    """A tablet whose Wi-Fi stalled never answers the closing handshake (websockets waits 10 s
+    for it); the robot must be stopped within half a second of SIGTERM all the same."""
+    clock = ScaledClock(TIME_SCALE)
+    sim = await start_simulation(1, port=0, map_path=demo_map_path(), clock=clock)
+    server = ServerProcess(tmp_path / "serveur.db", {"r1": sim.urls[0]}, time_scale=TIME_SCALE)
+    stalled = None
+    try:
+        await server.start()
+        c = await staff_client(server)
+        await c.subscribe("robots", "pose:r1")
+        await activate(c, "r1")
+        [oid] = await new_orders(c, ("Laksa", "T16"))
+        await c.ok("create", type="task", orders=[oid])
+        await c.status("r1", "Delivering")
+        await c.until(lambda: not near(c.streams["pose:r1"], "home1", 1.0), what="r1 leaves")
+        robot = sim.robots[0]
+        # The stalled tablet: connected, then its socket is read no more.
+        stalled = await staff_client(server)
+        await stalled.subscribe("robots")
+        stalled.ws.transport.pause_reading()
+        assert server.proc is not None
+        server.proc.send_signal(signal.SIGTERM)
+        sent = time.monotonic()
+        while any(st is rb.GoalStatus.ACTIVE for _, st, _ in robot.goal_statuses):
+            assert time.monotonic() - sent < 10.0, "the robot was never stopped"
+            await asyncio.sleep(0.01)  # polling the robot's own state: no event to wait on
+        took = time.monotonic() - sent
+        assert took <= 0.5 + 0.3, f"robot stopped {took:.2f}s after SIGTERM"
+        assert robot.goal_statuses[-1][1] is rb.GoalStatus.PREEMPTED
+        assert await server.stop(signal.SIGTERM, timeout=30.0) == 0
+    finally:
+        if stalled is not None:
+            stalled.ws.transport.abort()
+        await close_quietly(server.close, sim.close)
+
+
+async def test_run_on_a_port_in_use_says_so_and_exits(tmp_path: Path) -> None:
+    """Under systemd's Restart=always a hung start is worse than a failed one."""
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        proc = await asyncio.create_subprocess_exec(
+            sys.executable,
+            "-m",
+            "serveur.cli",
+            "run",
+            "--db",
+            str(tmp_path / "serveur.db"),
+            "--port",
+            str(port),
+            stdout=asyncio.subprocess.PIPE,
+            stderr=asyncio.subprocess.PIPE,
+        )
+        try:
+            _, err = await asyncio.wait_for(proc.communicate(), 30.0)
+        finally:
+            if proc.returncode is None:
+                proc.kill()
+    assert proc.returncode == 1
+    text = err.decode()
+    assert f"cannot listen on 127.0.0.1:{port}" in text, text
+    assert "Traceback" not in text, text
