@@ -37,6 +37,8 @@ if TYPE_CHECKING:
     import numpy.typing as npt
 
 __all__ = [
+    "FIXED_ARRAY_TYPES",
+    "STATUS_LEVELS",
     "TERMINAL_STATUSES",
     "TOPIC_TYPES",
     "BatteryStatus",
@@ -45,6 +47,7 @@ __all__ = [
     "decode",
     "encode",
     "encode_cbor",
+    "fragment_ops",
     "from_ros_time",
     "goal_id",
     "goal_id_from_msg",
@@ -61,6 +64,7 @@ __all__ = [
     "op_call_service",
     "op_publish",
     "op_service_response",
+    "op_set_level",
     "op_status",
     "op_subscribe",
     "op_unadvertise",
@@ -133,6 +137,18 @@ TOPIC_TYPES: Final[dict[str, str]] = {
     "/initialpose": "geometry_msgs/PoseWithCovarianceStamped",
     "/battery_state": "sensor_msgs/BatteryState",
 }
+
+
+#: Message types of :data:`TOPIC_TYPES` holding a fixed-size array (``float64[36] covariance``).
+#: rosbridge 0.11's CBOR encoder cannot encode those: with ``compression: "cbor"`` it logs an
+#: exception for each message and sends nothing (shared/notes/rosbridge.md, "What the real
+#: ROS1 stack does"). Every other type here has only variable-length arrays.
+FIXED_ARRAY_TYPES: Final[frozenset[str]] = frozenset(
+    {"geometry_msgs/PoseWithCovarianceStamped", "nav_msgs/Odometry"}
+)
+
+#: rosbridge v2 ``status``/``set_level`` levels, by verbosity (ROSBRIDGE_PROTOCOL.md, ROS1).
+STATUS_LEVELS: Final[dict[str, int]] = {"none": 0, "error": 1, "warning": 2, "info": 3}
 
 
 def normalize_type(type_name: str) -> str:
@@ -310,6 +326,25 @@ def encode_cbor(op: Mapping[str, Any]) -> bytes:
     return cbor2.dumps(_cbor_tree(op))
 
 
+def fragment_ops(text: str, size: int, id: str | int) -> list[dict[str, Any]]:
+    """``text`` (one encoded op) cut into ``fragment`` ops of ``size`` characters, as rosbridge
+    0.11 sends it (rosbridge_library/capabilities/fragmentation.py, ``_fragment_generator``).
+
+    Its ``total`` is ``((len(text) - 1) / size) + 1``, written for Python 2's integer division:
+    on Python 3 it is a float, fractional unless ``size`` divides ``len(text) - 1`` (250
+    characters in fragments of 100 give ``total`` 3.49 for 3 fragments). The number of
+    fragments is ``int(total)``; a client comparing its count with ``total`` never completes
+    a message. ``num`` counts from 0.
+    """
+    if size < 1:
+        raise ValueError("fragment size must be at least 1")
+    total = ((len(text) - 1) / size) + 1
+    return [
+        {"op": "fragment", "id": id, "data": text[i : i + size], "num": n, "total": total}
+        for n, i in enumerate(range(0, len(text), size))
+    ]
+
+
 # --------------------------------------------------------------------------------------------
 # Ops
 # --------------------------------------------------------------------------------------------
@@ -344,8 +379,13 @@ def op_subscribe(
     queue_length: int = 0,
     compression: str | None = None,
     id: str | int | None = None,
+    fragment_size: int | None = None,
 ) -> dict[str, Any]:
-    """Subscribe; ``throttle_rate`` is the minimum gap in ms between two messages."""
+    """Subscribe; ``throttle_rate`` is the minimum gap in ms between two messages.
+
+    ``fragment_size`` (characters) makes rosbridge cut every longer frame it sends this
+    client from then on into ``fragment`` ops (see :func:`fragment_ops`).
+    """
     d: dict[str, Any] = {"op": "subscribe", "topic": topic}
     if type is not None:
         d["type"] = type
@@ -353,6 +393,8 @@ def op_subscribe(
     d["queue_length"] = queue_length
     if compression is not None:
         d["compression"] = compression
+    if fragment_size is not None:
+        d["fragment_size"] = fragment_size
     return _with_id(d, id)
 
 
@@ -383,6 +425,11 @@ def op_service_response(
 def op_status(level: str, msg: str, id: str | int | None = None) -> dict[str, Any]:
     """A rosbridge log line for the client (level: info, warning, error)."""
     return _with_id({"op": "status", "level": level, "msg": msg}, id)
+
+
+def op_set_level(level: str, id: str | int | None = None) -> dict[str, Any]:
+    """Ask for ``status`` ops at ``level`` (one of :data:`STATUS_LEVELS`) and more severe."""
+    return _with_id({"op": "set_level", "level": level}, id)
 
 
 # --------------------------------------------------------------------------------------------
@@ -576,12 +623,17 @@ def goal_id_from_msg(d: Mapping[str, Any]) -> tuple[str, float]:
 
 
 def move_base_action_goal(
-    goal_id: str, x: float, y: float, yaw: float, *, stamp: float
+    goal_id: str, x: float, y: float, yaw: float, *, stamp: float, goal_stamp: float | None = None
 ) -> dict[str, Any]:
-    """move_base_msgs/MoveBaseActionGoal: what the robot link publishes on ``/move_base/goal``."""
+    """move_base_msgs/MoveBaseActionGoal: what the robot link publishes on ``/move_base/goal``.
+
+    ``goal_id.stamp`` is ``goal_stamp`` when given, else ``stamp``; 0.0 is the zero stamp that
+    roslibpy and roslibjs send, which the robot's action server replaces with its own clock.
+    """
+    gstamp = stamp if goal_stamp is None else goal_stamp
     return {
         "header": header(0, stamp, ""),
-        "goal_id": {"stamp": ros_time(stamp), "id": goal_id},
+        "goal_id": {"stamp": ros_time(gstamp), "id": goal_id},
         "goal": {"target_pose": pose_stamped(x, y, yaw, stamp=stamp, frame_id="map")},
     }
 
