@@ -19,7 +19,13 @@ Structure:
   20 Hz of *simulated* time (so results do not depend on ``time_scale``), and the fault hooks.
 
 All time goes through a :class:`~serveur.clock.Clock`: motion, publish rates, ``throttle_rate``,
-the stale ``cmd_vel`` timeout and ROS stamps (``clock.epoch()``).
+the stale ``cmd_vel`` timeout and ROS stamps (``clock.epoch()``, plus the robots'
+``clock_offset``: a robot's clock need not agree with the server's).
+
+How far the robots follow the real ROS1 stack rather than an idealised one (actionlib's stamp
+rules, move_base ignoring ``/cmd_vel``, AMCL's motion thresholds, rosbridge 0.11's ``status``,
+CBOR and fragment quirks) is written in :mod:`serveur.sim.robot` and :mod:`serveur.sim.bridge`,
+each rule with its source (actionlib / rosbridge_suite code, or shared/notes/rosbridge.md).
 """
 
 from __future__ import annotations
@@ -53,10 +59,11 @@ from serveur.maps.navigation import (
 from serveur.robots import rosbridge as rb
 from serveur.sim.bridge import Endpoint
 from serveur.sim.kinematics import KINDS
-from serveur.sim.robot import AMCL_TICKS, MAX_CATCH_UP, TICK, SimRobot
+from serveur.sim.robot import AMCL_MODES, AMCL_TICKS, MAX_CATCH_UP, TICK, SimRobot
 from serveur.sim.topics import Frame
 
 __all__ = [
+    "AMCL_MODES",
     "TICK",
     "SimRobot",
     "Simulation",
@@ -269,6 +276,8 @@ async def start_simulation(
     names: Sequence[str] | None = None,
     ssl: ssl_module.SSLContext | None = None,
     spread: bool = False,
+    clock_offset: float = 0.0,
+    amcl: str = "continuous",
 ) -> Simulation:
     """Start ``n`` robots listening on ports ``port``..``port+n-1`` (0: free ports).
 
@@ -276,11 +285,18 @@ async def start_simulation(
     seed ``seed + i``. ``clock`` overrides ``time_scale`` (tests pass a shared ScaledClock).
     ``ssl`` (a server context, see serveur.security.tls.server_context) serves every robot over TLS.
     ``spread`` spreads the robots' publish phases over the AMCL period (:meth:`Simulation.phases`).
+    ``clock_offset`` (seconds) sets every robot's clock that far from ``clock``: all they stamp
+    is ``clock.epoch() + clock_offset``. ``amcl`` is ``"continuous"`` (10 Hz poses) or
+    ``"real"`` (latched, only after motion, like the amcl node): see :mod:`serveur.sim.robot`.
     """
     if n < 1:
         raise ValueError("at least one robot")
     if kinematics not in KINDS:
         raise ValueError(f"kinematics must be one of {KINDS}, not {kinematics!r}")
+    if amcl not in AMCL_MODES:
+        raise ValueError(f"amcl must be one of {AMCL_MODES}, not {amcl!r}")
+    if not math.isfinite(clock_offset):
+        raise ValueError("clock_offset must be a finite number of seconds")
     if names is not None and len(names) < n:
         raise ValueError("fewer names than robots")
     clock = clock or ScaledClock(time_scale)
@@ -296,7 +312,8 @@ async def start_simulation(
     planner = Planner(grid, robot_radius=0.2, cache_size=max(32, len(waypoints) + 16))
     plan_lock = threading.Lock()
     homes = _start_poses(n, grid, planner, waypoints)
-    map_frame = Frame(rb.op_publish("/map", rb.occupancy_grid(grid, stamp=clock.epoch(), seq=0)))
+    map_stamp = clock.epoch() + clock_offset
+    map_frame = Frame(rb.op_publish("/map", rb.occupancy_grid(grid, stamp=map_stamp, seq=0)))
     robots: list[SimRobot] = []
     endpoints: list[Endpoint] = []
     for i in range(n):
@@ -311,6 +328,8 @@ async def start_simulation(
             seed=seed + i,
             map_frame=map_frame,
             plan_lock=plan_lock,
+            clock_offset=clock_offset,
+            amcl=amcl,
         )
         robots.append(robot)
         endpoints.append(Endpoint(robot, host, port + i if port else 0, ssl))
@@ -354,6 +373,21 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
         help="publish robot i's poses i/N of the AMCL period after robot 0's, as independent "
         "robots do (default: the robots are stepped in lock-step)",
     )
+    parser.add_argument(
+        "--clock-offset",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="the robots' clocks run this far ahead (negative: behind) of this machine's; "
+        "every stamp they make is offset (default 0)",
+    )
+    parser.add_argument(
+        "--amcl",
+        choices=AMCL_MODES,
+        default="continuous",
+        help="continuous (default): /amcl_pose at 10 Hz; real: like the amcl node, latched "
+        "and only after 0.2 m or 30 degrees of motion",
+    )
 
 
 async def run_sim(
@@ -370,6 +404,8 @@ async def run_sim(
     out: TextIO | None = None,
     ssl: ssl_module.SSLContext | None = None,
     spread: bool = False,
+    clock_offset: float = 0.0,
+    amcl: str = "continuous",
 ) -> int:
     """Run a simulation until ``stop`` is set or SIGINT/SIGTERM; print the URLs first.
 
@@ -396,6 +432,8 @@ async def run_sim(
                 names=names,
                 ssl=ssl,
                 spread=spread,
+                clock_offset=clock_offset,
+                amcl=amcl,
             )
         except (OSError, ServeurError, ValueError) as exc:
             print(f"serveur sim: cannot start: {exc}", file=sys.stderr, flush=True)
@@ -440,4 +478,6 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
         names=names,
         ssl=ctx,
         spread=ns.spread_phases,
+        clock_offset=getattr(ns, "clock_offset", 0.0),
+        amcl=getattr(ns, "amcl", "continuous"),
     )

@@ -412,7 +412,7 @@ def _rosapi_topics(client: BridgeClient, args: Any) -> dict[str, Any]:
 
 
 def _rosapi_get_time(client: BridgeClient, args: Any) -> dict[str, Any]:
-    return {"time": rb.ros_time(client.clock.epoch())}
+    return {"time": rb.ros_time(client.robot.epoch())}  # the robot's clock, offset included
 
 
 def _rosapi_topic_type(client: BridgeClient, args: Any) -> dict[str, Any]:

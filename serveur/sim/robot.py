@@ -6,6 +6,40 @@ cancels, ``cmd_vel`` and initial poses it is sent, and what it publishes, at whi
 which quirks (actionlib's status list, terminal goals kept 5 s, a blocked robot aborting its
 goal, noisy AMCL poses and laser scans). Its rosbridge side is :mod:`serveur.sim.bridge`.
 Everything is stepped by the fleet at :data:`TICK` of simulated time.
+
+move_base's goals follow actionlib's ActionServer and SimpleActionServer (actionlib
+``action_server.py``, ``status_tracker.py``, ``simple_action_server.py``; C++ move_base uses
+the same rules) and shared/notes/rosbridge.md, checked on a real ROS1 stack:
+
+* A goal with a zero ``goal_id.stamp`` (roslibpy, roslibjs, ``/move_base_simple/goal``) is
+  stamped with the robot's own clock on arrival (StatusTracker). A goal with an empty id gets
+  ``/move_base-N-STAMP`` (GoalIDGenerator).
+* A goal with a non-zero stamp at or before the last cancel-by-stamp is RECALLED at once
+  (ActionServer ``internal_goal_callback``).
+* A goal stamped earlier than the last goal the SimpleActionServer took (``goalCallback``:
+  ``stamp >= current_goal's and >= next_goal's``) is RECALLED at once with
+  :data:`SAS_CANCELED`; the running goal goes on.
+* A newer goal preempts the running one: PREEMPTED, or RECALLED if it had not started, with
+  :data:`SAS_CANCELED` (``accept_new_goal``, ``internal_goal_callback``).
+* ``/move_base/cancel`` with an empty id and a zero stamp cancels every goal, by id that goal,
+  with a stamp every goal stamped at or before it (``internal_cancel_callback``): an ACTIVE
+  goal becomes PREEMPTING at once and PREEMPTED at move_base's next control cycle (its
+  ``executeCb`` checks ``isPreemptRequested`` each cycle and calls ``setPreempted()``, empty
+  text); a goal still PENDING is RECALLED.
+* move_base does not subscribe to ``/cmd_vel``; it publishes there. While it drives a goal its
+  controller's commands override a teleop ``/cmd_vel`` every cycle, so teleop neither preempts
+  nor moves the robot; only with no goal does ``/cmd_vel`` drive it.
+
+The robot's clock may run ``clock_offset`` seconds from the fleet's (a robot whose NTP is off):
+everything it stamps — headers, the stamps of zero-stamped goals, rosapi ``get_time`` — is
+``clock.epoch() + clock_offset``.
+
+AMCL runs in one of :data:`AMCL_MODES`: ``"continuous"`` publishes ``/amcl_pose`` at 10 Hz
+whatever the robot does; ``"real"`` behaves like the amcl node (shared/notes/rosbridge.md): the
+topic is latched (a new subscriber gets the last pose at once), and a pose is published once at
+start, once after each ``/initialpose`` and otherwise only after the robot moved more than
+:data:`AMCL_UPDATE_MIN_D` or turned more than :data:`AMCL_UPDATE_MIN_A` since the last
+published pose (amcl's ``update_min_d``/``update_min_a``): a parked robot publishes nothing.
 """
 
 from __future__ import annotations
@@ -38,7 +72,18 @@ from serveur.sim.kinematics import (
 )
 from serveur.sim.topics import Frame, Sub, consume_exception
 
-__all__ = ["AMCL_TICKS", "MAX_CATCH_UP", "TICK", "SimRobot"]
+__all__ = [
+    "AMCL_MODES",
+    "AMCL_TICKS",
+    "AMCL_UPDATE_MIN_A",
+    "AMCL_UPDATE_MIN_D",
+    "LAST_CANCEL_CANCELED",
+    "MAX_CATCH_UP",
+    "SAS_ACCEPTED",
+    "SAS_CANCELED",
+    "TICK",
+    "SimRobot",
+]
 
 log = logging.getLogger("serveur.robot_sim")
 
@@ -64,6 +109,21 @@ SCAN_RANGE_MAX: Final = 8.0
 SCAN_NOISE: Final = 0.01  # m, sigma
 AMCL_NOISE_XY: Final = 0.01  # m, sigma
 AMCL_NOISE_YAW: Final = 0.005  # rad, sigma
+#: ``amcl`` parameter values: 10 Hz poses whatever happens, or the amcl node's behaviour.
+AMCL_MODES: Final = ("continuous", "real")
+AMCL_UPDATE_MIN_D: Final = 0.2  # m: amcl's update_min_d default
+AMCL_UPDATE_MIN_A: Final = math.pi / 6.0  # rad (30 degrees): amcl's update_min_a default
+
+#: actionlib SimpleActionServer's texts (simple_action_server.py), word for word.
+SAS_CANCELED: Final = (
+    "This goal was canceled because another goal was received by the simple action server"
+)
+SAS_ACCEPTED: Final = "This goal has been accepted by the simple action server"
+#: actionlib ActionServer's text for a goal stamped at or before the last cancel's stamp.
+LAST_CANCEL_CANCELED: Final = (
+    "This goal handle was canceled by the action server because its timestamp is before the "
+    "timestamp of the last cancel request"
+)
 _MAP_FRAMES: Final = frozenset({"map", "/map", ""})
 
 
@@ -97,7 +157,11 @@ class SimRobot:
     """One simulated robot: its body, its move_base, its sensors, and what it publishes.
 
     Public read-only state: ``name``, ``pose`` (true pose), ``kinematics``, ``battery``
-    (0..1), ``home``, ``velocity``. Fault hooks: :meth:`block_path`, :meth:`ignore_goals`.
+    (0..1), ``home``, ``velocity``, ``clock_offset``, ``amcl``. Fault hooks:
+    :meth:`block_path`, :meth:`ignore_goals`.
+
+    ``clock_offset`` (seconds) is added to every stamp the robot makes (:meth:`epoch`);
+    ``amcl`` is one of :data:`AMCL_MODES` (see the module's docstring).
     """
 
     def __init__(
@@ -114,8 +178,16 @@ class SimRobot:
         limits: Limits | None = None,
         map_frame: Frame | None = None,
         plan_lock: threading.Lock | None = None,
+        clock_offset: float = 0.0,
+        amcl: str = "continuous",
     ) -> None:
+        if amcl not in AMCL_MODES:
+            raise ValueError(f"amcl must be one of {AMCL_MODES}, not {amcl!r}")
+        if not math.isfinite(clock_offset):
+            raise ValueError("clock_offset must be a finite number of seconds")
         self.name = name
+        self.clock_offset = float(clock_offset)
+        self.amcl = amcl
         self.index = index
         self.kinematics: Kind = kinematics
         self.home = home
@@ -146,6 +218,14 @@ class SimRobot:
         self._blocked_since: float | None = None
         self._stuck_for = 0.0
         self._goal_counter = itertools.count(1)
+        #: Stamp of the last goal the SimpleActionServer took (its current or next goal).
+        self._sas_stamp = 0.0
+        #: Latest stamp of a cancel-by-stamp (ActionServer's ``last_cancel``).
+        self._last_cancel = 0.0
+        # AMCL in "real" mode: the latched pose, the true pose it was taken at, a forced update
+        self._amcl_frame: Frame | None = None
+        self._amcl_at: tuple[float, float, float] | None = None
+        self._amcl_force = True
         # teleop
         self._teleop: tuple[float, float, float] | None = None
         self._teleop_t = -math.inf
@@ -157,6 +237,10 @@ class SimRobot:
         self._scan_cache: tuple[tuple[float, float, float], npt.NDArray[np.float64]] | None = None
 
     # -- public state ----------------------------------------------------------------------
+
+    def epoch(self) -> float:
+        """The robot's ROS time now: the fleet clock's Unix time plus ``clock_offset``."""
+        return self._clock.epoch() + self.clock_offset
 
     @property
     def pose(self) -> tuple[float, float, float]:
@@ -235,7 +319,7 @@ class SimRobot:
         if not wanting:
             return
         if stamp is None:
-            stamp = self._clock.epoch()
+            stamp = self.epoch()
         frame = Frame(rb.op_publish(topic, build(self._next_seq(topic), stamp)))
         for s in wanting:
             s.push(frame, t)
@@ -250,8 +334,11 @@ class SimRobot:
                     s.push(frame, t)
 
     def _offer_latched(self, sub: Sub) -> None:
+        """A new subscriber to a latched topic gets its last message at once."""
         if sub.topic == "/map" and self._map_frame is not None:
             sub.push(self._map_frame, self._t)
+        elif sub.topic == "/amcl_pose" and self._amcl_frame is not None:
+            sub.push(self._amcl_frame, self._t)
 
     # -- incoming messages (raise RosbridgeError on shapes the ROS type cannot hold) ----------
 
@@ -273,10 +360,17 @@ class SimRobot:
         return warn
 
     def _on_cmd_vel(self, msg: Mapping[str, Any]) -> str | None:
+        """A teleop command drives the base only while move_base has no goal.
+
+        move_base does not subscribe to ``/cmd_vel`` (shared/notes/rosbridge.md): a goal is not
+        preempted by teleop, and while it runs the controller's own ``/cmd_vel`` (every cycle)
+        overrides a teleop command, so the command is dropped.
+        """
         vx, vy, wz = rb.twist_from_msg(msg)
         if not all(math.isfinite(v) for v in (vx, vy, wz)):
             raise RosbridgeError("cmd_vel holds a non-finite velocity")
-        self._cancel_goals(GoalStatus.PREEMPTED, "preempted by teleoperation (cmd_vel)")
+        if self._active is not None or self._pending is not None:
+            return None
         self._teleop = (vx, vy, wz)
         self._teleop_t = self._clock.now()
         return None
@@ -299,57 +393,73 @@ class SimRobot:
         return self._new_goal(gid, gstamp, target)
 
     def _on_simple_goal(self, msg: Mapping[str, Any]) -> str | None:
-        target = _obj(msg, "goal")
-        stamp = rb.from_ros_time(_obj(target.get("header"), "header").get("stamp") or {})
-        return self._new_goal("", stamp, target)
+        # move_base's goalCB wraps the PoseStamped in an action goal with an empty goal id,
+        # so the action server gives it an id and stamps it now.
+        return self._new_goal("", 0.0, _obj(msg, "goal"))
 
     def _new_goal(self, gid: str, gstamp: float, target: Mapping[str, Any]) -> str | None:
+        """A goal reaching move_base's action server (rules in the module's docstring)."""
         frame = _header_frame(target)
         pose = _obj(target.get("pose"), "pose")
         x, y, _ = rb.point_from_msg(_obj(pose.get("position"), "position"))
         q = rb.quaternion_from_msg(_obj(pose.get("orientation"), "orientation"))
         if self._ignore_goals:
             return None
+        now = self.epoch()
         if not gid:
-            t = self._clock.epoch()
-            gid = f"/move_base-{next(self._goal_counter)}-{t:.9f}"
+            gid = f"/move_base-{next(self._goal_counter)}-{now:.9f}"
         if any(g.id == gid for g in self._goals):
             return f"goal {gid} is a duplicate; ignored"
-        goal = _Goal(gid, gstamp or self._clock.epoch(), x, y, 0.0)
+        # StatusTracker: a zero stamp becomes the robot's now, so such a goal is the newest.
+        goal = _Goal(gid, gstamp if gstamp != 0.0 else now, x, y, 0.0)
+        self._goals.append(goal)
+        if gstamp != 0.0 and gstamp <= self._last_cancel:  # ActionServer
+            self._finish(goal, GoalStatus.RECALLED, LAST_CANCEL_CANCELED)
+            return None
+        if goal.stamp < self._sas_stamp:  # SimpleActionServer: older than the goal it has
+            self._finish(goal, GoalStatus.RECALLED, SAS_CANCELED)
+            return None
+        self._sas_stamp = goal.stamp
         reason = _goal_problem(frame, x, y, q)
         if reason is not None:
-            self._goals.append(goal)
             self._finish(goal, GoalStatus.REJECTED, reason)
             return None
         goal.yaw = rb.yaw_from_quaternion({"x": q[0], "y": q[1], "z": q[2], "w": q[3]})
-        # A newer goal preempts the current one (SimpleActionServer semantics).
-        self._cancel_goals(GoalStatus.PREEMPTED, "preempted by a newer goal")
+        # The newer goal preempts the current one (SimpleActionServer.accept_new_goal) and
+        # bumps one still pending (internal_goal_callback).
+        for g in self._goals:
+            if g is not goal and not g.terminal:
+                self._cancel_one(g, SAS_CANCELED, at_once=True)
         self._teleop = None
-        self._goals.append(goal)
         self._pending = goal
         self._publish_status()
         return None
 
     def _on_cancel(self, msg: Mapping[str, Any]) -> str | None:
+        """ActionServer ``internal_cancel_callback``: all, by id, or up to a stamp."""
         gid, stamp = rb.goal_id_from_msg(_obj(msg, "cancel"))
-        if not gid and stamp == 0.0:
-            self._cancel_goals(GoalStatus.PREEMPTED, "canceled")
-            return None
+        everything = not gid and stamp == 0.0
         for g in list(self._goals):
-            if not g.terminal and (g.id == gid or (stamp != 0.0 and g.stamp <= stamp)):
-                self._cancel_one(g, "canceled")
+            if not g.terminal and (
+                everything or g.id == gid or (stamp != 0.0 and g.stamp <= stamp)
+            ):
+                self._cancel_one(g, "")
+        self._last_cancel = max(self._last_cancel, stamp)
         return None
 
     # -- move_base ---------------------------------------------------------------------------
 
-    def _cancel_goals(self, status: GoalStatus, text: str) -> None:
-        for g in list(self._goals):
-            if not g.terminal:
-                self._cancel_one(g, text, status)
-
-    def _cancel_one(self, g: _Goal, text: str, status: GoalStatus = GoalStatus.PREEMPTED) -> None:
-        # actionlib: a goal never started is RECALLED, a started one PREEMPTED.
-        self._finish(g, GoalStatus.RECALLED if g.status == GoalStatus.PENDING else status, text)
+    def _cancel_one(self, g: _Goal, text: str, *, at_once: bool = False) -> None:
+        """Cancel one goal: a goal never started is RECALLED; a started one PREEMPTED, either
+        ``at_once`` (a newer goal took its place) or, on a cancel request, PREEMPTING until
+        move_base's next control cycle stops the robot (:meth:`_command`)."""
+        if g.status == GoalStatus.PENDING:
+            self._finish(g, GoalStatus.RECALLED, text)
+        elif at_once:
+            self._finish(g, GoalStatus.PREEMPTED, text)
+        elif g.status == GoalStatus.ACTIVE:
+            g.status = GoalStatus.PREEMPTING
+            self._publish_status()
 
     def _finish(self, g: _Goal, status: GoalStatus, text: str) -> None:
         g.status, g.text, g.ended = status, text, self._t
@@ -361,7 +471,7 @@ class SimRobot:
             self._pending = None
         if g is self._plan_goal:
             self._plan_fut = self._plan_goal = None
-        stamp = self._clock.epoch()
+        stamp = self.epoch()
         self._publish(
             "/move_base/result",
             lambda seq, _s: rb.move_base_result(
@@ -422,18 +532,23 @@ class SimRobot:
             self._pending = None
             self._active = g
             g.status = GoalStatus.ACTIVE
-            g.text = "This goal has been accepted by the simple action server"
+            g.text = SAS_ACCEPTED
             self._publish_status()
 
     def _relocalise(self, x: float, y: float, yaw: float) -> None:
         self._motion.teleport(x, y, yaw)
         self._scan_cache = None
+        self._amcl_force = True  # amcl publishes the pose it was given
         g = self._active or self._pending
         if g is not None:  # move_base replans from the new pose
             self._follower = None
             self._request_plan(g)
 
     def _command(self, now: float) -> tuple[float, float, float]:
+        if self._active is not None and self._active.status == GoalStatus.PREEMPTING:
+            # move_base's control cycle sees the preempt request: zero velocity, setPreempted()
+            self._finish(self._active, GoalStatus.PREEMPTED, "")
+            return 0.0, 0.0, 0.0
         if self._teleop is not None:
             if now - self._teleop_t > CMD_VEL_TIMEOUT:
                 self._teleop = None  # stale: stop, as a velocity watchdog does
@@ -554,7 +669,7 @@ class SimRobot:
         for _ in range(steps):
             self._step(TICK)
             self._ticks = k = self._ticks + 1
-            if self._subs:
+            if self._subs or self.amcl == "real":  # a latched pose is kept without subscribers
                 self._publish_due(k)
 
     def _publish_due(self, k: int) -> None:
@@ -562,7 +677,10 @@ class SimRobot:
         if k % _ODOM_TICKS == 0:
             self._publish("/odom", self._build_odom, stamp)
         if k % AMCL_TICKS == 0:
-            self._publish("/amcl_pose", self._build_amcl, stamp)
+            if self.amcl == "real":
+                self._amcl_update(stamp)
+            else:
+                self._publish("/amcl_pose", self._build_amcl, stamp)
         if k % _FEEDBACK_TICKS == 0 and self._active is not None:
             self._publish("/move_base/feedback", self._build_feedback, stamp)
         if k % _SCAN_TICKS == 0:
@@ -572,10 +690,38 @@ class SimRobot:
         if k % _BATTERY_TICKS == 0:
             self._publish("/battery_state", self._build_battery, stamp)
 
+    def _amcl_update(self, stamp: float) -> None:
+        """AMCL in "real" mode: publish (latched) only when forced or after enough motion.
+
+        amcl_node.cpp updates its filter when the motion since the last update exceeds
+        ``update_min_d`` or ``update_min_a`` and publishes after the first update following
+        an initial pose; the notes' model of it (shared/notes/rosbridge.md) is what is coded:
+        more than 0.2 m (straight-line distance) or 30 degrees since the last published pose.
+        """
+        x, y, yaw = self.pose
+        at = self._amcl_at
+        if (
+            not self._amcl_force
+            and at is not None
+            and math.hypot(x - at[0], y - at[1]) <= AMCL_UPDATE_MIN_D
+            and abs(wrap_angle(yaw - at[2])) <= AMCL_UPDATE_MIN_A
+        ):
+            return
+        self._amcl_force = False
+        self._amcl_at = (x, y, yaw)
+        frame = Frame(
+            rb.op_publish("/amcl_pose", self._build_amcl(self._next_seq("/amcl_pose"), stamp))
+        )
+        self._amcl_frame = frame
+        t = self._t
+        for s in self._subs.get("/amcl_pose", ()):
+            if s.wants(t):
+                s.push(frame, t)
+
     def _tick_stamp(self) -> float:
-        """ROS stamp (Unix time of the clock) of the last physics step."""
+        """ROS stamp (the robot's Unix time, :meth:`epoch`) of the last physics step."""
         clock = self._clock
-        return clock.epoch() - clock.now() + self._t
+        return clock.epoch() - clock.now() + self._t + self.clock_offset
 
     def _publish_status(self) -> None:
         self._publish("/move_base/status", self._build_status)

@@ -491,7 +491,8 @@ async def test_newer_goal_preempts_and_cancel_by_id_and_all(sim: Simulation) -> 
     await c.topic("/move_base/status", lambda m: statuses(m).get("c") == 1)
     await c.send(rb.op_publish("/move_base/cancel", {}))  # roslibpy's cancel-all
     await c.topic("/move_base/status", lambda m: statuses(m).get("c") == 2)
-    assert sim.robots[0].goal_statuses[-1] == ("c", rb.GoalStatus.PREEMPTED, "canceled")
+    # move_base's setPreempted() gives no text.
+    assert sim.robots[0].goal_statuses[-1] == ("c", rb.GoalStatus.PREEMPTED, "")
 
 
 @pytest.mark.parametrize(
@@ -596,14 +597,11 @@ async def test_simple_goal_gets_an_id_and_drives(sim: Simulation) -> None:
     assert result["status"]["status"] == 3 and result["status"]["goal_id"]["id"]
 
 
-async def test_teleop_preempts_the_goal_and_stale_command_stops(sim: Simulation) -> None:
+async def test_teleop_drives_an_idle_robot_and_stale_command_stops(sim: Simulation) -> None:
+    # With a goal, /cmd_vel changes nothing: test_sim_realstack.py.
     c = await open_raw(sim)
-    await c.send(rb.op_subscribe("/move_base/status"))
     await c.send(rb.op_subscribe("/odom"))
-    await c.send(goal_op("t", *FAR))
-    await c.topic("/move_base/status", lambda m: statuses(m).get("t") == 1)
     await c.send(rb.op_publish("/cmd_vel", rb.twist(-0.3, 0.0, 0.0)))
-    await c.topic("/move_base/status", lambda m: statuses(m).get("t") == 2)
     moving = await c.topic("/odom", lambda m: abs(m["twist"]["twist"]["linear"]["x"]) > 0.05)
     # No new command: within 0.5 s (sim) the command is stale and the base brakes to rest.
     rest = await c.topic("/odom", lambda m: m["twist"]["twist"]["linear"]["x"] == 0.0)

@@ -180,20 +180,35 @@ async def test_action_goal_succeeds_within_tolerance(sim: Simulation) -> None:
     assert abs(math.remainder(yaw - T1[2], math.tau)) <= 0.1
 
 
+def _reaches(goal: Goal, status: rb.GoalStatus) -> threading.Event:
+    """Set when ``goal``'s status becomes ``status``.
+
+    On a cancel the robot lists the goal PREEMPTING, then publishes the result and PREEMPTED
+    (actionlib publishes the result first): roslibpy's ``Goal.wait`` returns on the result while
+    ``goal.status`` may still be PREEMPTING, as it would against a real robot.
+    """
+    seen = threading.Event()
+    goal.on("status", lambda s: s["status"] == status and seen.set())
+    return seen
+
+
 async def test_action_goal_cancel_is_preempted(sim: Simulation) -> None:
-    def body(ros: roslibpy.Ros) -> dict[str, Any]:
+    def body(ros: roslibpy.Ros) -> list[int]:
         client = _client(ros)
         goal = _goal(client, *FAR)
-        active = threading.Event()
-        goal.on("status", lambda s: s["status"] == rb.GoalStatus.ACTIVE and active.set())
+        seen: list[int] = []
+        goal.on("status", lambda s: seen.append(s["status"]))
+        active = _reaches(goal, rb.GoalStatus.ACTIVE)
+        preempted = _reaches(goal, rb.GoalStatus.PREEMPTED)
         goal.send()
         assert active.wait(WAIT)
         goal.cancel()
         goal.wait(WAIT)
-        return goal.status  # type: ignore[no-any-return]
+        assert preempted.wait(WAIT)
+        return seen
 
-    status = await with_ros(sim, body)
-    assert status["status"] == rb.GoalStatus.PREEMPTED
+    seen = await with_ros(sim, body)
+    assert rb.GoalStatus.PREEMPTING in seen  # ACTIVE -> PREEMPTING -> PREEMPTED
     assert math.dist(sim.robots[0].pose[:2], FAR[:2]) > 1.0
 
 
@@ -201,12 +216,13 @@ async def test_action_client_cancel_all_then_unreachable_goal_aborts(sim: Simula
     def body(ros: roslibpy.Ros) -> tuple[dict[str, Any], dict[str, Any]]:
         client = _client(ros)
         first = _goal(client, *FAR)
-        active = threading.Event()
-        first.on("status", lambda s: s["status"] == rb.GoalStatus.ACTIVE and active.set())
+        active = _reaches(first, rb.GoalStatus.ACTIVE)
+        preempted = _reaches(first, rb.GoalStatus.PREEMPTED)
         first.send()
         assert active.wait(WAIT)
         client.cancel()  # publishes {} on /move_base/cancel
         first.wait(WAIT)
+        assert preempted.wait(WAIT)
         bad = _goal(client, 100.0, 100.0, 0.0)  # off the map
         bad.send()
         bad.wait(WAIT)
