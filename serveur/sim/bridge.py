@@ -9,6 +9,18 @@ the robot or grows memory. :class:`Endpoint` is one robot's server; :class:`Sub`
 client's subscription to one of the robot's topics, which the robot feeds
 (:class:`serveur.sim.robot.SimRobot`) with :class:`Frame` objects encoded at most
 once per format.
+
+What rosbridge_server 0.11 (ROS1) really does, and so does this server (shared/notes/rosbridge.md,
+checked against a real stack, and rosbridge_library's protocol.py):
+
+* No ``status`` op reaches a client that never sent ``set_level``: the real server only logs.
+  After ``set_level`` a client gets the ``status`` ops at that level and more severe ones.
+* ``fragment_size`` in any op sets the client's fragment size (protocol.py ``incoming``); every
+  later text frame longer than that goes out as ``fragment`` ops whose ``total`` is a float
+  (:func:`serveur.robots.rosbridge.fragment_ops`) and whose ``id`` is the op's ``id``, or 0 for
+  ops without one (fragmentation.py's seed is reset per message).
+* ``compression: "cbor"`` on a type with a fixed-size array (``/amcl_pose``, ``/odom``) sends
+  nothing (see :meth:`serveur.sim.topics.Sub.push`).
 """
 
 from __future__ import annotations
@@ -67,7 +79,24 @@ MAX_SUB_IDS: Final = 64  # subscribe ids merged into one subscription
 ROBOT_SUBSCRIBES: Final = frozenset(
     {"/move_base/goal", "/move_base_simple/goal", "/move_base/cancel", "/cmd_vel", "/initialpose"}
 )
-_LEVELS: Final = {"none": 0, "error": 1, "warning": 2, "info": 3}
+_LEVELS: Final = rb.STATUS_LEVELS
+#: Every op this server handles; ``fragment_size`` is only taken from these (protocol.py drops
+#: an unknown op before it looks at the op's fields).
+_OPS: Final = frozenset(
+    {
+        "publish",
+        "subscribe",
+        "unsubscribe",
+        "advertise",
+        "unadvertise",
+        "call_service",
+        "service_response",
+        "advertise_service",
+        "unadvertise_service",
+        "fragment",
+        "set_level",
+    }
+)
 
 # ---------------------------------------------------------------------------------------------
 # One client connection
@@ -107,7 +136,11 @@ class BridgeClient:
         self.advertised: set[str] = set()
         self.control: deque[tuple[int, Frame]] = deque(maxlen=CONTROL_QUEUE)
         self.wake = asyncio.Event()
-        self.level = _LEVELS["error"]
+        #: Status ops sent at this level and below; "none" until the client sends set_level,
+        #: as rosbridge 0.11 sends no status op at all by default (shared/notes/rosbridge.md).
+        self.level = _LEVELS["none"]
+        #: Text frames longer than this many characters go out as fragments (None: never).
+        self.fragment_size: int | None = None
         self.fragments: dict[str | int, dict[int, str]] = {}
         self.calls: dict[str, asyncio.Future[tuple[Any, bool]]] = {}  # calls we forwarded to it
         self.tasks: set[asyncio.Task[None]] = set()
@@ -119,11 +152,13 @@ class BridgeClient:
         self.wake.set()
 
     def status(self, level: str, text: str, id: str | int | None) -> None:
+        """A ``status`` op, only if the client asked for ``level`` with ``set_level``."""
         if _LEVELS[level] <= self.level:
             self.reply(rb.op_status(level, text, id))
 
-    def _pop_next(self, now: float) -> tuple[bytes, bool] | float | None:
-        """The next frame to send (bytes, binary); else when a throttled one is due; else None."""
+    def _pop_next(self, now: float) -> tuple[bytes, bool, Frame] | float | None:
+        """The next frame to send (bytes, binary, frame); else when a throttled one is due;
+        else None."""
         best: deque[tuple[int, Frame]] | None = None
         best_sub: Sub | None = None
         best_seq = 0
@@ -145,9 +180,9 @@ class BridgeClient:
             return due
         _, frame = best.popleft()
         if best_sub is None:
-            return frame.text(), False
+            return frame.text(), False, frame
         best_sub.last_sent = now
-        return (frame.cbor(), True) if best_sub.cbor else (frame.text(), False)
+        return (frame.cbor(), True, frame) if best_sub.cbor else (frame.text(), False, frame)
 
     async def writer(self) -> None:
         """Send queued frames in order; only this task waits on the socket, never the robot."""
@@ -155,7 +190,11 @@ class BridgeClient:
         while True:
             nxt = self._pop_next(clock.now())
             if isinstance(nxt, tuple):
-                data, binary = nxt
+                data, binary, frame = nxt
+                size = self.fragment_size
+                if size is not None and not binary and len(data) > size:
+                    await self._send_fragments(data.decode(), size, frame)
+                    continue
                 await ws.send(data, text=not binary)
                 continue
             wake.clear()
@@ -169,6 +208,20 @@ class BridgeClient:
             finally:
                 waiter.cancel()
                 sleeper.cancel()
+
+    async def _send_fragments(self, text: str, size: int, frame: Frame) -> None:
+        """One text frame as consecutive ``fragment`` ops (rosbridge 0.11's protocol.py ``send``).
+
+        The fragments' ``id`` is the op's own ``id`` (a ``service_response``'s call id), else 0:
+        fragmentation.py numbers id-less messages from a seed it keeps on a fresh instance per
+        message, so every one of them is fragment id 0. Binary (cbor) frames are never cut.
+        """
+        if len(text) <= size:  # a multi-byte character made the bytes longer than the text
+            await self.ws.send(text)
+            return
+        fid = _op_id(frame.op)
+        for part in rb.fragment_ops(text, size, 0 if fid is None else fid):
+            await self.ws.send(rb.encode(part))
 
     # -- receiving ---------------------------------------------------------------------------
 
@@ -201,6 +254,10 @@ class BridgeClient:
     def handle_op(self, msg: dict[str, Any], depth: int = 0) -> None:
         op = msg["op"]
         oid = _op_id(msg)
+        if op in _OPS and "fragment_size" in msg:
+            # Any op may carry it and it holds for the client from then on (protocol.py).
+            size = _opt_int(msg, "fragment_size")
+            self.fragment_size = size if size > 0 else None
         if op == "publish":
             self._publish(msg, oid)
         elif op == "subscribe":
@@ -234,6 +291,7 @@ class BridgeClient:
         elif op == "fragment":
             self._fragment(msg, depth)
         elif op == "set_level":
+            # ROSBRIDGE_PROTOCOL.md (ROS1): status ops at this level and more severe ones.
             level = msg.get("level")
             if level not in _LEVELS:
                 raise RosbridgeError(f"level must be one of {sorted(_LEVELS)}")
@@ -268,7 +326,6 @@ class BridgeClient:
             raise RosbridgeError(f"{topic} is of type {known}, not {typ!r}")
         throttle = _opt_int(msg, "throttle_rate") / 1000.0
         qlen = min(_opt_int(msg, "queue_length"), MAX_QUEUE)
-        _opt_int(msg, "fragment_size")
         compression = msg.get("compression") or "none"
         if compression not in ("none", "cbor", "png", "cbor-raw"):
             raise RosbridgeError(f"unknown compression {compression!r}")

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import logging
 import math
 from collections import deque
 from collections.abc import Mapping
@@ -27,6 +28,8 @@ __all__ = [
     "consume_exception",
     "next_order",
 ]
+
+log = logging.getLogger("serveur.robot_sim")
 
 DEFAULT_QUEUE: Final = 10  # per-topic buffer of a subscription without queue_length
 _seq = itertools.count()  # global order of queued frames, so a client gets them in publish order
@@ -83,8 +86,10 @@ class Sub:
     __slots__ = (
         "cbor",
         "client",
+        "fixed_arrays",
         "last_offer",
         "last_sent",
+        "logged",
         "params",
         "qlen",
         "queue",
@@ -95,6 +100,9 @@ class Sub:
     def __init__(self, client: Subscriber, topic: str) -> None:
         self.client = client
         self.topic = topic
+        #: The topic's type holds a fixed-size array, which rosbridge 0.11 cannot CBOR-encode.
+        self.fixed_arrays = rb.TOPIC_TYPES.get(topic) in rb.FIXED_ARRAY_TYPES
+        self.logged = False
         self.params: dict[str | int | None, SubParams] = {}
         self.throttle = 0.0
         self.qlen = 0
@@ -122,6 +130,22 @@ class Sub:
         return self.throttle <= 0.0 or self.qlen > 0 or t - self.last_offer >= self.throttle - 1e-6
 
     def push(self, frame: Frame, t: float) -> None:
+        """Queue ``frame`` for the client (the oldest is dropped from a full queue).
+
+        A ``cbor`` subscription to a type with a fixed-size array gets nothing: rosbridge 0.11's
+        CBOR encoder raises on ``float64[36]`` covariances, logs the exception and sends no
+        frame (shared/notes/rosbridge.md). The real server logs every message; we log once per
+        subscription.
+        """
+        if self.cbor and self.fixed_arrays:
+            if not self.logged:
+                self.logged = True
+                log.error(
+                    "%s: cannot CBOR-encode a message with a fixed-size array; nothing sent "
+                    "(as rosbridge 0.11)",
+                    self.topic,
+                )
+            return
         self.last_offer = t
         self.queue.append((next_order(), frame))  # a full deque drops its oldest entry
         self.client.wake.set()

@@ -103,10 +103,15 @@ async def sim() -> AsyncIterator[Simulation]:
         await shut(s)
 
 
-async def open_raw(sim: Simulation, i: int = 0, **kw: Any) -> Raw:
+async def open_raw(sim: Simulation, i: int = 0, *, level: str | None = None, **kw: Any) -> Raw:
+    """A raw client of robot ``i``; with ``level`` it first asks for status ops (set_level):
+    like rosbridge 0.11, the simulator sends none to a client that did not."""
     ws = await connect(sim.urls[i], max_size=None, **kw)
     _OPEN.append(ws)
-    return Raw(ws)
+    raw = Raw(ws)
+    if level is not None:
+        await raw.send(rb.op_set_level(level))
+    return raw
 
 
 def statuses(msg: dict[str, Any]) -> dict[str, int]:
@@ -201,7 +206,7 @@ BAD_INPUTS: list[tuple[str, str | bytes, str | int | None]] = [
 async def test_bad_input_answers_status_and_keeps_everything_running(
     sim: Simulation, frame: str | bytes, rid: str | int | None
 ) -> None:
-    c = await open_raw(sim)
+    c = await open_raw(sim, level="error")
     await c.send(rb.op_subscribe("/amcl_pose"))
     await c.topic("/amcl_pose")
     pose_before = sim.robots[0].pose
@@ -220,7 +225,7 @@ async def test_bad_input_answers_status_and_keeps_everything_running(
 
 
 async def test_unknown_service_gets_a_failed_response_and_a_status(sim: Simulation) -> None:
-    c = await open_raw(sim)
+    c = await open_raw(sim, level="error")
     await c.send(rb.op_call_service("/no/such", id="s1"))
     resp = await c.wait_for(lambda m: m["op"] == "service_response")
     assert resp["id"] == "s1" and resp["result"] is False and "does not exist" in resp["values"]
@@ -240,7 +245,7 @@ async def test_oversize_frame_closes_1009_but_others_carry_on(sim: Simulation) -
 
 
 async def test_huge_but_legal_frame_is_answered(sim: Simulation) -> None:
-    c = await open_raw(sim)
+    c = await open_raw(sim, level="error")
     await c.send(
         json.dumps({"op": "publish", "id": "big", "topic": "/nope", "msg": {"pad": "y" * 900_000}})
     )
@@ -258,7 +263,9 @@ def _typed(tag: cbor2.CBORTag, fmt: str) -> list[Any]:
 
 async def test_cbor_only_for_clients_that_ask(sim: Simulation) -> None:
     binary, plain = await open_raw(sim), await open_raw(sim)
-    for topic in ("/scan", "/map", "/odom"):
+    # Not /odom or /amcl_pose: rosbridge 0.11 sends nothing for those in cbor
+    # (test_sim_realstack.py).
+    for topic in ("/scan", "/map", "/battery_state"):
         await binary.send(rb.op_subscribe(topic, compression="cbor"))
         await plain.send(rb.op_subscribe(topic, compression="none"))
     got: dict[str, dict[str, Any]] = {}
@@ -280,9 +287,9 @@ async def test_cbor_only_for_clients_that_ask(sim: Simulation) -> None:
     cells = _typed(grid["data"], "b")
     assert len(cells) == grid["info"]["width"] * grid["info"]["height"]
     assert set(cells) <= {-1, 0, 100}
-    assert got["/odom"]["pose"]["covariance"].tag == 86
+    assert 0.0 <= got["/battery_state"]["percentage"] <= 1.0
     # The plain client gets the same topics as text (Raw.wait_for asserts every frame is str).
-    for topic in ("/map", "/scan", "/odom", "/scan"):
+    for topic in ("/map", "/scan", "/battery_state", "/scan"):
         await plain.topic(topic)
 
 
@@ -765,7 +772,7 @@ async def test_cli_runner_prints_urls_and_stops_cleanly_on_sigint() -> None:
 
 
 async def test_per_client_bookkeeping_is_capped(sim: Simulation) -> None:
-    c = await open_raw(sim)
+    c = await open_raw(sim, level="error")
     for i in range(64):
         await c.send(rb.op_subscribe("/odom", id=f"s{i}"))
     await c.send(rb.op_subscribe("/odom", id="one-too-many"))
