@@ -56,7 +56,7 @@ from serveur.domain import (
     WaypointKind,
     WaypointRecord,
 )
-from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurError
+from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurError, StoreError
 from serveur.robots import rosbridge as rb
 from serveur.robots.ros1.link import RobotLink
 from serveur.scheduler import Candidate, Dispatcher
@@ -298,8 +298,9 @@ class Core:
         data: Mapping[str, Any] | None = None,
     ) -> Robot:
         rt = self._rt[name]
-        rt.state = st
         last_error = self._robots[name].last_error if keep_error else error
+        # The live state follows the store: a write that failed (disk full) changes nothing,
+        # so the report that asked for it can be retried from the same state.
         robot = await self.store.save_robot_state(
             name,
             status=st.status,
@@ -310,6 +311,7 @@ class Core:
             event=event,
             data=data,
         )
+        rt.state = st
         self._robots[name] = robot
         self.publisher.pub("robots", self._robot_view(name))
         if st.status is not S.OFFLINE:
@@ -638,6 +640,14 @@ class Core:
         if goal_id != rt.goal_id:
             return  # a goal we already replaced or cancelled
         rt.goal_id = None
+        try:
+            await self._goal_ended(rt, status, text)
+        except StoreError:
+            if rt.goal_id is None:
+                rt.goal_id = goal_id  # not applied: the retry must still recognise the goal
+            raise
+
+    async def _goal_ended(self, rt: Runtime, status: rb.GoalStatus, text: str) -> None:
         dest = rt.dest
         st = rt.state.status
         if status is rb.GoalStatus.SUCCEEDED and dest is not None:

@@ -30,6 +30,7 @@ from serveur.core.hub import Hub
 from serveur.core.places import Places
 from serveur.core.publisher import Publisher
 from serveur.core.runtime import CoreConfig, Runtime, pose_dict
+from serveur.errors import StoreError
 from serveur.robots import rosbridge as rb
 from serveur.scheduler import MIN_BATTERY
 
@@ -40,6 +41,9 @@ log = logging.getLogger(__name__)
 #: Seconds a robot restored Offline at start is given to connect before a hand-over, however
 #: long it was away before the restart (its link needs a connection and a first status).
 HANDOVER_GRACE = 10.0
+#: Wall seconds between tries of a report the store could not write (disk full, I/O error),
+#: doubling from the first to the last.
+STORE_RETRY = (0.5, 10.0)
 
 
 class ReportHandler(Protocol):
@@ -132,14 +136,39 @@ class LinkReports:
     async def _worker(self, rt: Runtime) -> None:
         while True:
             kind, args = await rt.events.get()
+            await self._apply(rt, kind, args)
+
+    async def _apply(self, rt: Runtime, kind: str, args: tuple[Any, ...]) -> None:
+        """Handle one report; one the store could not write is kept and tried again.
+
+        A goal result is what moves a trip on: dropped because the disk was full, the trip
+        would never complete (the robot at the table, the order "assigned" for ever). So a
+        :class:`~serveur.errors.StoreError` keeps the report at the head of the robot's queue
+        and retries it, with backoff, until the store takes it; the reports behind it wait,
+        since their order matters. The handler changes no live state before its write
+        succeeds, so a retry decides afresh.
+        """
+        delay, longest = STORE_RETRY
+        failing = False
+        while True:
             try:
                 async with rt.lock:
                     await self._handler.on_report(rt, kind, args)
                 await self._publisher.flush_events()
             except asyncio.CancelledError:
                 raise
+            except StoreError as exc:
+                if not failing:
+                    log.error("%s: %s report not stored, retrying: %s", rt.name, kind, exc)
+                    failing = True
+                await self._clock.sleep(delay * self._clock.time_scale)
+                delay = min(delay * 2.0, longest)
+                continue
             except Exception:
                 log.exception("%s: handling %s failed", rt.name, kind)
+            if failing:
+                log.warning("%s: %s report stored after the store recovered", rt.name, kind)
+            return
 
     # -- robot_link.LinkListener -------------------------------------------------------------
 

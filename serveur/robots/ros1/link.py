@@ -300,10 +300,10 @@ class RobotLink:
 
     async def _watchdog(self, ws: ClientConnection) -> None:
         while True:
-            # A goal's ack is checked every quarter of ack_timeout; a parked robot is only
-            # checked for life, every half heartbeat (down within 1.5 heartbeats).
             timeout = self.heartbeat_timeout()
-            tick = min(timeout, self._ack_timeout) / 4 if self._goal else timeout / 4
+            # Checked eight times per timeout: a silent robot is Offline at most an eighth
+            # late; a goal's ack every eighth of the ack timeout.
+            tick = min(timeout, self._ack_timeout) / 8 if self._goal else timeout / 8
             due = self._clock.now() + tick
             await self._clock.sleep(tick)
             now = self._clock.now()
