@@ -75,6 +75,7 @@ class App:
         create_owner: bool = True,
         ssl: ssl_module.SSLContext | None = None,
         robot_ssl: ssl_module.SSLContext | None = None,
+        plan_in_child: bool = True,
     ) -> None:
         self.clock = clock or ScaledClock(1.0)
         self.store: Store = open_store(str(db))
@@ -87,6 +88,7 @@ class App:
         self._security = security
         self._create_owner = create_owner
         self._ssl, self._robot_ssl = ssl, robot_ssl
+        self._plan_in_child = plan_in_child
         self.core: Core | None = None
         self.sessions: Sessions | None = None
         self.server: Server | None = None
@@ -122,6 +124,7 @@ class App:
             nav_map=self._nav_map,
             map_path=None if self._map_path is None else str(self._map_path),
             robot_ssl=self._robot_ssl,
+            plan_in_child=self._plan_in_child,
         )
         await self.core.start()
         self.sessions = Sessions(self.store, self.clock, self._security, hub=self.core.hub)

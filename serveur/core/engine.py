@@ -90,7 +90,7 @@ class Core:
         config: CoreConfig | None = None,
         nav_map: Any = None,
         map_path: str | None = None,
-        plan_in_child: bool | None = None,
+        plan_in_child: bool = True,
         robot_ssl: ssl.SSLContext | None = None,
     ) -> None:
         self.store = store

@@ -17,7 +17,6 @@ import asyncio
 import json
 import logging
 import math
-import sys
 import time
 from collections.abc import Iterable, Mapping
 from typing import Any
@@ -44,7 +43,7 @@ class Places:
         robot_radius: float,
         nav_map: Any = None,
         map_path: str | None = None,
-        plan_in_child: bool | None = None,
+        plan_in_child: bool = True,
     ) -> None:
         self._hub = hub
         self._robot_radius = robot_radius
@@ -58,10 +57,15 @@ class Places:
         )
         self._map_path = map_path
         self._map_json: str | None = None
-        self._plan_in_child = "numpy" not in sys.modules if plan_in_child is None else plan_in_child
+        self._plan_in_child = plan_in_child
         self.distances = Distances()
         #: Background planning jobs (a new waypoint, an adopted map); cancelled by :meth:`close`.
         self.planning: set[asyncio.Task[None]] = set()
+        # Waypoints (or everything) waiting to be planned by the one background job: a burst
+        # of new waypoints becomes one or two plans, not one per waypoint.
+        self._pending: set[str] = set()
+        self._pending_all = False
+        self._job: asyncio.Task[None] | None = None
 
     async def load(self, waypoints: Iterable[WaypointRecord]) -> None:
         """Take the stored waypoints and plan every pair before any robot is driven.
@@ -139,17 +143,29 @@ class Places:
         self.distances.merge(req, result)
 
     def _plan_later(self, sources: list[str] | None) -> None:
-        """Plan in the background; until then the scheduler uses straight lines."""
+        """Plan in the background; until then the scheduler uses straight lines.
 
-        async def run() -> None:
+        One job at a time: what is asked while it plans is gathered and planned together
+        next, so ten waypoints created at once cost two plans, not ten.
+        """
+        if sources is None:
+            self._pending_all = True
+        else:
+            self._pending.update(sources)
+        if self._job is None or self._job.done():
+            job = asyncio.get_running_loop().create_task(self._drain())
+            self._job = job
+            self.planning.add(job)
+            job.add_done_callback(self.planning.discard)
+
+    async def _drain(self) -> None:
+        while self._pending_all or self._pending:
+            sources = None if self._pending_all else sorted(self._pending)
+            self._pending_all, self._pending = False, set()
             try:
                 await self._plan(sources)
             except ServeurError as exc:
                 log.warning("path distances not planned (straight lines used): %s", exc)
-
-        job = asyncio.get_running_loop().create_task(run())
-        self.planning.add(job)
-        job.add_done_callback(self.planning.discard)
 
     def distance(self, a: str, b: str) -> float:
         """Path distance between two waypoints; straight line if not planned or no path."""

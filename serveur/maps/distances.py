@@ -8,9 +8,12 @@ a short-lived child process, ``python -m serveur.maps.distances``, that reads a 
 as JSON on stdin and writes the distances as JSON on stdout. The child's memory goes back to the
 OS when it exits, and numpy never loads in the server (docs/performance.md, footprint).
 
-A process that already holds numpy — the demo, the replay and the tests, which run the simulator
-in-process — plans in a worker thread instead (``in_child=False``): there the child would only
-add its start-up. Both paths run the same :func:`plan` function.
+The child is also what keeps the event loop free: planning is numpy and pure-Python loops that
+hold the GIL for hundreds of milliseconds, so in a worker thread it starved the loop (requests
+at 87-128 ms, robot links dropped at ``--time-scale 10``). Only the replay, whose virtual clock
+does not see the loop's stalls and must not see a child's wall time, plans in a worker thread
+(``in_child=False``). Both paths run the same :func:`plan` function, and an identical request
+already being planned is waited for, not planned twice.
 
 The map itself lives in the server as :class:`MapData`: the bytes of the grid and its geometry,
 which is all the ``map`` topic sends to the UI. It is built without numpy from a map file (in
@@ -214,6 +217,8 @@ def plan(req: PlanRequest) -> PlanResult:
 #: plan costs ~0.75 s of CPU on the demo map. Results are immutable once made.
 _RECENT: OrderedDict[str, PlanResult] = OrderedDict()
 _RECENT_MAX = 8
+#: Requests being planned now, by the same key: an identical request waits for that plan.
+_INFLIGHT: dict[str, asyncio.Future[PlanResult]] = {}
 
 
 async def plan_async(req: PlanRequest, *, in_child: bool, reuse: bool = True) -> PlanResult:
@@ -228,7 +233,31 @@ async def plan_async(req: PlanRequest, *, in_child: bool, reuse: bool = True) ->
     if reuse and key and (hit := _RECENT.get(key)) is not None:
         _RECENT.move_to_end(key)
         return hit
-    result = await (asyncio.to_thread(plan, req) if not in_child else _plan_in_child(req))
+    loop = asyncio.get_running_loop()
+    running = _INFLIGHT.get(key) if reuse and key else None
+    if running is not None and running.get_loop() is loop:
+        try:
+            return await asyncio.shield(running)
+        except asyncio.CancelledError:
+            if not running.cancelled():
+                raise  # this caller was cancelled
+            # The planner it waited for was cancelled (its server stopping): plan here.
+    fut: asyncio.Future[PlanResult] = loop.create_future()
+    if key:
+        _INFLIGHT[key] = fut
+    try:
+        result = await (asyncio.to_thread(plan, req) if not in_child else _plan_in_child(req))
+    except Exception as exc:
+        fut.set_exception(exc)
+        fut.exception()  # retrieved: nobody else may be waiting
+        raise
+    except BaseException:
+        fut.cancel()
+        raise
+    finally:
+        if key and _INFLIGHT.get(key) is fut:
+            del _INFLIGHT[key]
+    fut.set_result(result)
     if key:
         _RECENT[key] = result
         while len(_RECENT) > _RECENT_MAX:

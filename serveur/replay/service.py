@@ -268,6 +268,9 @@ class _Service:
             robots=specs,
             config=cfg,
             security=security,
+            # Virtual time: the loop's stalls are invisible to the replay, and a child's wall
+            # time would let the virtual clock run on while it plans (no longer deterministic).
+            plan_in_child=False,
         )
         result = PolicyResult(self.policy)
         bg: list[asyncio.Task[None]] = []
