@@ -10,7 +10,7 @@ import contextlib
 import logging
 import ssl as ssl_module
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +18,7 @@ from serveur.clock import Clock, ScaledClock
 from serveur.core.engine import Core, CoreConfig
 from serveur.domain import WaypointKind, WaypointRecord
 from serveur.errors import Conflict
+from serveur.robots.names import OPTION_KEYS, RosNames
 from serveur.security.sessions import SecurityConfig, Sessions
 from serveur.server import Server
 from serveur.store.base import Store
@@ -34,21 +35,34 @@ class RobotSpec:
     url: str
     home: str | None = None
     kinematics: str = "omni"
+    #: ROS name options (serveur.robots.names): ns, move_base, cmd_vel, pose, ..., frame.
+    link: Mapping[str, str] = field(default_factory=dict)
 
 
 def parse_robot_spec(text: str) -> RobotSpec:
-    """``NAME=URL[,home=WAYPOINT][,kinematics=omni|diff]`` as given to ``--robot``."""
+    """``NAME=URL[,home=WAYPOINT][,kinematics=omni|diff][,ns=/r1][,OPTION=NAME...]`` as given to
+    ``--robot``; the ROS name options are those of :class:`~serveur.robots.names.RosNames`."""
     name, sep, rest = text.partition("=")
     if not sep or not name or not rest:
         raise ValueError(f"--robot wants NAME=URL[,home=WAYPOINT], got {text!r}")
     url, *opts = rest.split(",")
     fields: dict[str, str] = {}
+    link: dict[str, str] = {}
     for opt in opts:
         k, sep, v = opt.partition("=")
-        if not sep or k not in ("home", "kinematics"):
-            raise ValueError(f"unknown robot option {opt!r} (home=, kinematics=)")
-        fields[k] = v
-    return RobotSpec(name, url, fields.get("home"), fields.get("kinematics", "omni"))
+        if sep and k in ("home", "kinematics"):
+            fields[k] = v
+        elif sep and k in OPTION_KEYS:
+            link[k] = v
+        else:
+            raise ValueError(
+                f"unknown robot option {opt!r} (home=, kinematics=, {'=, '.join(OPTION_KEYS)}=)"
+            )
+    RosNames.from_options(link)  # a bad name is refused here, not on the robot
+    kinematics = fields.get("kinematics", "omni")
+    if kinematics not in ("omni", "diff"):
+        raise ValueError(f"kinematics must be omni or diff, not {kinematics!r}")
+    return RobotSpec(name, url, fields.get("home"), kinematics, link)
 
 
 class App:
@@ -157,10 +171,15 @@ class App:
     async def _register(self, spec: RobotSpec, now: float) -> None:
         try:
             await self.store.add_robot(
-                spec.name, spec.url, home=spec.home, kinematics=spec.kinematics, now=now
+                spec.name,
+                spec.url,
+                home=spec.home,
+                kinematics=spec.kinematics,
+                link=spec.link,
+                now=now,
             )
         except Conflict:
-            await self.store.update_robot(spec.name, url=spec.url, home=spec.home)
+            await self.store.update_robot(spec.name, url=spec.url, home=spec.home, link=spec.link)
 
     @property
     def url(self) -> str:

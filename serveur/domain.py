@@ -17,9 +17,11 @@ capacity in tables, each ``queued`` until a robot takes it (``active``), then ``
 
 from __future__ import annotations
 
+import json
 from enum import StrEnum
+from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from serveur.status import RobotMode, RobotStatus
 
@@ -77,6 +79,11 @@ class Robot(_Record):
     url: str
     home: str | None = None
     kinematics: str = "omni"
+    link: dict[str, str] = Field(
+        default_factory=dict,
+        description="ROS names that differ from the defaults: ns, move_base, cmd_vel, pose, "
+        "initialpose, battery, scan, map, frame (docs/robots.md)",
+    )
     mode: RobotMode = RobotMode.OFF
     status: RobotStatus = RobotStatus.OFFLINE
     resume: RobotStatus | None = None
@@ -88,6 +95,12 @@ class Robot(_Record):
     last_error: str | None = None
     updated_at: float = 0.0
     status_since: float = Field(default=0.0, description="when it entered its status (epoch s)")
+
+    @field_validator("link", mode="before")
+    @classmethod
+    def _link_from_json(cls, v: Any) -> Any:
+        # The store keeps the options as a JSON object in one column.
+        return json.loads(v) if isinstance(v, str) else v
 
 
 class WaypointRecord(_Record):

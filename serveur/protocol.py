@@ -280,6 +280,12 @@ class CreateRobot(_ClientMsg):
     kinematics: Literal["omni", "diff"] = Field(
         default="omni", description="omni: vx, vy, wz; diff (differential drive): vx, wz only"
     )
+    link: dict[Name, Annotated[str, Field(max_length=128)]] | None = Field(
+        default=None,
+        max_length=16,
+        description="ROS names that differ from the defaults (docs/robots.md): ns, move_base,"
+        " cmd_vel, pose, initialpose, battery, scan, map, frame",
+    )
 
 
 CreateMessage: TypeAlias = Annotated[

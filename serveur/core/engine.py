@@ -58,6 +58,7 @@ from serveur.domain import (
 )
 from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurError, StoreError
 from serveur.robots import rosbridge as rb
+from serveur.robots.names import RosNames
 from serveur.robots.ros1.link import RobotLink
 from serveur.scheduler import Candidate, Dispatcher
 from serveur.status import Action, Event, RobotState, RobotStatus, apply, check_allowed
@@ -242,6 +243,7 @@ class Core:
             moving_pose_ms=self.config.moving_pose_ms,
             status_ms=self.config.status_ms,
             battery_ms=self.config.battery_ms,
+            names=RosNames.from_options(robot.link),
         )
         rt.link.start()
 
@@ -566,8 +568,18 @@ class Core:
         if kind == "robot":
             if msg.home is not None:
                 self.places.waypoint(msg.home)
+            link = dict(msg.link or {})
+            try:
+                RosNames.from_options(link)
+            except ValueError as exc:
+                raise InvalidField(str(exc), field="link") from None
             robot = await self.store.add_robot(
-                msg.name, msg.url, home=msg.home, kinematics=msg.kinematics, now=self.clock.epoch()
+                msg.name,
+                msg.url,
+                home=msg.home,
+                kinematics=msg.kinematics,
+                link=link,
+                now=self.clock.epoch(),
             )
             if robot.name not in self._rt:
                 self._add_runtime(robot)

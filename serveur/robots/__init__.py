@@ -1,7 +1,8 @@
 """Talking to robots: the rosbridge v2 wire, and a link per kind of robot.
 
 Owns :mod:`~serveur.robots.rosbridge` (rosbridge ops and ROS message JSON, pure; shared with
-the simulator so both ends build the same frames) and :mod:`serveur.robots.ros1` (the link
+the simulator so both ends build the same frames), :mod:`~serveur.robots.names` (a robot's
+topic names, move_base action and map frame, from its registration options) and :mod:`serveur.robots.ros1` (the link
 to a ROS1 robot running move_base and AMCL). Nothing here knows about trips, orders or
 clients: the core listens to a link's reports and tells it where to go.
 

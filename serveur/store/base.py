@@ -56,6 +56,7 @@ __all__ = [
     "check_text",
     "check_trips",
     "digest",
+    "link_json",
     "plan_stop_order",
     "status_values",
     "to_json",
@@ -108,15 +109,31 @@ class Store(AccountsMixin, ABC):
 
     @abstractmethod
     async def add_robot(
-        self, name: str, url: str, *, home: str | None, kinematics: str = "omni", now: float
+        self,
+        name: str,
+        url: str,
+        *,
+        home: str | None,
+        kinematics: str = "omni",
+        link: Mapping[str, str] | None = None,
+        now: float,
     ) -> Robot:
-        """Register a robot (Offline, mode off). A resend with the same fields returns it."""
+        """Register a robot (Offline, mode off). A resend with the same fields returns it.
+
+        ``link``: the robot's ROS name options (:class:`~serveur.robots.names.RosNames`,
+        checked by the caller), kept as given.
+        """
 
     @abstractmethod
     async def update_robot(
-        self, name: str, *, url: str | None = None, home: str | None = None
+        self,
+        name: str,
+        *,
+        url: str | None = None,
+        home: str | None = None,
+        link: Mapping[str, str] | None = None,
     ) -> Robot:
-        """Change a robot's url and/or home (``None`` keeps the current value)."""
+        """Change a robot's url, home and/or link options (``None`` keeps the current value)."""
 
     @abstractmethod
     async def get_robot(self, name: str) -> Robot: ...
@@ -297,6 +314,11 @@ def check_text(value: object, field: str) -> str:
     if not isinstance(value, str) or not value.strip():
         raise InvalidField(f"{field} must be a non-empty string", field=field)
     return value
+
+
+def link_json(link: Mapping[str, str] | None) -> str:
+    """A robot's link options as the ``link`` column keeps them (sorted keys, compact)."""
+    return json.dumps(dict(sorted((link or {}).items())), separators=(",", ":"))
 
 
 def check_finite(value: object, field: str) -> float:

@@ -59,6 +59,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from serveur.clock import Clock
 from serveur.errors import LinkError, RosbridgeError
 from serveur.robots import rosbridge as rb
+from serveur.robots.names import RosNames
 
 __all__ = ["LinkListener", "RobotLink"]
 
@@ -151,6 +152,7 @@ class RobotLink:
         battery_ms: int = 0,
         stall: float = STALL_ALLOWANCE,
         teleop_timeout: float = TELEOP_TIMEOUT,
+        names: RosNames | None = None,
     ) -> None:
         self.name = name
         self.url = url
@@ -158,6 +160,7 @@ class RobotLink:
         self._clock = clock
         self._heartbeat = heartbeat
         self._stall = stall
+        self._names = names or RosNames()
         self._teleop_timeout = teleop_timeout
         self._teleop_sent = 0.0  # clock time of the last non-zero twist sent
         self._failsafe: asyncio.Task[None] | None = None
@@ -269,22 +272,14 @@ class RobotLink:
         self._have_status = self._have_pose = False
         self._last_status = self._clock.now()
         for topic in _PUBLICATIONS:
-            await ws.send(rb.encode(rb.op_advertise(topic, rb.TOPIC_TYPES[topic])))
+            await ws.send(rb.encode(rb.op_advertise(self._t(topic), rb.TOPIC_TYPES[topic])))
         for topic in _SUBSCRIPTIONS:
-            await ws.send(rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic])))
-        await ws.send(
-            rb.encode(
-                rb.op_subscribe(
-                    "/battery_state",
-                    rb.TOPIC_TYPES["/battery_state"],
-                    throttle_rate=self._battery_ms,
-                )
-            )
-        )
+            await ws.send(rb.encode(self._sub(topic)))
+        await ws.send(rb.encode(self._sub("/battery_state", throttle_rate=self._battery_ms)))
         self._pose_ms = self._status_sub_ms = None
         await self._update_rates(ws)
         if self._want_map:
-            await ws.send(rb.encode(rb.op_subscribe("/map", rb.TOPIC_TYPES["/map"])))
+            await ws.send(rb.encode(self._sub("/map")))
         if self._scan_wanted:
             await self._subscribe_scan(ws, True)
         watchdog = asyncio.create_task(self._watchdog(ws), name=f"watchdog-{self.name}")
@@ -351,7 +346,8 @@ class RobotLink:
         try:
             op = rb.decode(frame)
             if op["op"] == "publish":
-                self._on_publish(str(op.get("topic")), op.get("msg"))
+                topic = str(op.get("topic"))
+                self._on_publish(self._names.default_of(topic) or topic, op.get("msg"))
             elif op["op"] == "status":
                 log.info("%s: rosbridge says %s: %s", self.name, op.get("level"), op.get("msg"))
         except (
@@ -428,6 +424,30 @@ class RobotLink:
 
     # -- outgoing ----------------------------------------------------------------------------
 
+    # -- this robot's names ------------------------------------------------------------------
+
+    def _t(self, default: str) -> str:
+        """The robot's own name for a default topic name (namespaced, renamed)."""
+        return self._names.topic(default)
+
+    def _pub(self, default: str, msg: Mapping[str, Any]) -> dict[str, Any]:
+        return rb.op_publish(self._t(default), msg)
+
+    def _sub(self, default: str, *, throttle_rate: int = 0) -> dict[str, Any]:
+        return rb.op_subscribe(
+            self._t(default), rb.TOPIC_TYPES[default], throttle_rate=throttle_rate
+        )
+
+    def _in_map(self, msg: dict[str, Any]) -> dict[str, Any]:
+        msg["header"]["frame_id"] = self._names.frame
+        return msg
+
+    def _goal_msg(self, goal: _Goal) -> dict[str, Any]:
+        # Zero stamps: see the module's docstring (SimpleActionServer's stamp rule).
+        msg = rb.move_base_action_goal(goal.id, goal.x, goal.y, goal.yaw, stamp=0.0)
+        msg["goal"]["target_pose"]["header"]["frame_id"] = self._names.frame
+        return msg
+
     async def halt(self) -> None:
         """Stop the robot for good (shutdown): cancel every goal, send a zero twist.
 
@@ -439,8 +459,8 @@ class RobotLink:
         self._teleop = False
         self._stop_failsafe()
         with contextlib.suppress(LinkError):
-            await self._send(rb.op_publish("/move_base/cancel", _CANCEL_ALL), halting=True)
-            await self._send(rb.op_publish("/cmd_vel", rb.twist(0.0, 0.0, 0.0)), halting=True)
+            await self._send(self._pub("/move_base/cancel", _CANCEL_ALL), halting=True)
+            await self._send(self._pub("/cmd_vel", rb.twist(0.0, 0.0, 0.0)), halting=True)
 
     async def _send(self, op: Mapping[str, Any], *, halting: bool = False) -> None:
         if self._halted and not halting:
@@ -470,9 +490,9 @@ class RobotLink:
         self._goal = goal
         await self._update_rates()  # full rates before the robot starts to move
         await self._send(
-            rb.op_publish(
+            self._pub(
                 "/move_base/goal",
-                rb.move_base_action_goal(goal.id, x, y, yaw, stamp=0.0),  # see module doc
+                self._goal_msg(goal),
             )
         )
         return goal.handle
@@ -491,16 +511,16 @@ class RobotLink:
         log.warning("%s: goal %s not acknowledged, re-sending as %s", self.name, old, goal.id)
         with contextlib.suppress(LinkError):
             await self._send(
-                rb.op_publish(
+                self._pub(
                     "/move_base/goal",
-                    rb.move_base_action_goal(goal.id, goal.x, goal.y, goal.yaw, stamp=0.0),
+                    self._goal_msg(goal),
                 )
             )
 
     async def cancel_goal(self) -> None:
         """Cancel every goal on the robot (empty id), as a stop button must."""
         self._goal = None
-        await self._send(rb.op_publish("/move_base/cancel", _CANCEL_ALL))
+        await self._send(self._pub("/move_base/cancel", _CANCEL_ALL))
         self._rates_changed()
 
     async def teleop(self, vx: float, vy: float, wz: float) -> None:
@@ -511,7 +531,7 @@ class RobotLink:
         """
         self._teleop = (vx, vy, wz) != (0.0, 0.0, 0.0)
         await self._update_rates()
-        await self._send(rb.op_publish("/cmd_vel", rb.twist(vx, vy, wz)))
+        await self._send(self._pub("/cmd_vel", rb.twist(vx, vy, wz)))
         if self._teleop:
             self._teleop_sent = self._clock.now()
             if self._failsafe is None or self._failsafe.done():
@@ -531,7 +551,7 @@ class RobotLink:
             self._teleop = False
             log.warning("%s: no joystick command for %.1fs, stopping", self.name, timeout)
             with contextlib.suppress(LinkError):
-                await self._send(rb.op_publish("/cmd_vel", rb.twist(0.0, 0.0, 0.0)))
+                await self._send(self._pub("/cmd_vel", rb.twist(0.0, 0.0, 0.0)))
             await self._update_rates()
 
     def _stop_failsafe(self) -> None:
@@ -541,9 +561,9 @@ class RobotLink:
 
     async def initial_pose(self, x: float, y: float, yaw: float) -> None:
         await self._send(
-            rb.op_publish(
+            self._pub(
                 "/initialpose",
-                rb.pose_with_covariance_stamped(x, y, yaw, stamp=0.0),
+                self._in_map(rb.pose_with_covariance_stamped(x, y, yaw, stamp=0.0)),
             )
         )
 
@@ -591,9 +611,7 @@ class RobotLink:
             ):
                 if getattr(self, attr) != ms:
                     setattr(self, attr, ms)
-                    await ws.send(
-                        rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic], throttle_rate=ms))
-                    )
+                    await ws.send(rb.encode(self._sub(topic, throttle_rate=ms)))
 
     async def want_scan(self, on: bool) -> None:
         """Stream /scan only while someone looks at it (it is the heaviest topic)."""
@@ -606,8 +624,6 @@ class RobotLink:
 
     async def _subscribe_scan(self, ws: ClientConnection, on: bool) -> None:
         if on:
-            await ws.send(
-                rb.encode(rb.op_subscribe("/scan", rb.TOPIC_TYPES["/scan"], throttle_rate=200))
-            )
+            await ws.send(rb.encode(self._sub("/scan", throttle_rate=200)))
         else:
-            await ws.send(rb.encode(rb.op_unsubscribe("/scan")))
+            await ws.send(rb.encode(rb.op_unsubscribe(self._t("/scan"))))

@@ -37,8 +37,8 @@ __all__ = [
 MAX_NAME = 255
 
 ROBOT = (
-    "SELECT name, url, home, kinematics, mode, status, resume, current_task, battery, x, y, yaw,"
-    " last_error, updated_at, status_since FROM robot_info"
+    "SELECT name, url, home, kinematics, link, mode, status, resume, current_task, battery,"
+    " x, y, yaw, last_error, updated_at, status_since FROM robot_info"
 )
 WAYPOINT = "SELECT name, x, y, yaw, kind FROM waypoints"
 ORDER = (

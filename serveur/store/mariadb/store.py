@@ -28,7 +28,15 @@ from typing import Any, TypeVar
 from serveur.domain import EventRecord, Order, OrderStatus, Robot, WaypointRecord
 from serveur.errors import Conflict, InvalidField, NotFound, StoreError
 from serveur.status import RobotMode, RobotStatus
-from serveur.store.base import SqlTx, check_finite, check_text, digest, status_values, to_json
+from serveur.store.base import (
+    SqlTx,
+    check_finite,
+    check_text,
+    digest,
+    link_json,
+    status_values,
+    to_json,
+)
 from serveur.store.mariadb.db import Database, MariaDBConfig, Tx
 from serveur.store.mariadb.rows import (
     EVENT,
@@ -108,7 +116,14 @@ class MariaDBStore(MariaDBTasks):
         return await (self._db.write(run) if write else self._db.read(run))
 
     async def add_robot(
-        self, name: str, url: str, *, home: str | None, kinematics: str = "omni", now: float
+        self,
+        name: str,
+        url: str,
+        *,
+        home: str | None,
+        kinematics: str = "omni",
+        link: Mapping[str, str] | None = None,
+        now: float,
     ) -> Robot:
         check_name(name, "name")
         check_text(url, "url")
@@ -118,20 +133,27 @@ class MariaDBStore(MariaDBTasks):
             row = await db.one(f"{ROBOT} WHERE name = %s FOR UPDATE", (name,))
             if row is not None:
                 robot = Robot(**row)
-                if (robot.url, robot.home, robot.kinematics) == (url, home, kinematics):
+                if (robot.url, robot.home, robot.kinematics, robot.link) == (
+                    url,
+                    home,
+                    kinematics,
+                    dict(link or {}),
+                ):
                     return robot
                 raise Conflict(
-                    f"a robot named {name!r} exists with another url, home or kinematics",
+                    f"a robot named {name!r} exists with another url, home, kinematics or link",
                     robot=name,
                 )
             if home is not None:
                 await self._waypoint(db, home)
             await db.run(
-                "INSERT INTO robot_info (name, url, home, kinematics, updated_at, status_since)"
-                " VALUES (%s, %s, %s, %s, %s, %s)",
-                (name, url, home, kinematics, now, now),
+                "INSERT INTO robot_info (name, url, home, kinematics, link, updated_at,"
+                " status_since) VALUES (%s, %s, %s, %s, %s, %s, %s)",
+                (name, url, home, kinematics, link_json(link), now, now),
             )
-            data = {"url": url, "home": home, "kinematics": kinematics}
+            data: dict[str, Any] = {"url": url, "home": home, "kinematics": kinematics}
+            if link:
+                data["link"] = dict(link)
             await self._event(db, "robot.added", now, robot=name, data=data)
             return await self._robot(db, name)
 
@@ -143,6 +165,7 @@ class MariaDBStore(MariaDBTasks):
         *,
         url: str | None = None,
         home: str | None = None,
+        link: Mapping[str, str] | None = None,
         now: float | None = None,
     ) -> Robot:
         """Change url and/or home; ``now`` as in :meth:`SQLiteStore.update_robot`."""
@@ -155,7 +178,8 @@ class MariaDBStore(MariaDBTasks):
             robot = await self._robot(db, name, lock=True)
             new_url = robot.url if url is None else url
             new_home = robot.home if home is None else home
-            if (new_url, new_home) == (robot.url, robot.home):
+            new_link = robot.link if link is None else dict(link)
+            if (new_url, new_home, new_link) == (robot.url, robot.home, robot.link):
                 return robot
             if new_home is not None and new_home != robot.home:
                 await self._waypoint(db, new_home)
@@ -164,10 +188,12 @@ class MariaDBStore(MariaDBTasks):
                 latest = await db.one("SELECT coalesce(max(ts), 0) AS ts FROM events")
                 stamp = float(latest["ts"]) if latest else 0.0
             await db.run(
-                "UPDATE robot_info SET url = %s, home = %s WHERE name = %s",
-                (new_url, new_home, name),
+                "UPDATE robot_info SET url = %s, home = %s, link = %s WHERE name = %s",
+                (new_url, new_home, link_json(new_link), name),
             )
-            data = {"url": new_url, "home": new_home}
+            data: dict[str, Any] = {"url": new_url, "home": new_home}
+            if new_link != robot.link:
+                data["link"] = new_link
             await self._event(db, "robot.updated", float(stamp or 0.0), robot=name, data=data)
             return await self._robot(db, name)
 

@@ -26,7 +26,7 @@ from typing import Any
 from serveur.domain import EventRecord, Order, OrderStatus, Robot, WaypointRecord
 from serveur.errors import Conflict, InvalidField, NotFound, StoreError
 from serveur.status import RobotMode, RobotStatus
-from serveur.store.base import check_finite, check_text, digest, status_values
+from serveur.store.base import check_finite, check_text, digest, link_json, status_values
 from serveur.store.sqlite.rows import (
     BUSY_TIMEOUT_MS,
     EVENT,
@@ -60,7 +60,14 @@ class SQLiteStore(SQLiteTasks):
     # -- robots -------------------------------------------------------------------------
 
     async def add_robot(
-        self, name: str, url: str, *, home: str | None, kinematics: str = "omni", now: float
+        self,
+        name: str,
+        url: str,
+        *,
+        home: str | None,
+        kinematics: str = "omni",
+        link: Mapping[str, str] | None = None,
+        now: float,
     ) -> Robot:
         check_text(name, "name")
         check_text(url, "url")
@@ -69,21 +76,28 @@ class SQLiteStore(SQLiteTasks):
             row = await sql_one(db, f"{ROBOT} WHERE name = ?", (name,))
             if row is not None:
                 robot = Robot(**dict(row))
-                if (robot.url, robot.home, robot.kinematics) == (url, home, kinematics):
+                if (robot.url, robot.home, robot.kinematics, robot.link) == (
+                    url,
+                    home,
+                    kinematics,
+                    dict(link or {}),
+                ):
                     return robot
                 raise Conflict(
-                    f"a robot named {name!r} exists with another url, home or kinematics",
+                    f"a robot named {name!r} exists with another url, home, kinematics or link",
                     robot=name,
                 )
             if home is not None:
                 await self._waypoint(db, home)
             await sql_run(
                 db,
-                "INSERT INTO robot_info (name, url, home, kinematics, updated_at, status_since)"
-                " VALUES (?, ?, ?, ?, ?, ?)",
-                (name, url, home, kinematics, now, now),
+                "INSERT INTO robot_info (name, url, home, kinematics, link, updated_at,"
+                " status_since) VALUES (?, ?, ?, ?, ?, ?, ?)",
+                (name, url, home, kinematics, link_json(link), now, now),
             )
-            data = {"url": url, "home": home, "kinematics": kinematics}
+            data: dict[str, Any] = {"url": url, "home": home, "kinematics": kinematics}
+            if link:
+                data["link"] = dict(link)
             await self._event(db, "robot.added", now, robot=name, data=data)
             return await self._robot(db, name)
 
@@ -93,6 +107,7 @@ class SQLiteStore(SQLiteTasks):
         *,
         url: str | None = None,
         home: str | None = None,
+        link: Mapping[str, str] | None = None,
         now: float | None = None,
     ) -> Robot:
         """Change url and/or home. ``now`` (an addition to the agreed signature) stamps the
@@ -106,7 +121,8 @@ class SQLiteStore(SQLiteTasks):
             robot = await self._robot(db, name)
             new_url = robot.url if url is None else url
             new_home = robot.home if home is None else home
-            if (new_url, new_home) == (robot.url, robot.home):
+            new_link = robot.link if link is None else dict(link)
+            if (new_url, new_home, new_link) == (robot.url, robot.home, robot.link):
                 return robot
             if new_home is not None and new_home != robot.home:
                 await self._waypoint(db, new_home)
@@ -114,10 +130,12 @@ class SQLiteStore(SQLiteTasks):
                 now = (await sql_one(db, "SELECT coalesce(max(ts), 0) FROM events"))[0]
             await sql_run(
                 db,
-                "UPDATE robot_info SET url = ?, home = ? WHERE name = ?",
-                (new_url, new_home, name),
+                "UPDATE robot_info SET url = ?, home = ?, link = ? WHERE name = ?",
+                (new_url, new_home, link_json(new_link), name),
             )
-            data = {"url": new_url, "home": new_home}
+            data: dict[str, Any] = {"url": new_url, "home": new_home}
+            if new_link != robot.link:
+                data["link"] = new_link
             await self._event(db, "robot.updated", float(now or 0.0), robot=name, data=data)
             return await self._robot(db, name)
 

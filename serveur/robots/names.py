@@ -1,0 +1,125 @@
+"""A robot's ROS names: its topics, its move_base action and its map frame (pure).
+
+Real robots rarely use the bare names our simulator publishes: a fleet on one ROS master is
+namespaced (``/r1/move_base``, ``/r1/amcl_pose``), vendors rename topics (``/odom_combined``,
+``/battery``), and a map frame may be ``world``. Each robot gets a :class:`RosNames`, built from
+the options given at registration (``--robot r1=ws://...,ns=/r1`` or ``create type=robot``
+with ``link``), stored with the robot, and used by its link for every topic it touches.
+
+Defaults are today's names. ``ns`` puts every default name under a namespace (as a ROS node
+pushed into that namespace resolves its relative names); each name can then be set alone,
+absolute (``/battery``) or relative (``battery``, resolved under ``ns``).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+__all__ = ["OPTION_KEYS", "RosNames"]
+
+#: Option key -> (the default name, what it names), in the order docs/robots.md lists them.
+_DEFAULTS: dict[str, tuple[str, str]] = {
+    "move_base": ("move_base", "the move_base action (goal, cancel, status, result, feedback)"),
+    "cmd_vel": ("cmd_vel", "joystick velocities (geometry_msgs/Twist)"),
+    "pose": ("amcl_pose", "the localised pose (geometry_msgs/PoseWithCovarianceStamped)"),
+    "initialpose": ("initialpose", "calibration (geometry_msgs/PoseWithCovarianceStamped)"),
+    "battery": ("battery_state", "the battery (sensor_msgs/BatteryState)"),
+    "scan": ("scan", "the laser (sensor_msgs/LaserScan)"),
+    "map": ("map", "the map, when the server has none (nav_msgs/OccupancyGrid)"),
+}
+#: Every option a robot's ``link`` may carry.
+OPTION_KEYS = ("ns", *_DEFAULTS, "frame")
+_NAME = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
+_FRAME = re.compile(r"^[A-Za-z][A-Za-z0-9_/]*$")
+
+
+def _resolve(ns: str, name: str) -> str:
+    if name.startswith("/"):
+        return name
+    return f"{ns}/{name}" if ns else f"/{name}"
+
+
+@dataclass(frozen=True)
+class RosNames:
+    """The resolved names of one robot (absolute ROS graph names) and its map frame."""
+
+    ns: str = ""
+    move_base: str = "/move_base"
+    cmd_vel: str = "/cmd_vel"
+    pose: str = "/amcl_pose"
+    initialpose: str = "/initialpose"
+    battery: str = "/battery_state"
+    scan: str = "/scan"
+    map: str = "/map"
+    frame: str = "map"
+    #: The options as given (only those that differ from the defaults), for the store.
+    options: Mapping[str, str] = field(default_factory=dict, compare=False)
+
+    @classmethod
+    def from_options(cls, options: Mapping[str, str]) -> RosNames:
+        """Names from registration options; ValueError names the bad option and why."""
+        unknown = sorted(set(options) - set(OPTION_KEYS))
+        if unknown:
+            raise ValueError(
+                f"unknown robot link option {unknown[0]!r} (known: {', '.join(OPTION_KEYS)})"
+            )
+        for key, value in options.items():
+            if not isinstance(value, str):
+                raise ValueError(f"robot link option {key!r} must be a string")
+            pattern = _FRAME if key == "frame" else _NAME
+            if not pattern.match(value) or len(value) > 128:
+                raise ValueError(f"robot link option {key}={value!r} is not a valid ROS name")
+        ns = options.get("ns", "")
+        if ns and not ns.startswith("/"):
+            ns = "/" + ns
+        ns = ns.rstrip("/")
+        names = {
+            key: _resolve(ns, options.get(key, default)) for key, (default, _) in _DEFAULTS.items()
+        }
+        return cls(ns=ns, frame=options.get("frame", "map"), options=dict(options), **names)
+
+    def topic(self, default: str) -> str:
+        """This robot's name for one of the default topic names (``/move_base/goal``...)."""
+        return self._by_default()[default]
+
+    def default_of(self, topic: str) -> str | None:
+        """The default topic name a topic of this robot stands for (None: not one of ours)."""
+        return self._reverse().get(topic)
+
+    def _by_default(self) -> dict[str, str]:
+        cached: dict[str, str] | None = self.__dict__.get("_map")
+        if cached is None:
+            mb = self.move_base
+            cached = {
+                "/move_base/goal": f"{mb}/goal",
+                "/move_base/cancel": f"{mb}/cancel",
+                "/move_base/status": f"{mb}/status",
+                "/move_base/result": f"{mb}/result",
+                "/move_base/feedback": f"{mb}/feedback",
+                "/cmd_vel": self.cmd_vel,
+                "/amcl_pose": self.pose,
+                "/initialpose": self.initialpose,
+                "/battery_state": self.battery,
+                "/scan": self.scan,
+                "/map": self.map,
+            }
+            object.__setattr__(self, "_map", cached)
+        return cached
+
+    def _reverse(self) -> dict[str, str]:
+        cached: dict[str, str] | None = self.__dict__.get("_rev")
+        if cached is None:
+            cached = {v: k for k, v in self._by_default().items()}
+            object.__setattr__(self, "_rev", cached)
+        return cached
+
+    @staticmethod
+    def describe() -> list[tuple[str, str, str]]:
+        """(option, default, what it names) for docs and ``--help``."""
+        return (
+            [("ns", "", "a namespace for every default name")]
+            + [(k, d, what) for k, (d, what) in _DEFAULTS.items()]
+            + [("frame", "map", "the map frame goals and initial poses are given in")]
+        )

@@ -1,0 +1,96 @@
+"""A robot's ROS names: namespaces, renamed topics, the map frame; kept with the robot."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from websockets.asyncio.client import connect
+
+from serveur.app import parse_robot_spec
+from serveur.robots.names import OPTION_KEYS, RosNames
+from serveur.store.factory import open_store
+from tests.conftest import Client, Restaurant
+
+
+def test_defaults_are_the_bare_names() -> None:
+    n = RosNames.from_options({})
+    assert n.topic("/move_base/goal") == "/move_base/goal"
+    assert n.topic("/amcl_pose") == "/amcl_pose"
+    assert n.frame == "map"
+    assert n == RosNames()
+
+
+def test_a_namespace_prefixes_every_default_and_single_names_override() -> None:
+    n = RosNames.from_options({"ns": "r1", "battery": "/battery", "pose": "localization_pose"})
+    assert n.topic("/move_base/goal") == "/r1/move_base/goal"
+    assert n.topic("/move_base/status") == "/r1/move_base/status"
+    assert n.topic("/cmd_vel") == "/r1/cmd_vel"
+    assert n.topic("/battery_state") == "/battery"  # absolute: as given
+    assert n.topic("/amcl_pose") == "/r1/localization_pose"  # relative: under ns
+    assert n.default_of("/r1/localization_pose") == "/amcl_pose"
+    assert n.default_of("/r1/move_base/result") == "/move_base/result"
+    assert n.default_of("/somebody_else") is None
+
+
+def test_the_action_and_the_frame_can_be_renamed() -> None:
+    n = RosNames.from_options({"move_base": "/nav/move_base", "frame": "world"})
+    assert n.topic("/move_base/cancel") == "/nav/move_base/cancel"
+    assert n.frame == "world"
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{"nss": "/r1"}, {"ns": "r 1"}, {"cmd_vel": "9cmd"}, {"frame": "/map frame"}, {"pose": ""}],
+)
+def test_bad_options_are_refused_with_the_option_named(options: dict[str, str]) -> None:
+    with pytest.raises(ValueError, match=next(iter(options))):
+        RosNames.from_options(options)
+
+
+def test_robot_spec_takes_link_options() -> None:
+    spec = parse_robot_spec("r1=ws://10.0.0.21:9090,home=home1,ns=/r1,frame=world")
+    assert (spec.home, dict(spec.link)) == ("home1", {"ns": "/r1", "frame": "world"})
+    with pytest.raises(ValueError, match="unknown robot option"):
+        parse_robot_spec("r1=ws://h:9090,namespace=/r1")
+    with pytest.raises(ValueError, match="not a valid ROS name"):
+        parse_robot_spec("r1=ws://h:9090,ns=/r 1")
+    assert set(OPTION_KEYS) >= {"ns", "move_base", "cmd_vel", "pose", "frame"}
+
+
+async def test_link_options_are_stored_with_the_robot_and_updated(tmp_path: Path) -> None:
+    db = tmp_path / "serveur.db"
+    async with open_store(str(db)) as store:
+        r = await store.add_robot("r1", "ws://h:9090", home=None, link={"ns": "/r1"}, now=1.0)
+        assert r.link == {"ns": "/r1"}
+        again = await store.add_robot("r1", "ws://h:9090", home=None, link={"ns": "/r1"}, now=2.0)
+        assert again == r  # an identical resend
+    async with open_store(str(db)) as store:
+        assert (await store.get_robot("r1")).link == {"ns": "/r1"}
+        r = await store.update_robot("r1", link={"ns": "/r2", "frame": "world"})
+        assert r.link == {"ns": "/r2", "frame": "world"}
+        events = [e for e in await store.list_events() if e.kind == "robot.updated"]
+        assert events[-1].data["link"] == {"ns": "/r2", "frame": "world"}
+
+
+async def test_create_robot_takes_link_options_and_refuses_bad_ones(one_robot: Restaurant) -> None:
+    password = one_robot.app.first_owner_password
+    assert password is not None
+    c = Client(await connect(one_robot.app.url))
+    one_robot.clients.append(c)
+    await c.ok("login", username="owner", password=password)
+    await c.subscribe("robots")
+    err = await c.error(
+        "create",
+        "invalid_field",
+        type="robot",
+        name="r9",
+        url="ws://127.0.0.1:1",
+        link={"ns": "a b"},
+    )
+    assert "not a valid ROS name" in err["message"]
+    assert "r9" not in {r["name"] for r in c.records["robots"].values()}
+    reply = await c.ok(
+        "create", type="robot", name="r9", url="ws://127.0.0.1:1", link={"ns": "/r9"}
+    )
+    assert reply["robot"]["link"] == {"ns": "/r9"}
