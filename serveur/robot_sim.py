@@ -278,6 +278,7 @@ async def start_simulation(
     spread: bool = False,
     clock_offset: float = 0.0,
     amcl: str = "continuous",
+    namespaced: bool = False,
 ) -> Simulation:
     """Start ``n`` robots listening on ports ``port``..``port+n-1`` (0: free ports).
 
@@ -285,6 +286,7 @@ async def start_simulation(
     seed ``seed + i``. ``clock`` overrides ``time_scale`` (tests pass a shared ScaledClock).
     ``ssl`` (a server context, see serveur.security.tls.server_context) serves every robot over TLS.
     ``spread`` spreads the robots' publish phases over the AMCL period (:meth:`Simulation.phases`).
+    ``namespaced`` puts robot ``rN``'s topics under ``/rN`` (as on a shared ROS master).
     ``clock_offset`` (seconds) sets every robot's clock that far from ``clock``: all they stamp
     is ``clock.epoch() + clock_offset``. ``amcl`` is ``"continuous"`` (10 Hz poses) or
     ``"real"`` (latched, only after motion, like the amcl node): see :mod:`serveur.sim.robot`.
@@ -317,8 +319,10 @@ async def start_simulation(
     robots: list[SimRobot] = []
     endpoints: list[Endpoint] = []
     for i in range(n):
+        name = names[i] if names is not None else f"r{i + 1}"
+        namespace = f"/{name}" if namespaced else ""
         robot = SimRobot(
-            names[i] if names is not None else f"r{i + 1}",
+            name,
             index=i,
             grid=grid,
             planner=planner,
@@ -326,10 +330,15 @@ async def start_simulation(
             kinematics=kinematics,
             clock=clock,
             seed=seed + i,
-            map_frame=map_frame,
+            map_frame=map_frame
+            if not namespaced
+            else Frame(
+                rb.op_publish(f"{namespace}/map", rb.occupancy_grid(grid, stamp=map_stamp, seq=0))
+            ),
             plan_lock=plan_lock,
             clock_offset=clock_offset,
             amcl=amcl,
+            namespace=namespace,
         )
         robots.append(robot)
         endpoints.append(Endpoint(robot, host, port + i if port else 0, ssl))
@@ -382,6 +391,12 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
         "every stamp they make is offset (default 0)",
     )
     parser.add_argument(
+        "--namespaced",
+        action="store_true",
+        help="robot rN's topics under /rN (/r1/move_base/goal...), as robots sharing one ROS "
+        "master are; register them with --robot rN=URL,ns=/rN",
+    )
+    parser.add_argument(
         "--amcl",
         choices=AMCL_MODES,
         default="continuous",
@@ -406,6 +421,7 @@ async def run_sim(
     spread: bool = False,
     clock_offset: float = 0.0,
     amcl: str = "continuous",
+    namespaced: bool = False,
 ) -> int:
     """Run a simulation until ``stop`` is set or SIGINT/SIGTERM; print the URLs first.
 
@@ -434,6 +450,7 @@ async def run_sim(
                 spread=spread,
                 clock_offset=clock_offset,
                 amcl=amcl,
+                namespaced=namespaced,
             )
         except (OSError, ServeurError, ValueError) as exc:
             print(f"serveur sim: cannot start: {exc}", file=sys.stderr, flush=True)
@@ -480,4 +497,5 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
         spread=ns.spread_phases,
         clock_offset=getattr(ns, "clock_offset", 0.0),
         amcl=getattr(ns, "amcl", "continuous"),
+        namespaced=getattr(ns, "namespaced", False),
     )

@@ -10,7 +10,8 @@ import asyncio
 import contextlib
 import itertools
 import json
-from collections.abc import AsyncIterator, Callable
+import logging
+from collections.abc import AsyncIterator, Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,6 +29,37 @@ from tests.mariadb_server import mariadb_server, mariadb_url  # noqa: F401
 from tests.netproxy import LinkProxy
 
 TIME_SCALE = 10.0
+
+
+class _LinkDrops(logging.Handler):
+    """Robot links that went down, other than for a server shutting down."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.drops: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        msg = record.getMessage()
+        if "link down (" in msg and "server shutting down" not in msg:
+            self.drops.append(msg)
+
+
+@pytest.fixture(autouse=True)
+def no_robot_offline_by_accident(request: pytest.FixtureRequest) -> Iterator[None]:
+    """No robot goes Offline in a test unless the test cuts links on purpose (``cuts_links``):
+    a false drop (a stalled loop, a heartbeat too tight for a loaded CI box) fails the test
+    that saw it, where it would otherwise pass unnoticed, as it would in a restaurant."""
+    handler = _LinkDrops()
+    logger = logging.getLogger("serveur.robots.ros1.link")
+    logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+    if handler.drops and request.node.get_closest_marker("cuts_links") is None:
+        pytest.fail(f"a robot link went down: {handler.drops}", pytrace=False)
+
+
 WAIT = 30.0  # wall seconds: generous for a loaded 2-core CI box; tests end as soon as they can
 
 
@@ -216,6 +248,9 @@ async def restaurant(
     from serveur.robot_sim import start_simulation
 
     clock = ScaledClock(time_scale)
+    # The simulator's real-stack mode: AMCL latched and sparse (0.2 m / 30 degrees), as a real
+    # robot publishes it; actionlib's stamp rule and move_base ignoring /cmd_vel are always on.
+    sim_options.setdefault("amcl", "real")
     sim = await start_simulation(
         robots,
         port=0,
@@ -227,7 +262,7 @@ async def restaurant(
     proxies = [await LinkProxy.for_url(url).start() for url in sim.urls] if proxied else []
     urls = [p.url for p in proxies] if proxied else sim.urls
     specs = [
-        RobotSpec(r.name, url, f"home{i + 1}")
+        RobotSpec(r.name, url, f"home{i + 1}", link={"ns": r.namespace} if r.namespace else {})
         for i, (r, url) in enumerate(zip(sim.robots, urls, strict=True))
     ]
     db = db_url or tmp_path / "serveur.db"

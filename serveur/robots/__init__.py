@@ -2,9 +2,10 @@
 
 Owns :mod:`~serveur.robots.rosbridge` (rosbridge ops and ROS message JSON, pure; shared with
 the simulator so both ends build the same frames), :mod:`~serveur.robots.names` (a robot's
-topic names, move_base action and map frame, from its registration options) and :mod:`serveur.robots.ros1` (the link
-to a ROS1 robot running move_base and AMCL). Nothing here knows about trips, orders or
-clients: the core listens to a link's reports and tells it where to go.
+topic names, move_base action and map frame, from its registration options) and
+:mod:`serveur.robots.ros1` (the link to a ROS1 robot running move_base and AMCL). Nothing here
+knows about trips, orders or clients: the core listens to a link's reports and tells it where
+to go.
 
 May import: serveur.clock.
 """

@@ -267,7 +267,7 @@ class BridgeClient:
         elif op == "advertise":
             self._advertise(msg)
         elif op == "unadvertise":
-            topic = _req_str(msg, "topic")
+            topic = self._topic(msg)
             if topic not in self.advertised:
                 self.status("warning", f"{topic} is not advertised by this client", oid)
             self.advertised.discard(topic)
@@ -299,8 +299,18 @@ class BridgeClient:
         else:
             raise RosbridgeError(f"unknown op {op!r}")
 
-    def _publish(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
+    def _topic(self, msg: Mapping[str, Any]) -> str:
+        """The op's topic as the robot names it inside (its namespace taken off).
+
+        A robot started in a namespace (``/r1``) has every topic under it, as a ROS node pushed
+        into a namespace does; a name outside it is a topic the robot does not have.
+        """
         topic = _req_str(msg, "topic")
+        local = self.robot.local(topic)
+        return local if local is not None else f"(outside {self.robot.namespace}) {topic}"
+
+    def _publish(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
+        topic = self._topic(msg)
         if "msg" not in msg:
             raise RosbridgeError("publish needs a 'msg'")
         body = msg["msg"]
@@ -317,7 +327,7 @@ class BridgeClient:
             self.status("warning", warning, oid)
 
     def _subscribe(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
-        topic = _req_str(msg, "topic")
+        topic = self._topic(msg)
         known = rb.TOPIC_TYPES.get(topic)
         if known is None:
             raise RosbridgeError(f"unknown topic {topic}")
@@ -347,7 +357,7 @@ class BridgeClient:
         self.robot._offer_latched(sub)
 
     def _unsubscribe(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
-        topic = _req_str(msg, "topic")
+        topic = self._topic(msg)
         sub = self.subs.get(topic)
         if sub is None:
             self.status("warning", f"not subscribed to {topic}", oid)
@@ -366,7 +376,7 @@ class BridgeClient:
         self.robot._remove_sub(sub)
 
     def _advertise(self, msg: Mapping[str, Any]) -> None:
-        topic = _req_str(msg, "topic")
+        topic = self._topic(msg)
         typ = _req_str(msg, "type")
         known = rb.TOPIC_TYPES.get(topic)
         if known is None or topic not in ROBOT_SUBSCRIBES:
@@ -465,7 +475,10 @@ class BridgeClient:
 
 def _rosapi_topics(client: BridgeClient, args: Any) -> dict[str, Any]:
     topics = sorted(rb.TOPIC_TYPES)
-    return {"topics": topics, "types": [rb.TOPIC_TYPES[t] for t in topics]}
+    return {
+        "topics": [client.robot.wire(t) for t in topics],
+        "types": [rb.TOPIC_TYPES[t] for t in topics],
+    }
 
 
 def _rosapi_get_time(client: BridgeClient, args: Any) -> dict[str, Any]:
@@ -474,7 +487,8 @@ def _rosapi_get_time(client: BridgeClient, args: Any) -> dict[str, Any]:
 
 def _rosapi_topic_type(client: BridgeClient, args: Any) -> dict[str, Any]:
     topic = args.get("topic") if isinstance(args, Mapping) else (args[0] if args else None)
-    return {"type": rb.TOPIC_TYPES.get(topic, "") if isinstance(topic, str) else ""}
+    local = client.robot.local(topic) if isinstance(topic, str) else None
+    return {"type": rb.TOPIC_TYPES.get(local, "") if local is not None else ""}
 
 
 def _rosapi_services(client: BridgeClient, args: Any) -> dict[str, Any]:

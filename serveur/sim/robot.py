@@ -180,12 +180,15 @@ class SimRobot:
         plan_lock: threading.Lock | None = None,
         clock_offset: float = 0.0,
         amcl: str = "continuous",
+        namespace: str = "",
     ) -> None:
         if amcl not in AMCL_MODES:
             raise ValueError(f"amcl must be one of {AMCL_MODES}, not {amcl!r}")
         if not math.isfinite(clock_offset):
             raise ValueError("clock_offset must be a finite number of seconds")
         self.name = name
+        #: Every topic of the robot lives under this ROS namespace ("" for none, "/r1").
+        self.namespace = namespace.rstrip("/")
         self.clock_offset = float(clock_offset)
         self.amcl = amcl
         self.index = index
@@ -235,6 +238,19 @@ class SimRobot:
         # laser
         self._scan_rel = -math.pi + (2.0 * math.pi / SCAN_RAYS) * np.arange(SCAN_RAYS)
         self._scan_cache: tuple[tuple[float, float, float], npt.NDArray[np.float64]] | None = None
+
+    # -- names -------------------------------------------------------------------------------
+
+    def wire(self, topic: str) -> str:
+        """A topic's name on the wire: under the robot's namespace, if it has one."""
+        return self.namespace + topic
+
+    def local(self, topic: str) -> str | None:
+        """A wire name without the namespace (None: a name outside the robot's namespace)."""
+        if not self.namespace:
+            return topic
+        prefix = self.namespace + "/"
+        return topic[len(self.namespace) :] if topic.startswith(prefix) else None
 
     # -- public state ----------------------------------------------------------------------
 
@@ -320,14 +336,14 @@ class SimRobot:
             return
         if stamp is None:
             stamp = self.epoch()
-        frame = Frame(rb.op_publish(topic, build(self._next_seq(topic), stamp)))
+        frame = Frame(rb.op_publish(self.wire(topic), build(self._next_seq(topic), stamp)))
         for s in wanting:
             s.push(frame, t)
 
     def _relay(self, topic: str, msg: Mapping[str, Any]) -> None:
         """A client's publish on a robot topic also reaches that topic's subscribers (ROS does)."""
         if topic in self._subs:
-            frame = Frame(rb.op_publish(topic, msg))
+            frame = Frame(rb.op_publish(self.wire(topic), msg))
             t = self._clock.now()
             for s in list(self._subs[topic]):
                 if s.wants(t):
@@ -710,7 +726,9 @@ class SimRobot:
         self._amcl_force = False
         self._amcl_at = (x, y, yaw)
         frame = Frame(
-            rb.op_publish("/amcl_pose", self._build_amcl(self._next_seq("/amcl_pose"), stamp))
+            rb.op_publish(
+                self.wire("/amcl_pose"), self._build_amcl(self._next_seq("/amcl_pose"), stamp)
+            )
         )
         self._amcl_frame = frame
         t = self._t

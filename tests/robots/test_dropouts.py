@@ -13,6 +13,8 @@ import random
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from serveur.app import App, RobotSpec
 from serveur.clock import ScaledClock
 from serveur.core.engine import Core, CoreConfig
@@ -22,6 +24,8 @@ from serveur.robot_sim import start_simulation
 from tests import invariants
 from tests.conftest import Client, Restaurant
 from tests.test_e2e import activate, near, new_orders, serve_current_stop, staff
+
+pytestmark = pytest.mark.cuts_links  # robots drop off the network on purpose
 
 #: Fault schedule seed; set SERVEUR_FAULT_SEED to explore other schedules.
 SEED = int(os.environ.get("SERVEUR_FAULT_SEED", "2"))

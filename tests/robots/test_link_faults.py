@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import pytest
+
 from tests.conftest import Client, Restaurant
 from tests.test_e2e import activate, new_orders, serve_current_stop, staff
+
+pytestmark = pytest.mark.cuts_links  # robots drop off the network on purpose
 
 
 async def start_delivery(r: Restaurant, table: str = "T6") -> tuple[Client, list[int]]:

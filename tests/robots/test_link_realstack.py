@@ -23,7 +23,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from serveur.core.runtime import CoreConfig
 from serveur.robots import rosbridge as rb
 from tests.conftest import TIME_SCALE, Client, Restaurant, restaurant
-from tests.test_e2e import activate, new_orders, staff
+from tests.test_e2e import activate, new_orders, serve_current_stop, staff
 
 CONFIG = CoreConfig(ack_timeout=3.0)  # the defaults otherwise: the heartbeat a site gets
 
@@ -43,7 +43,8 @@ async def robot_topic(r: Restaurant, topic: str) -> AsyncIterator[list[dict[str,
     """What the robot's rosbridge delivers on ``topic`` (a client's publishes are relayed)."""
     seen: list[dict[str, Any]] = []
     async with connect(r.sim.urls[0]) as ws:
-        await ws.send(rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[topic])))
+        default = r.sim.robots[0].local(topic)
+        await ws.send(rb.encode(rb.op_subscribe(topic, rb.TOPIC_TYPES[default])))
 
         async def read(ws: ClientConnection) -> None:
             async for frame in ws:
@@ -116,6 +117,7 @@ async def test_numbers_out_of_range_from_a_robot_do_not_kill_its_link(
     await c.status("r1", "Delivered")
 
 
+@pytest.mark.cuts_links
 async def test_a_silent_path_is_offline_within_the_heartbeat(proxied: Restaurant) -> None:
     c = await staff(proxied)
     await c.status("r1", "Ready")
@@ -194,3 +196,18 @@ async def test_teleop_during_a_manual_goal_cancels_the_goal(one_robot: Restauran
     (_, status, text) = robot.goal_statuses[-1]
     assert status in (rb.GoalStatus.PREEMPTED, rb.GoalStatus.RECALLED)
     assert "cmd_vel" not in text  # cancelled by the server, not by the simulator's teleop
+
+
+async def test_a_namespaced_robot_is_driven_under_its_own_names(tmp_path: Path) -> None:
+    # Robots on one ROS master are namespaced: /r1/move_base/goal, /r1/amcl_pose, ...
+    async with restaurant(tmp_path, namespaced=True) as r:
+        assert r.sim.robots[0].namespace == "/r1"
+        assert dict(r.specs[0].link) == {"ns": "/r1"}
+        c = await staff(r)
+        async with robot_topic(r, "/r1/move_base/goal") as goals:
+            await deliver(c, "T6")
+            await c.status("r1", "Delivered")
+        assert goals and goals[0]["goal"]["target_pose"]["header"]["frame_id"] == "map"
+        stop = await serve_current_stop(c, "r1")
+        assert stop["table"] == "T6"
+        await c.status("r1", "Awaiting")

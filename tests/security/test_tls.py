@@ -288,6 +288,7 @@ async def test_robot_over_wss_becomes_ready_and_delivers(tmp_path: Path, pki: Pk
         await c.status("r1", "Delivered")
 
 
+@pytest.mark.cuts_links  # the robot is stopped before the server
 async def test_robot_added_from_the_console_over_wss(tmp_path: Path, pki: Pki) -> None:
     """A robot created at run time gets the same robot CA as the ones on the command line."""
     from serveur.robot_sim import start_simulation

@@ -531,3 +531,25 @@ def test_fragment_ops_total_is_fractional_on_python3() -> None:
     assert [len(p["data"]) for p in parts] == [100, 100, 50]
     assert all(p["total"] == pytest.approx(3.49) and p["id"] == "m" for p in parts)
     assert rb.fragment_ops("y" * 201, 100, 0)[0]["total"] == 3.0
+
+
+async def test_a_namespaced_robot_has_every_topic_under_its_namespace() -> None:
+    # Robots on one ROS master: a node pushed into /r1 resolves every relative name under it.
+    s = await start_simulation(1, port=0, clock=ScaledClock(SCALE), seed=5, namespaced=True)
+    try:
+        c = await open_raw(s, level="error")
+        await c.send(rb.op_subscribe("/move_base/status", "actionlib_msgs/GoalStatusArray"))
+        err = await c.wait_for(lambda m: m.get("op") == "status" and m.get("level") == "error")
+        assert "/move_base/status" in err["msg"]
+        await c.send(rb.op_subscribe("/r1/move_base/status", "actionlib_msgs/GoalStatusArray"))
+        got = await c.wait_for(lambda m: m.get("op") == "publish")
+        assert got["topic"] == "/r1/move_base/status"
+        await c.send(rb.op_subscribe("/r1/map", "nav_msgs/OccupancyGrid"))
+        m = await c.wait_for(lambda m: m.get("op") == "publish" and "map" in m["topic"])
+        assert m["topic"] == "/r1/map"  # latched, under the namespace too
+        await c.send({"op": "call_service", "service": "/rosapi/topics", "id": "t", "args": {}})
+        topics = await c.wait_for(lambda m: m.get("op") == "service_response")
+        assert "/r1/amcl_pose" in topics["values"]["topics"]
+        assert "/amcl_pose" not in topics["values"]["topics"]
+    finally:
+        await shut(s)

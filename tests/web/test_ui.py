@@ -573,6 +573,7 @@ async def test_logging_in_and_out_and_screen_setup_links(tmp_path: Path, browser
         screens.assert_no_errors(re.compile("401|4001|Unauthorized", re.I))
 
 
+@pytest.mark.cuts_links  # its simulated robot stops before the server
 async def test_the_owner_registers_a_robot_staff_cannot(tmp_path: Path, browser: Any) -> None:
     async with ui_restaurant(tmp_path) as r:
         # A robot the server does not know yet, on its own rosbridge port.

@@ -200,6 +200,8 @@ class RobotLink:
         self.pose: tuple[float, float, float] | None = None
         self.battery: float | None = None
         self.connects = 0
+        #: Why the last attempt to connect failed ("" once connected): for the console.
+        self.last_failure = ""
 
     # -- lifecycle ---------------------------------------------------------------------------
 
@@ -229,7 +231,7 @@ class RobotLink:
 
     async def _run(self) -> None:
         delay = self._backoff[0]
-        tls_failure = ""  # the last TLS failure logged, so a bad certificate is said once
+        failure = ""  # the last failure logged, so a bad certificate or address is said once
         tls: dict[str, Any] = {"ssl": self._ssl} if self._ssl is not None else {}
         while True:
             try:
@@ -245,7 +247,7 @@ class RobotLink:
                     self._ws = ws
                     self.connects += 1
                     delay = self._backoff[0]
-                    tls_failure = ""
+                    failure = self.last_failure = ""
                     await self._session(ws)
                     reason = "connection closed"
             except asyncio.CancelledError:
@@ -255,13 +257,20 @@ class RobotLink:
                 # Not a network blip: retrying will not help until someone fixes a certificate
                 # or --robot-cafile, so tell the operator (once per distinct reason).
                 reason = f"TLS: {exc}"
-                if reason != tls_failure:
-                    tls_failure = reason
+                if reason != failure:
+                    failure = self.last_failure = reason
                     log.warning("%s: cannot connect to %s: %s", self.name, self.url, reason)
                 else:
                     log.debug("%s: cannot connect to %s: %s", self.name, self.url, reason)
             except (OSError, TimeoutError, websockets.exceptions.WebSocketException) as exc:
                 reason = f"{type(exc).__name__}: {exc}"
+                # A wrong address or a robot switched off: said once per distinct reason (and
+                # kept in last_failure), not once per retry.
+                if reason != failure:
+                    failure = self.last_failure = reason
+                    log.warning("%s: cannot connect to %s: %s", self.name, self.url, reason)
+                else:
+                    log.debug("%s: cannot connect to %s: %s", self.name, self.url, reason)
             finally:
                 self._ws = None
             self._set_down(reason)
