@@ -615,11 +615,16 @@ def _parse(frame: str | bytes) -> ClientMessage:
     try:
         obj = json.loads(text, object_pairs_hook=_object_pairs)
     except _DuplicateKey as exc:
-        err: ServeurError = InvalidField(f"duplicate key {exc.key[:80]!r}", key=exc.key[:80])
+        key = exc.key[:80]
+        err: ServeurError = InvalidField(
+            f"duplicate key {key!r}",
+            key=key,
+            errors=[{"loc": [key], "msg": f"duplicate key {key!r}", "type": "duplicate_key"}],
+        )
         err.request_id = _sniff_id(text)
         raise err from None
     except RecursionError:
-        err = InvalidField(f"JSON nested too deep (limit {MAX_DEPTH})")
+        err = _too_deep_error()
         err.request_id = _sniff_id(text)
         raise err from None
     except ValueError as exc:  # JSONDecodeError, or an integer with too many digits
@@ -636,7 +641,7 @@ def _parse(frame: str | bytes) -> ClientMessage:
     request_id = _read_id(obj.get("id"))
     try:
         if _too_deep(obj, MAX_DEPTH):
-            raise InvalidField(f"JSON nested too deep (limit {MAX_DEPTH})")
+            raise _too_deep_error()
         verb = obj.get("clientmsg")
         if not isinstance(verb, str) or verb not in VERBS:
             got = "missing clientmsg" if verb is None else f"unknown clientmsg {str(verb)[:40]!r}"
@@ -652,6 +657,12 @@ def _parse(frame: str | bytes) -> ClientMessage:
         err = _internal(exc)
         err.request_id = request_id
         raise err from exc
+
+
+def _too_deep_error() -> InvalidField:
+    # details.errors as for every invalid_field (docs/protocol.md): a client reads one shape.
+    msg = f"JSON nested too deep (limit {MAX_DEPTH})"
+    return InvalidField(msg, errors=[{"loc": [], "msg": msg, "type": "too_deep"}])
 
 
 def schema() -> dict[str, Any]:

@@ -56,7 +56,15 @@ from serveur.domain import (
     WaypointKind,
     WaypointRecord,
 )
-from serveur.errors import Conflict, InvalidField, LinkError, NotFound, ServeurError, StoreError
+from serveur.errors import (
+    Conflict,
+    InvalidField,
+    LinkError,
+    NotFound,
+    ServeurError,
+    StoreError,
+    Unreachable,
+)
 from serveur.robots import rosbridge as rb
 from serveur.robots.names import RosNames
 from serveur.robots.ros1.link import RobotLink
@@ -455,6 +463,7 @@ class Core:
                 wp = self.places.waypoint(msg.waypoint)
                 dest = Destination("manual", wp.name, wp.x, wp.y, wp.yaw)
             else:
+                self._check_reachable(msg.x, msg.y)
                 dest = Destination("manual", "", msg.x, msg.y, msg.yaw)
             await self._drive(rt, dest)
         elif action is Action.READY:
@@ -483,6 +492,15 @@ class Core:
                 await self.trips.abandon(rt.name, "cancelled by staff")
             await self._event(rt, Event.CANCEL)
             await self._drive(rt, self._home_dest(rt))
+
+    def _check_reachable(self, x: float, y: float) -> None:
+        """Refuse at once a manual goal the robot could never reach (off the map, in a wall),
+        rather than send it and report move_base's failure later through ``last_error``."""
+        m = self.places.map
+        problem = m.goal_problem(x, y) if m is not None else None
+        if problem is not None:
+            reason, message = problem
+            raise Unreachable(f"goal {message}", x=x, y=y, reason=reason)
 
     async def _next(self, rt: Runtime) -> None:
         task = await self.trips.serve_stop(rt.name)

@@ -118,6 +118,27 @@ class MapData:
         grid = np.ascontiguousarray(m.grid, dtype=np.int8)
         return cls(float(m.resolution), (x, y, yaw), int(m.width), int(m.height), grid.tobytes())
 
+    def goal_problem(self, x: float, y: float) -> tuple[str, str] | None:
+        """Why a robot cannot be sent to (x, y): ``(reason, message)``, or None if it may.
+
+        The planner's own first checks, without numpy (the server does not load it): outside
+        the map, in unknown space, inside an obstacle. A free cell too close to a wall is left
+        to the robot's planner, which knows its footprint.
+        """
+        where = f"({x:.2f}, {y:.2f})"
+        row = math.floor((y - self.origin[1]) / self.resolution)
+        col = math.floor((x - self.origin[0]) / self.resolution)
+        if not (0 <= row < self.height and 0 <= col < self.width):
+            return "outside_map", f"{where} is outside the map"
+        value = int.from_bytes(
+            self.data[row * self.width + col : row * self.width + col + 1], "little", signed=True
+        )
+        if value < 0:
+            return "unknown", f"{where} is in unknown space"
+        if value > 0:
+            return "occupied", f"{where} is inside an obstacle"
+        return None
+
     def to_occupancy(self) -> Any:
         import numpy as np
 
