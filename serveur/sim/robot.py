@@ -98,7 +98,11 @@ _BATTERY_TICKS: Final = 20  # 1 Hz
 #: Most physics steps taken in one loop pass when the loop fell behind; beyond, sim time slips.
 MAX_CATCH_UP: Final = 20
 
-CMD_VEL_TIMEOUT: Final = 0.5  # s sim: a teleop command older than this is stale, the robot stops
+#: A teleop command older than this (wall seconds) is stale and the base stops, as a velocity
+#: watchdog does. Wall time, not the robot's: a person's joystick repeats at 5-10 Hz of wall
+#: time, so in robot time the timeout must grow with --time-scale or the robot crawls (at 10x,
+#: commands 2 s of robot time apart against a 0.5 s watchdog).
+CMD_VEL_TIMEOUT: Final = 0.5
 TERMINAL_KEEP: Final = 5.0  # s sim a finished goal stays in the status list (actionlib's default)
 BLOCKED_ABORT_AFTER: Final = 1.0  # s sim a blocked robot waits before aborting its goal
 STUCK_ABORT_AFTER: Final = 3.0  # s sim pushing against an obstacle before aborting
@@ -566,7 +570,7 @@ class SimRobot:
             self._finish(self._active, GoalStatus.PREEMPTED, "")
             return 0.0, 0.0, 0.0
         if self._teleop is not None:
-            if now - self._teleop_t > CMD_VEL_TIMEOUT:
+            if now - self._teleop_t > CMD_VEL_TIMEOUT * self._clock.time_scale:
                 self._teleop = None  # stale: stop, as a velocity watchdog does
                 return 0.0, 0.0, 0.0
             return self._teleop

@@ -553,3 +553,19 @@ async def test_a_namespaced_robot_has_every_topic_under_its_namespace() -> None:
         assert "/amcl_pose" not in topics["values"]["topics"]
     finally:
         await shut(s)
+
+
+async def test_a_joystick_at_5_hz_wall_drives_at_full_speed_whatever_the_time_scale(
+    sim: Simulation,
+) -> None:
+    # The base's velocity watchdog is 0.5 s of wall time: at SCALE x a person's 5 Hz commands
+    # are SCALE/5 s of robot time apart, and a robot-time watchdog stopped it between them.
+    c = await open_raw(sim)
+    robot = sim.robots[0]
+    clock = sim.clock
+    y0, t0 = robot.pose[1], clock.now()
+    for _ in range(5):
+        await c.send(rb.op_publish("/cmd_vel", rb.twist(-0.3, 0.0, 0.0)))  # home faces a wall
+        await asyncio.sleep(0.2)  # the joystick's period (wall), not a wait for a result
+    travelled, elapsed = y0 - robot.pose[1], clock.now() - t0
+    assert travelled > 0.6 * 0.3 * elapsed, (travelled, elapsed)
