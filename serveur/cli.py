@@ -13,6 +13,7 @@ import contextlib
 import json
 import logging
 import os
+import shutil
 import signal
 import ssl
 import sys
@@ -157,17 +158,29 @@ async def _demo(ns: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    sim = await start_simulation(
-        ns.robots,
-        port=ns.sim_port,
-        host=ns.host,
-        map_path=demo_map_path(),
-        kinematics=ns.kinematics,
-        time_scale=ns.time_scale,
-        clock=clock,
-        seed=ns.seed,
-    )
-    db = ns.db or str(Path(tempfile.mkdtemp(prefix="serveur-demo-")) / "serveur.db")
+    try:
+        sim = await start_simulation(
+            ns.robots,
+            port=ns.sim_port,
+            host=ns.host,
+            map_path=demo_map_path(),
+            kinematics=ns.kinematics,
+            time_scale=ns.time_scale,
+            clock=clock,
+            seed=ns.seed,
+        )
+    except OSError as exc:
+        last = ns.sim_port + ns.robots - 1
+        print(
+            f"serveur demo: cannot start the simulated robots on {ns.host}:{ns.sim_port}-{last}"
+            f" ({exc.strerror or exc}); is another demo running? Give --sim-port PORT, or"
+            " --sim-port 0 for free ports",
+            file=sys.stderr,
+        )
+        return 1
+    # A fresh temporary database unless --db: removed again when the demo stops.
+    tmpdir = None if ns.db else Path(tempfile.mkdtemp(prefix="serveur-demo-"))
+    db = ns.db or str(Path(str(tmpdir)) / "serveur.db")
     specs = [
         RobotSpec(r.name, url, homes[i].name, ns.kinematics)
         for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
@@ -186,7 +199,15 @@ async def _demo(ns: argparse.Namespace) -> int:
         robot_ssl=robot_tls,
     )
     try:
-        await app.start()
+        try:
+            await app.start()
+        except OSError as exc:
+            print(
+                f"serveur demo: cannot listen on {ns.host}:{ns.port} ({exc.strerror or exc});"
+                " is another demo running? Give --port PORT",
+                file=sys.stderr,
+            )
+            return 1
         creds = await _demo_accounts(app, specs, waypoints)
         print(
             f"serveur demo: {ns.robots} simulated robots, time scale {ns.time_scale}x", flush=True
@@ -202,12 +223,15 @@ async def _demo(ns: argparse.Namespace) -> int:
         first = creds["table"]
         print(f"  table screen: {web}/table/{first}#token={creds['table-token']}")
         print("  (demo credentials: fresh and random on every start)")
-        print(f"  database: {db}")
+        kept = "removed when the demo stops; --db PATH keeps one" if tmpdir else "kept"
+        print(f"  database: {db} ({kept})")
         print("  Ctrl-C stops everything.", flush=True)
         await _wait_for_signal()
     finally:
         await app.close()
         await sim.close()
+        if tmpdir is not None:
+            shutil.rmtree(tmpdir, ignore_errors=True)
     return 0
 
 
@@ -218,10 +242,15 @@ async def _demo_accounts(app: Any, specs: Sequence[Any], waypoints: Any) -> dict
 
     assert app.sessions is not None
     creds: dict[str, str] = {}
+    existing = {u.name: u.role for u in await app.store.list_users()}
     for name, role in (("owner", "owner"), ("staff", "staff")):
         password = auth.new_password()
         pw_hash = await asyncio.to_thread(auth.hash_password, password)
-        await app.store.add_user(name, role, pw_hash, now=app.clock.epoch())
+        if name in existing:
+            # A demo started again on its database (--db): the same accounts, new passwords.
+            await app.store.set_password(name, pw_hash, now=app.clock.epoch())
+        else:
+            await app.store.add_user(name, role, pw_hash, now=app.clock.epoch())
         creds[name] = password
     for spec in specs:
         creds[spec.name] = await app.issue_token("robot-screen", robot=spec.name, label="demo")
@@ -290,11 +319,20 @@ def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     demo.add_argument("--host", default="127.0.0.1")
     demo.add_argument("--port", type=int, default=8765)
     demo.add_argument("--robots", type=int, default=2)
-    demo.add_argument("--sim-port", type=int, default=9090)
+    demo.add_argument(
+        "--sim-port",
+        type=int,
+        default=9090,
+        help="the simulated robots' rosbridge ports start here (9090, 9091, ...; 0: free ports)",
+    )
     demo.add_argument("--time-scale", type=float, default=1.0)
     demo.add_argument("--kinematics", choices=["omni", "diff"], default="omni")
     demo.add_argument("--seed", type=int, default=0)
-    demo.add_argument("--db", help="database file (default: a fresh temporary one)")
+    demo.add_argument(
+        "--db",
+        help="database file, kept (default: a fresh temporary one, removed when the demo stops);"
+        " on an existing one the demo accounts get new passwords",
+    )
     _add_security_arguments(demo)
     # The demo's own simulated robots stay on plain ws:// (loopback, same process);
     # --robot-cafile is for wss:// robots added from the console.

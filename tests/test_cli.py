@@ -141,3 +141,70 @@ async def test_sim_command_prints_urls_and_stops(tmp_path: Path) -> None:
         if proc.returncode is None:
             proc.kill()
             await proc.wait()
+
+
+async def _demo(*args: str) -> asyncio.subprocess.Process:
+    return await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "serveur.cli",
+        "demo",
+        "--robots",
+        "1",
+        *args,
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.STDOUT,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+
+
+async def _stopped(proc: asyncio.subprocess.Process) -> int:
+    if proc.returncode is None:
+        proc.send_signal(signal.SIGTERM)
+    return await asyncio.wait_for(proc.wait(), 20)
+
+
+async def test_a_second_demo_says_what_is_taken_and_a_demo_database_can_be_reused(
+    tmp_path: Path,
+) -> None:
+    db = str(tmp_path / "demo.db")
+    port, sim_port = free_port(), free_port()
+    first = await _demo("--port", str(port), "--sim-port", str(sim_port), "--db", db)
+    procs = [first]
+    try:
+        await read_until(first, "Ctrl-C")
+        # Same robot ports: one clear line, exit 1, no traceback.
+        second = await _demo("--port", str(free_port()), "--sim-port", str(sim_port))
+        procs.append(second)
+        out, _ = await asyncio.wait_for(second.communicate(), 30)
+        assert second.returncode == 1, out.decode()
+        assert "--sim-port" in out.decode() and "Traceback" not in out.decode(), out.decode()
+        # Same server port: the same, naming --port.
+        third = await _demo("--port", str(port), "--sim-port", "0")
+        procs.append(third)
+        out, _ = await asyncio.wait_for(third.communicate(), 30)
+        assert third.returncode == 1 and "--port" in out.decode(), out.decode()
+        assert "Traceback" not in out.decode(), out.decode()
+        assert await _stopped(first) == 0
+        # The same database again: the demo accounts get new passwords (before: "user 'owner'
+        # already exists").
+        again = await _demo("--port", str(port), "--sim-port", "0", "--db", db)
+        procs.append(again)
+        out_again = await read_until(again, "Ctrl-C")
+        assert re.search(r"log in as staff / (\S+)", out_again), out_again
+        assert await _stopped(again) == 0
+        # Without --db: a temporary database, removed when the demo stops.
+        temp = await _demo("--port", str(free_port()), "--sim-port", "0")
+        procs.append(temp)
+        out_temp = await read_until(temp, "Ctrl-C")
+        where = re.search(r"database: (\S+) \(removed", out_temp)
+        assert where, out_temp
+        folder = Path(where[1]).parent
+        assert folder.exists()
+        assert await _stopped(temp) == 0
+        assert not folder.exists()
+    finally:
+        for proc in procs:
+            if proc.returncode is None:
+                proc.kill()
+                await proc.wait()
