@@ -57,6 +57,7 @@ from typing import Any
 
 import pytest
 from websockets.asyncio.client import ClientConnection, connect
+from websockets.exceptions import ConnectionClosed
 
 from serveur.security import auth
 from tests.conftest import Client, Restaurant, restaurant
@@ -295,7 +296,7 @@ class World:
     staff: Raw
     login: Raw
     owner_raw: Raw  # sends the owner's requests
-    dishes: int = 0
+    codes: set[str] = field(default_factory=set)  # error codes the replay was answered with
 
     def watched(self) -> list[dict[str, Any]]:
         return [
@@ -445,6 +446,7 @@ async def _prepare(w: World, b: Block) -> None:
                 {"clientmsg": "login", "username": "alice", "password": "wrong guess"}
             )
             assert got.get("code") == "unauthorized", got
+            w.codes.add("unauthorized")
     if "state" in h:
         await to_state(w, h["state"])
 
@@ -467,6 +469,8 @@ async def _send(w: World, step: Step) -> None:
         got = await w.login.request(msg)
     else:
         got = await w.staff.request(msg)
+    if got["servermsg"] == "error":
+        w.codes.add(got["code"])
     if reply is None:
         if got["servermsg"] != "ok":
             _fail(step, "documented without a reply, so it must succeed", [json.dumps(got)])
@@ -513,6 +517,8 @@ async def test_every_example_in_the_doc_is_what_the_server_does(world: World) ->
             await _send(world, step)
         else:
             await _update(world, step)
+    assert world.codes == REPLAYED_CODES
+    _check_events(world)
 
 
 def test_skips_are_rare_and_say_why() -> None:
@@ -536,3 +542,147 @@ def test_a_drifted_example_fails() -> None:
     assert mismatches(step.reply.msg, sent, Rules()) == []
     sent["details"]["status"] = "Offline"
     assert mismatches(step.reply.msg, sent, Rules())
+
+
+# --------------------------------------------------------------------------- events
+
+
+def _event_rows() -> dict[str, set[str]]:
+    """The doc's event-kinds table: kind -> the names in backquotes of its ``data`` column."""
+    text = DOC.read_text(encoding="utf-8")
+    start = text.index("<!-- table:event-kinds -->")
+    rows: dict[str, set[str]] = {}
+    for line in text[start:].splitlines()[3:]:
+        if not line.startswith("|"):
+            break
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        rows[cells[0].strip("`")] = set(re.findall(r"`([a-z_]+)`", cells[3]))
+    return rows
+
+
+#: Event kinds the store can write that no request or robot report leads to (no verb deletes a
+#: waypoint or withdraws an order): not in the doc's table.
+UNREACHED_KINDS = frozenset({"waypoint.deleted", "order.cancelled"})
+
+
+def test_the_event_table_lists_every_kind_the_server_records() -> None:
+    root = Path(__file__).resolve().parent.parent / "serveur"
+    kinds = set()
+    for path in root.rglob("*.py"):
+        code = path.read_text(encoding="utf-8")
+        kinds |= set(re.findall(r'"((?:robot|waypoint|order|task|stop)\.[a-z_]+)"', code))
+    assert kinds >= UNREACHED_KINDS
+    assert set(_event_rows()) == kinds - UNREACHED_KINDS
+
+
+def _check_events(w: World) -> None:
+    """Every event the replay saw is in the doc's table, with no field the table does not name."""
+    rows = _event_rows()
+    seen: set[str] = set()
+    for f in w.watched():
+        if f["topic"] != "events":
+            continue
+        ev = f["data"]
+        assert ev["kind"] in rows, ev
+        assert set(ev["data"]) <= rows[ev["kind"]], (ev, rows[ev["kind"]])
+        seen.add(ev["kind"])
+    assert len(seen) >= 10, seen
+
+
+# --------------------------------------------------------------------------- error codes
+
+#: Error codes the doc's examples make the server send (the replay checks it sent them all).
+REPLAYED_CODES = frozenset(
+    {
+        "unauthorized",
+        "rate_limited",
+        "not_allowed_in_status",
+        "conflict",
+        "unreachable",
+        "invalid_field",
+        "not_found",
+        "unknown_message",
+    }
+)
+#: Where each error code of the doc's table is produced on the wire.
+PRODUCED_BY = {
+    **{c: "test_every_example_in_the_doc_is_what_the_server_does" for c in REPLAYED_CODES},
+    "forbidden": "test_refusals_the_examples_do_not_show",
+    "bad_json": "test_refusals_the_examples_do_not_show",
+    "store_error": "test_refusals_the_examples_do_not_show",
+    "link_error": "test_refusals_the_examples_do_not_show",
+    "internal_error": "test_refusals_the_examples_do_not_show (a bug, injected)",
+    # Never sent by this version (docs/protocol.md says so); their reply shape is checked by
+    # raising them where the core answers a request.
+    "map_error": "test_refusals_the_examples_do_not_show (injected)",
+    "navigation_error": "test_refusals_the_examples_do_not_show (injected)",
+    "rosbridge_error": "test_refusals_the_examples_do_not_show (injected)",
+}
+
+
+def _error_table() -> list[str]:
+    text = DOC.read_text(encoding="utf-8")
+    start = text.index("<!-- table:errors -->")
+    out = []
+    for line in text[start:].splitlines()[3:]:
+        if not line.startswith("|"):
+            break
+        out.append(line.split("|")[1].strip().strip("`"))
+    return out
+
+
+def test_every_error_code_is_produced() -> None:
+    assert sorted(PRODUCED_BY) == sorted(_error_table())
+
+
+async def _raw(r: Restaurant, frame: str | bytes, headers: bool = True) -> dict[str, Any]:
+    extra = r.auth_headers() if headers else {}
+    async with connect(r.app.url, additional_headers=extra) as ws:
+        await ws.send(frame)
+        return dict(json.loads(await ws.recv()))
+
+
+async def test_refusals_the_examples_do_not_show(
+    one_robot: Restaurant, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from serveur import errors as E
+
+    r = one_robot
+    c = await r.client()
+    await c.subscribe("robots")
+    await c.status(ROBOT, "Ready")
+    bad = await _raw(r, '{"clientmsg":"stop","id":5,"robot":')
+    assert (bad["code"], bad["id"]) == ("bad_json", 5), bad
+    await c.error("create", "forbidden", type="robot", name="r3", url="ws://10.0.0.23:9090")
+    # A frame over 64 KiB is not answered: the connection is closed with 1009.
+    async with connect(r.app.url, additional_headers=r.auth_headers()) as ws:
+        await ws.send(json.dumps({"clientmsg": "order", "table": "T3" * 40_000}))
+        with pytest.raises(ConnectionClosed) as closed:
+            await ws.recv()
+        assert closed.value.rcvd is not None and closed.value.rcvd.code == 1009
+    # The database refuses every write (as a full disk does).
+    db = r.app.store._db  # type: ignore[attr-defined]
+    await db.execute("PRAGMA query_only = 1")
+    await c.error("create", "store_error", type="order", dish="Laksa", table="T3")
+    await db.execute("PRAGMA query_only = 0")
+    await c.ok("create", type="order", dish="Laksa", table="T3")
+    core = r.app.core
+    assert core is not None
+    for exc in (
+        RuntimeError("a bug"),
+        E.MapError("map file unreadable"),
+        E.NavigationError("planner died"),
+        E.RosbridgeError("bad frame"),
+    ):
+
+        async def fail(msg: Any, exc: Exception = exc) -> dict[str, Any]:
+            raise exc
+
+        with monkeypatch.context() as m:
+            m.setattr(core, "handle", fail)
+            code = getattr(exc, "code", "internal_error")
+            err = await c.error("ready", code, robot=ROBOT)
+            assert set(err) <= {"servermsg", "id", "code", "message", "details"}, err
+    # Shutting down: robots are stopped first, and every instruction is refused.
+    await core.halt_robots()
+    await c.error("control", "link_error", robot=ROBOT, action="manual")
