@@ -595,6 +595,7 @@ def _check_events(w: World) -> None:
 REPLAYED_CODES = frozenset(
     {
         "unauthorized",
+        "forbidden",
         "rate_limited",
         "not_allowed_in_status",
         "conflict",
@@ -607,7 +608,6 @@ REPLAYED_CODES = frozenset(
 #: Where each error code of the doc's table is produced on the wire.
 PRODUCED_BY = {
     **{c: "test_every_example_in_the_doc_is_what_the_server_does" for c in REPLAYED_CODES},
-    "forbidden": "test_refusals_the_examples_do_not_show",
     "bad_json": "test_refusals_the_examples_do_not_show",
     "store_error": "test_refusals_the_examples_do_not_show",
     "link_error": "test_refusals_the_examples_do_not_show",
