@@ -533,8 +533,10 @@ def test_skips_are_rare_and_say_why() -> None:
 
 def test_a_drifted_example_fails() -> None:
     """The comparison is what makes the replay fail: change one field of a documented reply
-    and it no longer matches what the server sent (the replay itself was also run once with a
-    documented field changed, and failed on it: see the commit message)."""
+    and it no longer matches what the server sent. (Checked by hand on the whole replay too:
+    ``"resume":"Ready"`` in the ``manual`` reply fails with ``robot.resume: documented 'Ready',
+    got None``; ``"task_id":12`` in the events update, with ``data.task_id: documented a number
+    (12), got None``; ``goto`` to ``T99``, with the ``not_found`` it got.)"""
     steps = read_steps(DOC.read_text(encoding="utf-8"))
     step = next(s for s in steps if s.reply and s.reply.msg.get("code") == "not_allowed_in_status")
     assert step.reply is not None
