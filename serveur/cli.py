@@ -33,13 +33,15 @@ __all__ = ["main"]
 log = logging.getLogger("serveur")
 
 
-async def _wait_for_signal() -> None:
+def _on_signal() -> asyncio.Event:
+    """An event set by SIGINT or SIGTERM, with the handlers installed now: before the ready
+    line is printed, so a supervisor that signals as soon as it reads it stops us cleanly."""
     loop = asyncio.get_running_loop()
     stop = asyncio.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         with contextlib.suppress(NotImplementedError):
             loop.add_signal_handler(sig, stop.set)
-    await stop.wait()
+    return stop
 
 
 def _security(ns: argparse.Namespace) -> SecurityConfig:
@@ -119,6 +121,7 @@ async def _run(ns: argparse.Namespace) -> int:
     from serveur.maps.memory import freeze_heap
 
     freeze_heap()  # start-up objects out of the collector's way: no 70 ms full collections
+    stop = _on_signal()
     print(f"serveur {__version__} listening on {app.url} (database {ns.db})", flush=True)
     web = app.url.replace("ws", "http", 1).removesuffix("/ws")
     if app.first_owner_password is not None:
@@ -131,7 +134,7 @@ async def _run(ns: argparse.Namespace) -> int:
             flush=True,
         )
     try:
-        await _wait_for_signal()
+        await stop.wait()
     finally:
         await app.close()
     return 0
@@ -209,6 +212,7 @@ async def _demo(ns: argparse.Namespace) -> int:
             )
             return 1
         creds = await _demo_accounts(app, specs, waypoints)
+        stop = _on_signal()
         print(
             f"serveur demo: {ns.robots} simulated robots, time scale {ns.time_scale}x", flush=True
         )
@@ -226,7 +230,7 @@ async def _demo(ns: argparse.Namespace) -> int:
         kept = "removed when the demo stops; --db PATH keeps one" if tmpdir else "kept"
         print(f"  database: {db} ({kept})")
         print("  Ctrl-C stops everything.", flush=True)
-        await _wait_for_signal()
+        await stop.wait()
     finally:
         await app.close()
         await sim.close()

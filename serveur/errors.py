@@ -23,6 +23,7 @@ __all__ = [
     "RateLimited",
     "RosbridgeError",
     "ServeurError",
+    "Stale",
     "StoreError",
     "TlsError",
     "Unauthorized",
@@ -109,6 +110,17 @@ class Unreachable(NavigationError):
     """The goal is occupied, outside the map or not connected to the start."""
 
     code = "unreachable"
+
+
+class Stale(ServeurError):
+    """The command names a trip or stop the robot has moved on from since the client saw it.
+
+    A screen on stalled Wi-Fi shows the robot at T5 while it is at T14: its "Food collected"
+    must not release the robot at T14. ``details`` carries the robot's current trip, stop and
+    status, so the client can redraw and ask again. Nothing was changed.
+    """
+
+    code = "stale"
 
 
 class RosbridgeError(ServeurError):

@@ -125,6 +125,7 @@ __all__ = [
     "NextMsg",
     "OkReply",
     "OrderMsg",
+    "PingMsg",
     "PoseData",
     "ReadyMsg",
     "RequestId",
@@ -133,6 +134,7 @@ __all__ = [
     "Session",
     "Snapshot",
     "StopMsg",
+    "TargetMsg",
     "UpdateData",
     "UpdateMsg",
     "action_of",
@@ -193,6 +195,16 @@ class LogoutMsg(_ClientMsg):
     """End this connection's session: a password session's token is revoked for good."""
 
     clientmsg: Literal["logout"]
+
+
+class PingMsg(_ClientMsg):
+    """Is the link alive? A page's heartbeat: the reply is all it wants (and the server's time).
+
+    A socket on stalled Wi-Fi stays open and silent; a page that sends a ping every couple of
+    seconds and hears nothing back knows within a few seconds that what it shows may be stale.
+    """
+
+    clientmsg: Literal["ping"]
 
 
 class DataMsg(_ClientMsg):
@@ -361,25 +373,49 @@ class ReadyMsg(_RobotMsg):
     clientmsg: Literal["ready"]
 
 
-class NextMsg(_RobotMsg):
+class _TargetMsg(_RobotMsg):
+    """A command on a robot's trip, naming the trip and stop the client saw (both optional).
+
+    ``task``: the trip the client's screen shows the robot on (``null``: on none); ``stop``:
+    that trip's current stop (seq). When given and the robot has moved on since, the command
+    is refused with ``stale`` and changes nothing: a screen behind the server never acts on a
+    stop it does not show. Screens send both; a script may leave them out.
+    """
+
+    task: OrderId | None = Field(
+        default=None, description="The trip the client saw (null: none); checked when present"
+    )
+    stop: Annotated[int, Field(ge=0, le=1000)] | None = Field(
+        default=None, description="The current stop (seq) the client saw; checked when present"
+    )
+
+    def expects(self) -> tuple[bool, int | None, int | None]:
+        """(whether ``task`` was given, the task, the stop) for the stale check."""
+        return "task" in self.model_fields_set, self.task, self.stop
+
+
+TargetMsg = _TargetMsg  # the commands that name the trip and stop they act on
+
+
+class NextMsg(_TargetMsg):
     """Food collected at this table: go on to the next table, or home after the last."""
 
     clientmsg: Literal["next"]
 
 
-class StopMsg(_RobotMsg):
+class StopMsg(_TargetMsg):
     """Halt the current move (the trip is kept)."""
 
     clientmsg: Literal["stop"]
 
 
-class ContinueMsg(_RobotMsg):
+class ContinueMsg(_TargetMsg):
     """Resume the move that was stopped or failed."""
 
     clientmsg: Literal["continue"]
 
 
-class CancelMsg(_RobotMsg):
+class CancelMsg(_TargetMsg):
     """Give up the trip: undelivered orders go back to pending, the robot goes home."""
 
     clientmsg: Literal["cancel"]
@@ -402,6 +438,7 @@ class OrderMsg(_ClientMsg):
 ClientMessage: TypeAlias = Annotated[
     LoginMsg
     | LogoutMsg
+    | PingMsg
     | DataMsg
     | CreateMessage
     | ControlMessage

@@ -331,6 +331,8 @@ class Server:
             return {"session": None}
         if msg.clientmsg == "data":
             return await self._data(conn, msg)
+        if msg.clientmsg == "ping":
+            return {"time": self.core.clock.epoch()}
         return await self.core.handle(msg)
 
     async def _login(self, conn: _Conn, msg: P.LoginMsg) -> dict[str, Any]:

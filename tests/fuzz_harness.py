@@ -54,6 +54,7 @@ PARSE_ERRORS = frozenset({"bad_json", "unknown_message", "invalid_field"})
 #: The ok payload field each valid message's reply carries (docs: "ok" table).
 PAYLOAD = {
     "login": "session",
+    "ping": "time",
     "data": "data",
     "create order": "order",
     "create task": "tasks",

@@ -451,6 +451,7 @@ def login_msgs() -> st.SearchStrategy[Obj]:
 #: verb (or "verb sub-type") -> strategy of valid messages. One line per verb.
 VERB_STRATEGIES: dict[str, st.SearchStrategy[Obj]] = {
     "login": login_msgs(),
+    "ping": st.builds(lambda: obj(clientmsg="ping", id=IdSlot())),
     "data": data_msgs(),
     "create order": create_order(),
     "create task": create_task(),
@@ -548,6 +549,7 @@ def _model(msg: Obj) -> type[Any] | None:
 
 _MODELS: dict[str, type[Any]] = {
     "login": P.LoginMsg,
+    "ping": P.PingMsg,
     "data": P.DataMsg,
     "create order": P.CreateOrder,
     "create task": P.CreateTask,

@@ -391,6 +391,7 @@ def test_action_of_and_robot_of() -> None:
     expected = {
         "login": (None, None),
         "logout": (None, None),
+        "ping": (None, None),
         "data": (None, None),
         "create waypoint": (None, None),
         "create waypoint robot": (Action.SAVE_WAYPOINT, "r1"),

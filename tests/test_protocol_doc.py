@@ -602,6 +602,7 @@ REPLAYED_CODES = frozenset(
         "not_allowed_in_status",
         "conflict",
         "unreachable",
+        "stale",
         "invalid_field",
         "not_found",
         "unknown_message",

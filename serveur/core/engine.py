@@ -62,6 +62,7 @@ from serveur.errors import (
     LinkError,
     NotFound,
     ServeurError,
+    Stale,
     StoreError,
     Unreachable,
 )
@@ -428,6 +429,8 @@ class Core:
             raise InvalidField(f"{verb!r} needs a robot")
         rt = self._runtime(robot)
         async with rt.lock:
+            if isinstance(msg, P.TargetMsg):
+                await self._check_target(rt, msg)
             check_allowed(rt.state.status, action)
             await self._act(rt, action, msg)
             return {"robot": self._robot_view(rt.name)}
@@ -492,6 +495,24 @@ class Core:
                 await self.trips.abandon(rt.name, "cancelled by staff")
             await self._event(rt, Event.CANCEL)
             await self._drive(rt, self._home_dest(rt))
+
+    async def _check_target(self, rt: Runtime, msg: P.TargetMsg) -> None:
+        """Refuse (``stale``) a command on a trip or stop the robot has moved on from."""
+        given, task, stop = msg.expects()
+        current = self._robots[rt.name].current_task
+        at: int | None = None
+        if current is not None and stop is not None:
+            at = (await self.trips.current(rt.name)).current_stop
+        if (given and task != current) or (stop is not None and stop != at):
+            seen = _trip_words(task, stop)
+            now = _trip_words(current, at)
+            raise Stale(
+                f"{rt.name} has moved on: you saw {seen}, it is on {now} ({rt.state.status.value})",
+                robot=rt.name,
+                task=current,
+                stop=at,
+                status=rt.state.status.value,
+            )
 
     def _check_reachable(self, x: float, y: float) -> None:
         """Refuse at once a manual goal the robot could never reach (off the map, in a wall),
@@ -700,3 +721,10 @@ class Core:
             await self._event(rt, Event.NAV_FAILED, error=reason)
         else:
             await self._save_state(rt.name, rt.state, error=reason, event="robot.goal_failed")
+
+
+def _trip_words(task: int | None, stop: int | None) -> str:
+    """``trip 12 stop 0`` or ``no trip``: what a ``stale`` message says was seen and is now."""
+    if task is None:
+        return "no trip"
+    return f"trip {task}" + (f" stop {stop}" if stop is not None else "")

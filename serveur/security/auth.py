@@ -138,7 +138,7 @@ def parse_scopes(text: str | Iterable[str]) -> frozenset[Scope]:
 
 
 def required_scope(msg: Any) -> Scope:
-    """The scope an instruction needs (``login``/``logout`` need none and are not asked)."""
+    """The scope an instruction needs (``login``/``logout``/``ping`` need none, not asked)."""
     verb = msg.clientmsg
     if verb in ("data", "order"):
         return Scope.READ
@@ -175,7 +175,7 @@ def authorize(p: Principal | None, msg: Any) -> None:
         return
     if p is None:
         raise Unauthorized("log in first: send a login message")
-    if verb == "logout":
+    if verb in ("logout", "ping"):
         return
     if p.role is Role.ROBOT_SCREEN:
         robot = getattr(msg, "robot", None)

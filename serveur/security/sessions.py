@@ -102,7 +102,7 @@ class SecurityConfig:
     free_failures: int = 5
     #: Verbs that are not written to the audit trail: reads, and teleop's stream of
     #: velocity frames (taking manual control, which teleop needs, is audited).
-    unaudited: frozenset[str] = field(default_factory=lambda: frozenset({"data", "order"}))
+    unaudited: frozenset[str] = field(default_factory=lambda: frozenset({"data", "order", "ping"}))
 
 
 Closer = Callable[[int, str], Coroutine[Any, Any, None]]

@@ -68,6 +68,7 @@ ROBOT_TOPICS: Final = ("pose", "scan")
 VERBS: Final = (
     "login",
     "logout",
+    "ping",
     "data",
     "create",
     "control",

@@ -127,6 +127,7 @@ ErrorCode: TypeAlias = Literal[
     "map_error",
     "navigation_error",
     "unreachable",
+    "stale",
     "rosbridge_error",
     "link_error",
     "internal_error",
@@ -147,6 +148,7 @@ class OkReply(_ServerModel):
     )
     orders: list[Order] | None = Field(default=None, description="order")
     session: Session | None = Field(default=None, description="login, logout")
+    time: float | None = Field(default=None, description="ping: the server's clock (epoch s)")
 
 
 class Session(_ServerModel):

@@ -622,3 +622,71 @@ async def test_the_owner_registers_a_robot_staff_cannot(tmp_path: Path, browser:
             screens.assert_no_errors(re.compile("401|4001|Unauthorized", re.I))
         finally:
             await extra.close()
+
+
+async def test_a_stalled_tablet_shows_it_and_its_late_food_collected_is_refused(
+    tmp_path: Path, browser: Any
+) -> None:
+    """Wi-Fi stalls with the socket open: within seconds the page says the connection is lost
+    (its own heartbeat), and the "Food collected" pressed into the stall, delivered when the
+    network comes back after another tablet moved the robot on, is refused as stale: the robot
+    does not leave the second table with its food."""
+    async with ui_restaurant(tmp_path) as r:
+        c = await staff_client(r)
+        await c.ok("control", robot="r1", action="auto")
+        ids = [
+            (await c.ok("create", type="order", dish=d, table=t))["order"]["id"]
+            for d, t in (("Pho", "T1"), ("Satay", "T12"))
+        ]
+        [task] = (await c.ok("create", type="task", orders=ids))["tasks"]
+        await c.status("r1", "Delivered")
+        screens = Screens(browser, http_base(r), r.token)
+        stalled = {"on": False}
+        held: list[tuple[Any, str | bytes]] = []  # frames the stalled path holds, to the server
+        replies: list[dict[str, Any]] = []  # what the server said to them
+
+        def relay(ws: Any) -> None:
+            server = ws.connect_to_server()
+
+            def up(frame: str | bytes) -> None:
+                if stalled["on"]:
+                    held.append((server, frame))
+                else:
+                    server.send(frame)
+
+            def down(frame: str | bytes) -> None:
+                if held and not stalled["on"]:
+                    replies.append(json.loads(frame))
+                if not stalled["on"]:
+                    ws.send(frame)
+
+            server.on_message(down)
+            ws.on_message(up)
+            ws.on_close(lambda *_: None)  # the page giving up does not close the server side
+
+        staff = await screens.open("/", ws_route=relay)
+        collected = staff.get_by_role("button", name="Food collected r1")
+        await expect(collected).to_be_visible()
+        stalled["on"] = True
+        await collected.click()  # into the stall: the frame waits in the network
+        await c.ok("next", robot="r1", task=task["id"], stop=0)  # another tablet, in time
+        await c.status("r1", "Delivering")
+        banner = staff.get_by_role("status").filter(has_text="Connection to the server lost")
+        await expect(banner).to_be_visible(timeout=8_000)  # heartbeat: 5 s of silence
+        stalled["on"] = False
+        for server, frame in held:  # the network is back: what was sent arrives, late
+            server.send(frame)
+        late = [json.loads(f) for _, f in held if json.loads(f).get("clientmsg") == "next"]
+        assert late and late[0]["stop"] == 0 and late[0]["task"] == task["id"], held
+        await c.until(lambda: any(m.get("code") == "stale" for m in replies), what="stale")
+        # Nothing changed: the robot is on its way to (or at) T12 with the dish still aboard.
+        second = c.task(task["id"])["stops"][1]
+        assert c.task(task["id"])["current_stop"] == 1 and second["status"] != "done"
+        assert c.order(ids[1])["status"] == "assigned"
+        # The page reconnects and shows the truth; it sent nothing it was not asked to.
+        await expect(banner).to_have_count(0, timeout=20_000)
+        row = staff.get_by_role("listitem").filter(has_text="r1")
+        await expect(row).to_contain_text("now T12")
+        nexts = [m for m in screens.sent if m.get("clientmsg") == "next"]
+        assert len(nexts) == 1, nexts
+        screens.assert_no_errors(re.compile("stale|did not answer|connection dropped", re.I))

@@ -77,6 +77,21 @@ export class Live extends EventTarget {
   }
 
   /** The table a robot is heading to or waiting at, from its current task, or null. */
+  /**
+   * The trip and stop this page shows robot `name` on, for a command to name (docs/protocol.md):
+   * the server refuses it (`stale`) if the robot has moved on since, instead of acting on a
+   * stop this page does not show.
+   */
+  target(name) {
+    const r = this.robots.get(name);
+    if (!r) return {};
+    const target = { task: r.current_task ?? null };
+    const task = target.task === null ? null : this.tasks.get(target.task);
+    const stop = task && task.stops[task.current_stop];
+    if (stop) target.stop = stop.seq;
+    return target;
+  }
+
   destination(name) {
     const r = this.robots.get(name);
     if (!r || r.current_task === null) return null;

@@ -33,7 +33,8 @@ function bigButton(label, onclick, cls = "primary") {
 }
 
 function send(button, verb) {
-  return act(button, () => request({ clientmsg: verb }));
+  // Names the trip and stop this screen shows: refused (`stale`) if the robot moved on.
+  return act(button, () => request({ clientmsg: verb, ...live.target(name) }));
 }
 
 async function cancelTrip(button) {
@@ -42,7 +43,7 @@ async function cancelTrip(button) {
     no: "No, keep it",
     detail: "I will go back home; the dishes not yet served go back to the kitchen pass.",
   });
-  if (yes) await act(button, () => request({ clientmsg: "cancel" }));
+  if (yes) await act(button, () => request({ clientmsg: "cancel", ...live.target(name) }));
 }
 
 function view(robot) {

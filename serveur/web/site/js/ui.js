@@ -111,24 +111,27 @@ export function watchConnection(conn) {
   const banner = el("div", { class: "banner", role: "status", "aria-live": "polite", hidden: true });
   document.body.prepend(banner);
   let timer = null;
+  let wasOnline = false; // once live, any reconnecting means what the page shows may be stale
+  const LOST = "Connection to the server lost: what you see may be out of date.";
   conn.addEventListener("state", (e) => {
     const { state, retryIn } = e.detail;
     document.body.dataset.connection = state;
     clearInterval(timer);
     if (state === "online") {
+      wasOnline = true;
       banner.hidden = true;
       banner.textContent = "";
       return;
     }
     banner.hidden = false;
     if (state === "connecting") {
-      banner.textContent = "Connecting to the server…";
+      banner.textContent = wasOnline ? `${LOST} Reconnecting…` : "Connecting to the server…";
       return;
     }
     const until = performance.now() + retryIn;
     const show = () => {
       const s = Math.max(0, Math.ceil((until - performance.now()) / 1000));
-      banner.textContent = `Connection to the server lost: what you see may be out of date. Reconnecting${s ? ` in ${s} s` : ""}…`;
+      banner.textContent = `${LOST} Reconnecting${s ? ` in ${s} s` : ""}…`;
     };
     show();
     timer = setInterval(show, 500);

@@ -15,6 +15,11 @@
 const BACKOFF_MIN_MS = 250;
 const BACKOFF_MAX_MS = 5000;
 const REPLY_TIMEOUT_MS = 15000;
+// Heartbeat: a `ping` every 2 s while online; nothing at all heard from the server for 5 s and
+// the link is taken for dead (Wi-Fi stalled with the socket open, a tablet back from sleep):
+// the page says so at once, refuses actions, and reconnects for a fresh snapshot. Wall time.
+const HEARTBEAT_MS = 2000;
+const SILENT_MS = 5000;
 
 /** A refused or failed request: `code` is the protocol's error code (or a client-side one). */
 export class ServerError extends Error {
@@ -73,6 +78,8 @@ export class Connection extends EventTarget {
     this._retryTimer = null;
     this.session = null;
     this._creds = null; // credentials typed in the login form, sent when the socket is open
+    this._lastHeard = 0; // Date.now() of the last frame from the server
+    this._beat = null; // the heartbeat timer while online
   }
 
   start() {
@@ -182,6 +189,34 @@ export class Connection extends EventTarget {
     this._ws.send(JSON.stringify(entry.msg));
   }
 
+  _heartbeat() {
+    if (Date.now() - this._lastHeard > SILENT_MS) {
+      this._lost();
+      return;
+    }
+    this.request({ clientmsg: "ping" }, { timeout: SILENT_MS }).catch(() => {}); // any frame will do
+  }
+
+  /**
+   * The link went silent: drop this socket without waiting for a closing handshake a dead path
+   * never answers. A command in flight is reported as not confirmed and never sent again; if
+   * its bytes do reach the server later, the trip and stop it names make a late one `stale`.
+   */
+  _lost() {
+    const ws = this._ws;
+    if (!ws) return;
+    this._ws = null;
+    ws.onopen = ws.onmessage = ws.onclose = ws.onerror = null;
+    try {
+      ws.close();
+    } catch {
+      /* already closing */
+    }
+    this.session = null;
+    this._dropInFlight();
+    this._scheduleRetry();
+  }
+
   _sendData(topics) {
     this.request({ clientmsg: "data", topics: [...topics] }, { resend: true })
       .then((reply) => this._emit("snapshot", { data: reply.data }))
@@ -251,6 +286,7 @@ export class Connection extends EventTarget {
   }
 
   _receive(text) {
+    this._lastHeard = Date.now();
     let msg;
     try {
       msg = JSON.parse(text);
@@ -282,6 +318,12 @@ export class Connection extends EventTarget {
 
   _setState(state, retryIn = 0) {
     this.state = state;
+    clearInterval(this._beat);
+    this._beat = null;
+    if (state === "online") {
+      this._lastHeard = Date.now();
+      this._beat = setInterval(() => this._heartbeat(), HEARTBEAT_MS);
+    }
     this._emit("state", { state, retryIn });
   }
 

@@ -9,10 +9,10 @@ const ACTIONS = [
   ["auto", "Auto", (r) => ({ clientmsg: "control", robot: r, action: "auto" })],
   ["manual", "Take control", (r) => ({ clientmsg: "control", robot: r, action: "manual" })],
   ["ready", "Release", (r) => ({ clientmsg: "ready", robot: r })],
-  ["stop", "Stop", (r) => ({ clientmsg: "stop", robot: r })],
-  ["continue", "Continue", (r) => ({ clientmsg: "continue", robot: r })],
-  ["next", "Food collected", (r) => ({ clientmsg: "next", robot: r })],
-  ["cancel", "Cancel trip", (r) => ({ clientmsg: "cancel", robot: r })],
+  ["stop", "Stop", (r, at) => ({ clientmsg: "stop", robot: r, ...at })],
+  ["continue", "Continue", (r, at) => ({ clientmsg: "continue", robot: r, ...at })],
+  ["next", "Food collected", (r, at) => ({ clientmsg: "next", robot: r, ...at })],
+  ["cancel", "Cancel trip", (r, at) => ({ clientmsg: "cancel", robot: r, ...at })],
 ];
 
 export class RobotsPanel {
@@ -72,7 +72,8 @@ export class RobotsPanel {
       el("button", {
         class: action === "stop" || action === "cancel" ? "danger" : "",
         "aria-label": `${label} ${name}`,
-        onclick: (e) => this._do(e.currentTarget, action, name, make(name)),
+        // The trip and stop shown now: the server refuses the command if the robot moved on.
+        onclick: (e) => this._do(e.currentTarget, action, name, make(name, this.live.target(name))),
         text: label,
       }),
     );
