@@ -678,7 +678,10 @@ class Core:
             rt.goal_id = None
             if rt.state.status is not S.OFFLINE:
                 await self._save_state(
-                    rt.name, apply(rt.state, Event.LINK_DOWN), error=f"link lost: {args[0]}"
+                    rt.name,
+                    apply(rt.state, Event.LINK_DOWN),
+                    error=f"link lost: {args[0]}",
+                    data={"event": Event.LINK_DOWN.value},
                 )
         elif kind == "goal":
             await self._on_goal(rt, *args)

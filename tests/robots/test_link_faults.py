@@ -51,6 +51,12 @@ async def test_robot_dropping_off_the_network_resumes_its_trip(one_robot: Restau
     await one_robot.sim.stop_endpoint(0)
     robot = await c.status("r1", "Offline")
     assert robot["current_task"] is not None  # the dishes stay with the robot
+    drops = [
+        e
+        for e in await one_robot.app.store.list_events()
+        if e.kind == "robot.status" and e.data.get("status") == "Offline"
+    ]
+    assert drops and drops[-1].data["event"] == "link_down", drops
     assert c.order(ids[0])["status"] == "assigned"
     await one_robot.sim.start_endpoint(0)
     await c.status("r1", "Delivering")
