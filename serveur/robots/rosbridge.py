@@ -623,18 +623,26 @@ def goal_id_from_msg(d: Mapping[str, Any]) -> tuple[str, float]:
 
 
 def move_base_action_goal(
-    goal_id: str, x: float, y: float, yaw: float, *, stamp: float, goal_stamp: float | None = None
+    goal_id: str,
+    x: float,
+    y: float,
+    yaw: float,
+    *,
+    stamp: float,
+    goal_stamp: float | None = None,
+    frame_id: str = "map",
 ) -> dict[str, Any]:
     """move_base_msgs/MoveBaseActionGoal: what the robot link publishes on ``/move_base/goal``.
 
     ``goal_id.stamp`` is ``goal_stamp`` when given, else ``stamp``; 0.0 is the zero stamp that
     roslibpy and roslibjs send, which the robot's action server replaces with its own clock.
+    ``frame_id``: the frame of the target pose (the robot's map frame).
     """
     gstamp = stamp if goal_stamp is None else goal_stamp
     return {
         "header": header(0, stamp, ""),
         "goal_id": {"stamp": ros_time(gstamp), "id": goal_id},
-        "goal": {"target_pose": pose_stamped(x, y, yaw, stamp=stamp, frame_id="map")},
+        "goal": {"target_pose": pose_stamped(x, y, yaw, stamp=stamp, frame_id=frame_id)},
     }
 
 

@@ -231,7 +231,6 @@ class RobotLink:
 
     async def _run(self) -> None:
         delay = self._backoff[0]
-        failure = ""  # the last failure logged, so a bad certificate or address is said once
         tls: dict[str, Any] = {"ssl": self._ssl} if self._ssl is not None else {}
         while True:
             try:
@@ -247,7 +246,7 @@ class RobotLink:
                     self._ws = ws
                     self.connects += 1
                     delay = self._backoff[0]
-                    failure = self.last_failure = ""
+                    self.last_failure = ""
                     await self._session(ws)
                     reason = "connection closed"
             except asyncio.CancelledError:
@@ -255,27 +254,26 @@ class RobotLink:
                 raise
             except ssl_module.SSLError as exc:
                 # Not a network blip: retrying will not help until someone fixes a certificate
-                # or --robot-cafile, so tell the operator (once per distinct reason).
-                reason = f"TLS: {exc}"
-                if reason != failure:
-                    failure = self.last_failure = reason
-                    log.warning("%s: cannot connect to %s: %s", self.name, self.url, reason)
-                else:
-                    log.debug("%s: cannot connect to %s: %s", self.name, self.url, reason)
+                # or --robot-cafile.
+                reason = self._connect_failed(f"TLS: {exc}")
             except (OSError, TimeoutError, websockets.exceptions.WebSocketException) as exc:
-                reason = f"{type(exc).__name__}: {exc}"
-                # A wrong address or a robot switched off: said once per distinct reason (and
-                # kept in last_failure), not once per retry.
-                if reason != failure:
-                    failure = self.last_failure = reason
-                    log.warning("%s: cannot connect to %s: %s", self.name, self.url, reason)
-                else:
-                    log.debug("%s: cannot connect to %s: %s", self.name, self.url, reason)
+                # A wrong address or a robot switched off.
+                reason = self._connect_failed(f"{type(exc).__name__}: {exc}")
             finally:
                 self._ws = None
             self._set_down(reason)
             await asyncio.sleep(delay)
             delay = min(delay * 2, self._backoff[1])
+
+    def _connect_failed(self, reason: str) -> str:
+        """Tell the operator why connecting failed, once per distinct reason in a row (kept in
+        ``last_failure`` until the next connection), not once per retry. Returns ``reason``."""
+        if reason != self.last_failure:
+            self.last_failure = reason
+            log.warning("%s: cannot connect to %s: %s", self.name, self.url, reason)
+        else:
+            log.debug("%s: cannot connect to %s: %s", self.name, self.url, reason)
+        return reason
 
     async def _session(self, ws: ClientConnection) -> None:
         self._have_status = self._have_pose = False
@@ -447,15 +445,11 @@ class RobotLink:
             self._t(default), rb.TOPIC_TYPES[default], throttle_rate=throttle_rate
         )
 
-    def _in_map(self, msg: dict[str, Any]) -> dict[str, Any]:
-        msg["header"]["frame_id"] = self._names.frame
-        return msg
-
     def _goal_msg(self, goal: _Goal) -> dict[str, Any]:
         # Zero stamps: see the module's docstring (SimpleActionServer's stamp rule).
-        msg = rb.move_base_action_goal(goal.id, goal.x, goal.y, goal.yaw, stamp=0.0)
-        msg["goal"]["target_pose"]["header"]["frame_id"] = self._names.frame
-        return msg
+        return rb.move_base_action_goal(
+            goal.id, goal.x, goal.y, goal.yaw, stamp=0.0, frame_id=self._names.frame
+        )
 
     async def halt(self) -> None:
         """Stop the robot for good (shutdown): cancel every goal, send a zero twist.
@@ -498,12 +492,7 @@ class RobotLink:
         goal = _Goal(gid, gid, x, y, yaw, self._clock.now())
         self._goal = goal
         await self._update_rates()  # full rates before the robot starts to move
-        await self._send(
-            self._pub(
-                "/move_base/goal",
-                self._goal_msg(goal),
-            )
-        )
+        await self._send(self._pub("/move_base/goal", self._goal_msg(goal)))
         return goal.handle
 
     async def _resend(self, goal: _Goal) -> None:
@@ -519,12 +508,7 @@ class RobotLink:
         goal.sent_at = self._clock.now()
         log.warning("%s: goal %s not acknowledged, re-sending as %s", self.name, old, goal.id)
         with contextlib.suppress(LinkError):
-            await self._send(
-                self._pub(
-                    "/move_base/goal",
-                    self._goal_msg(goal),
-                )
-            )
+            await self._send(self._pub("/move_base/goal", self._goal_msg(goal)))
 
     async def cancel_goal(self) -> None:
         """Cancel every goal on the robot (empty id), as a stop button must."""
@@ -558,7 +542,9 @@ class RobotLink:
                 await self._clock.sleep(left)
                 continue
             self._teleop = False
-            log.warning("%s: no joystick command for %.1fs, stopping", self.name, timeout)
+            log.warning(
+                "%s: no joystick command for %.1fs, stopping", self.name, self._teleop_timeout
+            )
             with contextlib.suppress(LinkError):
                 await self._send(self._pub("/cmd_vel", rb.twist(0.0, 0.0, 0.0)))
             await self._update_rates()
@@ -572,7 +558,7 @@ class RobotLink:
         await self._send(
             self._pub(
                 "/initialpose",
-                self._in_map(rb.pose_with_covariance_stamped(x, y, yaw, stamp=0.0)),
+                rb.pose_with_covariance_stamped(x, y, yaw, stamp=0.0, frame_id=self._names.frame),
             )
         )
 
