@@ -15,19 +15,22 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 
 __all__ = ["OPTION_KEYS", "RosNames"]
 
-#: Option key -> (the default name, what it names), in the order docs/robots.md lists them.
-_DEFAULTS: dict[str, tuple[str, str]] = {
-    "move_base": ("move_base", "the move_base action (goal, cancel, status, result, feedback)"),
-    "cmd_vel": ("cmd_vel", "joystick velocities (geometry_msgs/Twist)"),
-    "pose": ("amcl_pose", "the localised pose (geometry_msgs/PoseWithCovarianceStamped)"),
-    "initialpose": ("initialpose", "calibration (geometry_msgs/PoseWithCovarianceStamped)"),
-    "battery": ("battery_state", "the battery (sensor_msgs/BatteryState)"),
-    "scan": ("scan", "the laser (sensor_msgs/LaserScan)"),
-    "map": ("map", "the map, when the server has none (nav_msgs/OccupancyGrid)"),
+#: Option key -> the default name, in the order docs/robots.md lists them: the move_base
+#: action (goal, cancel, status, result, feedback), joystick velocities, the localised pose,
+#: calibration, the battery, the laser, the map (when the server has none).
+_DEFAULTS: dict[str, str] = {
+    "move_base": "move_base",
+    "cmd_vel": "cmd_vel",
+    "pose": "amcl_pose",
+    "initialpose": "initialpose",
+    "battery": "battery_state",
+    "scan": "scan",
+    "map": "map",
 }
 #: Every option a robot's ``link`` may carry.
 OPTION_KEYS = ("ns", *_DEFAULTS, "frame")
@@ -54,8 +57,6 @@ class RosNames:
     scan: str = "/scan"
     map: str = "/map"
     frame: str = "map"
-    #: The options as given (only those that differ from the defaults), for the store.
-    options: Mapping[str, str] = field(default_factory=dict, compare=False)
 
     @classmethod
     def from_options(cls, options: Mapping[str, str]) -> RosNames:
@@ -75,51 +76,34 @@ class RosNames:
         if ns and not ns.startswith("/"):
             ns = "/" + ns
         ns = ns.rstrip("/")
-        names = {
-            key: _resolve(ns, options.get(key, default)) for key, (default, _) in _DEFAULTS.items()
-        }
-        return cls(ns=ns, frame=options.get("frame", "map"), options=dict(options), **names)
+        names = {key: _resolve(ns, options.get(key, default)) for key, default in _DEFAULTS.items()}
+        return cls(ns=ns, frame=options.get("frame", "map"), **names)
 
     def topic(self, default: str) -> str:
         """This robot's name for one of the default topic names (``/move_base/goal``...)."""
-        return self._by_default()[default]
+        return self._by_default[default]
 
     def default_of(self, topic: str) -> str | None:
         """The default topic name a topic of this robot stands for (None: not one of ours)."""
-        return self._reverse().get(topic)
+        return self._reverse.get(topic)
 
+    @cached_property
     def _by_default(self) -> dict[str, str]:
-        cached: dict[str, str] | None = self.__dict__.get("_map")
-        if cached is None:
-            mb = self.move_base
-            cached = {
-                "/move_base/goal": f"{mb}/goal",
-                "/move_base/cancel": f"{mb}/cancel",
-                "/move_base/status": f"{mb}/status",
-                "/move_base/result": f"{mb}/result",
-                "/move_base/feedback": f"{mb}/feedback",
-                "/cmd_vel": self.cmd_vel,
-                "/amcl_pose": self.pose,
-                "/initialpose": self.initialpose,
-                "/battery_state": self.battery,
-                "/scan": self.scan,
-                "/map": self.map,
-            }
-            object.__setattr__(self, "_map", cached)
-        return cached
+        mb = self.move_base
+        return {
+            "/move_base/goal": f"{mb}/goal",
+            "/move_base/cancel": f"{mb}/cancel",
+            "/move_base/status": f"{mb}/status",
+            "/move_base/result": f"{mb}/result",
+            "/move_base/feedback": f"{mb}/feedback",
+            "/cmd_vel": self.cmd_vel,
+            "/amcl_pose": self.pose,
+            "/initialpose": self.initialpose,
+            "/battery_state": self.battery,
+            "/scan": self.scan,
+            "/map": self.map,
+        }
 
+    @cached_property
     def _reverse(self) -> dict[str, str]:
-        cached: dict[str, str] | None = self.__dict__.get("_rev")
-        if cached is None:
-            cached = {v: k for k, v in self._by_default().items()}
-            object.__setattr__(self, "_rev", cached)
-        return cached
-
-    @staticmethod
-    def describe() -> list[tuple[str, str, str]]:
-        """(option, default, what it names) for docs and ``--help``."""
-        return (
-            [("ns", "", "a namespace for every default name")]
-            + [(k, d, what) for k, (d, what) in _DEFAULTS.items()]
-            + [("frame", "map", "the map frame goals and initial poses are given in")]
-        )
+        return {v: k for k, v in self._by_default.items()}
