@@ -11,6 +11,7 @@ import contextlib
 import itertools
 import json
 import logging
+import time
 from collections.abc import AsyncIterator, Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +30,20 @@ from tests.mariadb_server import mariadb_server, mariadb_url  # noqa: F401
 from tests.netproxy import LinkProxy
 
 TIME_SCALE = 10.0
+
+
+async def poll_until(cond: Callable[[], Any], timeout: float, what: str) -> Any:
+    """Wait until ``cond()`` holds, polling every 10 ms; fail after ``timeout`` wall seconds.
+
+    For state with no event to wait on: a simulated robot's own goals and pose, read in this
+    process while its server runs elsewhere or is not told.
+    """
+    deadline = time.monotonic() + timeout
+    while not (value := cond()):
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        await asyncio.sleep(0.01)
+    return value
 
 
 class _LinkDrops(logging.Handler):

@@ -23,7 +23,7 @@ from serveur.maps.mapio import demo_map_path
 from serveur.robot_sim import start_simulation
 from serveur.robots import rosbridge as rb
 from tests import invariants
-from tests.conftest import Restaurant
+from tests.conftest import Client, Restaurant, poll_until
 from tests.subprocess_server import ServerProcess, close_quietly, staff_client
 from tests.test_e2e import activate, near, new_orders, serve_current_stop, staff
 
@@ -45,19 +45,25 @@ async def settled_goals(robot_url: str) -> list[rb.GoalStatus]:
     raise AssertionError("the robot's rosbridge closed")
 
 
+async def delivering_to_t16(server: ServerProcess) -> tuple[Client, int]:
+    """A staff tablet on ``server`` and its one-dish trip to T16, the robot on its way."""
+    c = await staff_client(server)
+    await c.subscribe("robots", "orders", "tasks", "pose:r1")
+    await activate(c, "r1")
+    [oid] = await new_orders(c, ("Laksa", "T16"))
+    await c.ok("create", type="task", orders=[oid])
+    await c.status("r1", "Delivering")
+    await c.until(lambda: not near(c.streams["pose:r1"], "home1", 1.0), what="r1 leaves")
+    return c, oid
+
+
 async def test_sigterm_closes_clients_stops_robots_and_restart_resumes(tmp_path: Path) -> None:
     clock = ScaledClock(TIME_SCALE)
     sim = await start_simulation(1, port=0, map_path=demo_map_path(), clock=clock)
     server = ServerProcess(tmp_path / "serveur.db", {"r1": sim.urls[0]}, time_scale=TIME_SCALE)
     try:
         await server.start()
-        c = await staff_client(server)
-        await c.subscribe("robots", "orders", "tasks", "pose:r1")
-        await activate(c, "r1")
-        [oid] = await new_orders(c, ("Laksa", "T16"))
-        await c.ok("create", type="task", orders=[oid])
-        await c.status("r1", "Delivering")
-        await c.until(lambda: not near(c.streams["pose:r1"], "home1", 1.0), what="r1 leaves")
+        c, oid = await delivering_to_t16(server)
         robot = sim.robots[0]
         assert any(st is rb.GoalStatus.ACTIVE for _, st, _ in robot.goal_statuses)
 
@@ -141,13 +147,7 @@ async def test_sigterm_stops_the_robot_first_whatever_a_stalled_tablet_does(
     stalled = None
     try:
         await server.start()
-        c = await staff_client(server)
-        await c.subscribe("robots", "pose:r1")
-        await activate(c, "r1")
-        [oid] = await new_orders(c, ("Laksa", "T16"))
-        await c.ok("create", type="task", orders=[oid])
-        await c.status("r1", "Delivering")
-        await c.until(lambda: not near(c.streams["pose:r1"], "home1", 1.0), what="r1 leaves")
+        await delivering_to_t16(server)
         robot = sim.robots[0]
         # The stalled tablet: connected, then its socket is read no more.
         stalled = await staff_client(server)
@@ -156,9 +156,11 @@ async def test_sigterm_stops_the_robot_first_whatever_a_stalled_tablet_does(
         assert server.proc is not None
         server.proc.send_signal(signal.SIGTERM)
         sent = time.monotonic()
-        while any(st is rb.GoalStatus.ACTIVE for _, st, _ in robot.goal_statuses):
-            assert time.monotonic() - sent < 10.0, "the robot was never stopped"
-            await asyncio.sleep(0.01)  # polling the robot's own state: no event to wait on
+        await poll_until(
+            lambda: not any(st is rb.GoalStatus.ACTIVE for _, st, _ in robot.goal_statuses),
+            10.0,
+            "the robot stopped",
+        )
         took = time.monotonic() - sent
         assert took <= 0.5 + 0.3, f"robot stopped {took:.2f}s after SIGTERM"
         assert robot.goal_statuses[-1][1] is rb.GoalStatus.PREEMPTED

@@ -13,7 +13,7 @@ import asyncio
 import contextlib
 import json
 import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
@@ -23,19 +23,10 @@ from websockets.asyncio.client import ClientConnection, connect
 from serveur.core.runtime import CoreConfig
 from serveur.robots import rosbridge as rb
 from tests.conftest import TIME_SCALE, Client, Restaurant, restaurant
+from tests.conftest import poll_until as until
 from tests.test_e2e import activate, new_orders, serve_current_stop, staff
 
 CONFIG = CoreConfig(ack_timeout=3.0)  # the defaults otherwise: the heartbeat a site gets
-
-
-async def until(cond: Callable[[], Any], timeout: float, what: str) -> Any:
-    """Wait (polling every 10 ms) until ``cond()`` is true; fail after ``timeout`` wall s."""
-    deadline = time.monotonic() + timeout
-    while not (value := cond()):
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        await asyncio.sleep(0.01)
-    return value
 
 
 @contextlib.asynccontextmanager
