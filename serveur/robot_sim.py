@@ -314,8 +314,10 @@ async def start_simulation(
     planner = Planner(grid, robot_radius=0.2, cache_size=max(32, len(waypoints) + 16))
     plan_lock = threading.Lock()
     homes = _start_poses(n, grid, planner, waypoints)
-    map_stamp = clock.epoch() + clock_offset
-    map_frame = Frame(rb.op_publish("/map", rb.occupancy_grid(grid, stamp=map_stamp, seq=0)))
+    # The latched /map, built once: every robot shares the one frame (namespaced robots each
+    # get their own topic name on the same message).
+    map_msg = rb.occupancy_grid(grid, stamp=clock.epoch() + clock_offset, seq=0)
+    map_frame = Frame(rb.op_publish("/map", map_msg))
     robots: list[SimRobot] = []
     endpoints: list[Endpoint] = []
     for i in range(n):
@@ -330,11 +332,9 @@ async def start_simulation(
             kinematics=kinematics,
             clock=clock,
             seed=seed + i,
-            map_frame=map_frame
-            if not namespaced
-            else Frame(
-                rb.op_publish(f"{namespace}/map", rb.occupancy_grid(grid, stamp=map_stamp, seq=0))
-            ),
+            map_frame=Frame(rb.op_publish(f"{namespace}/map", map_msg))
+            if namespaced
+            else map_frame,
             plan_lock=plan_lock,
             clock_offset=clock_offset,
             amcl=amcl,
