@@ -5,13 +5,13 @@ import { Connection } from "./ws.js";
 import { Live } from "./live.js";
 import { act, confirmDialog, el, showError, watchConnection } from "./ui.js";
 import { statusColour } from "./status.js";
+import { onLangChange, statusName, t } from "./i18n.js";
 
 const name = robotName();
 const conn = new Connection();
 const live = new Live(conn);
 watchConnection(conn);
 const screen = document.getElementById("screen");
-document.title = `serveur · ${name || "robot"}`;
 document.getElementById("robot-name").textContent = name || "";
 
 let cart = []; // the dishes for the current stop, from `order` {robot}
@@ -38,10 +38,10 @@ function send(button, verb) {
 }
 
 async function cancelTrip(button) {
-  const yes = await confirmDialog("Cancel this delivery?", {
-    yes: "Yes, cancel the delivery",
-    no: "No, keep it",
-    detail: "I will go back home; the dishes not yet served go back to the kitchen pass.",
+  const yes = await confirmDialog(t("robot.cancelQuestion"), {
+    yes: t("robot.cancelYes"),
+    no: t("robot.cancelNo"),
+    detail: t("robot.cancelDetail"),
   });
   if (yes) await act(button, () => request({ clientmsg: "cancel", ...live.target(name) }));
 }
@@ -51,56 +51,65 @@ function view(robot) {
   switch (robot.status) {
     case "Ready":
       return [
-        el("p", { class: "hello" }, `Hello, I'm ${name}`),
+        el("p", { class: "hello" }, t("robot.hello", { name })),
         // Activating is staff's call (the screen's own token may not); staff logged in here may.
         ...(conn.session && conn.session.scopes.includes("control")
           ? [
-              bigButton("Activate this robot", (b) => act(b, () => request({ clientmsg: "control", action: "auto" }))),
-              el("p", { class: "sub" }, "to deliver orders"),
+              bigButton(t("robot.activate"), (b) => act(b, () => request({ clientmsg: "control", action: "auto" }))),
+              el("p", { class: "sub" }, t("robot.activateSub")),
             ]
-          : [el("p", { class: "sub" }, "Staff can activate me from the console.")]),
+          : [el("p", { class: "sub" }, t("robot.staffActivate"))]),
       ];
     case "Awaiting":
-      return [el("p", { class: "hello" }, `Hello, I'm ${name}`), el("h1", {}, "Awaiting orders")];
+      return [el("p", { class: "hello" }, t("robot.hello", { name })), el("h1", {}, t("robot.awaiting"))];
     case "Delivering":
       return [
-        el("p", { class: "sub" }, "Delivering to"),
-        el("h1", { class: "destination" }, dest ? `Table ${dest}` : "a table"),
-        bigButton("Stop", (b) => send(b, "stop"), "danger"),
+        el("p", { class: "sub" }, t("robot.deliveringTo")),
+        el("h1", { class: "destination" }, dest ? t("robot.table", { table: dest }) : t("robot.aTable")),
+        bigButton(t("robot.stop"), (b) => send(b, "stop"), "danger"),
       ];
     case "Transit":
       return [
-        el("h1", {}, "Returning home"),
-        bigButton("Stop", (b) => send(b, "stop"), "danger"),
+        el("h1", {}, t("robot.returning")),
+        bigButton(t("robot.stop"), (b) => send(b, "stop"), "danger"),
       ];
     case "Stopped":
     case "Error":
       return [
-        el("h1", {}, robot.status === "Stopped" ? "Stopped" : "I'm stuck"),
-        robot.last_error && robot.status === "Error" ? el("p", { class: "sub" }, robot.last_error) : null,
-        el("p", { class: "sub" }, robot.resume === "Transit" ? "on my way home" : dest ? `on my way to table ${dest}` : ""),
+        el("h1", {}, robot.status === "Stopped" ? t("robot.stopped") : t("robot.stuck")),
+        // The robot's own error text, as the server sends it, after a word in this language.
+        robot.last_error && robot.status === "Error"
+          ? el("p", { class: "sub" }, t("robot.lastError", { message: robot.last_error }))
+          : null,
+        el(
+          "p",
+          { class: "sub" },
+          robot.resume === "Transit" ? t("robot.onWayHome") : dest ? t("robot.onWayTo", { table: dest }) : "",
+        ),
         el(
           "div",
           { class: "choices" },
-          bigButton("Continue", (b) => send(b, "continue")),
-          bigButton("Cancel", (b) => cancelTrip(b), "danger"),
+          bigButton(t("robot.continue"), (b) => send(b, "continue")),
+          bigButton(t("robot.cancel"), (b) => cancelTrip(b), "danger"),
         ),
       ];
     case "Delivered":
       return [
-        el("p", { class: "sub" }, "Your order has arrived"),
-        el("h1", { class: "destination" }, dest ? `Table ${dest}` : "Your table"),
+        el("p", { class: "sub" }, t("robot.arrived")),
+        el("h1", { class: "destination" }, dest ? t("robot.table", { table: dest }) : t("robot.yourTable")),
         el(
           "ul",
-          { class: "cart-items", "aria-label": "Your dishes" },
+          { class: "cart-items", "aria-label": t("robot.yourDishes") },
           cart.length ? cart.map((o) => el("li", {}, o.dish)) : el("li", { class: "muted" }, "…"),
         ),
-        bigButton("Food collected", (b) => send(b, "next")),
+        bigButton(t("robot.collected"), (b) => send(b, "next")),
       ];
+    case "Loading":
+      return [el("h1", {}, t("robot.loading")), el("p", { class: "sub" }, t("robot.loadingSub"))];
     case "Manual":
-      return [el("h1", {}, "Staff are driving me"), el("p", { class: "sub" }, "Please keep clear.")];
+      return [el("h1", {}, t("robot.manual")), el("p", { class: "sub" }, t("robot.keepClear"))];
     default:
-      return [el("h1", {}, "Offline"), el("p", { class: "sub" }, "Waiting for my connection to the server…")];
+      return [el("h1", {}, t("robot.offline")), el("p", { class: "sub" }, t("robot.offlineSub"))];
   }
 }
 
@@ -134,14 +143,14 @@ async function refreshCart(robot) {
 function render() {
   const robot = live.robots.get(name);
   if (!robot) {
-    screen.replaceChildren(el("h1", {}, name ? `No robot named ${name}` : "No robot named in the address"));
+    screen.replaceChildren(el("h1", {}, name ? t("robot.unknown", { name }) : t("robot.noName")));
     return;
   }
   refreshCart(robot);
   const signature = JSON.stringify([robot.status, robot.resume, robot.last_error, live.destination(name), cart.map((o) => o.id)]);
   document.body.dataset.status = robot.status;
   const badge = document.getElementById("robot-status");
-  badge.textContent = robot.status;
+  badge.textContent = statusName(robot.status);
   badge.style.background = statusColour(robot.status);
   if (signature === shown) return;
   shown = signature;
@@ -153,6 +162,12 @@ live.addEventListener("change", (e) => {
   if (["robots", "tasks", "orders"].includes(e.detail.topic)) render();
 });
 conn.addEventListener("session", () => render()); // what this screen may do depends on who it is
+onLangChange(() => {
+  document.title = t("robot.docTitle", { name: name || t("robot.docTitleNone") });
+  shown = ""; // same robot, new words: draw again
+  render();
+});
+document.title = t("robot.docTitle", { name: name || t("robot.docTitleNone") });
 if (!name) render();
 conn.subscribe(["robots", "tasks", "orders"]);
 conn.start();

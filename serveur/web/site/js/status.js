@@ -30,7 +30,8 @@ export function allowed(status, action) {
   return Boolean(row && i >= 0 && row[i]);
 }
 
-// Colours are paired with the status word everywhere, so colour is never the only cue.
+// Colours are paired with the status word (i18n.js statusName: the wire value stays English)
+// everywhere, so colour is never the only cue.
 export const STATUS_COLOURS = {
   Offline: "#8a8f98",
   Ready: "#2f6fdb",
@@ -41,6 +42,7 @@ export const STATUS_COLOURS = {
   Transit: "#1b9aaa",
   Manual: "#b8860b",
   Error: "#e0115f",
+  Loading: "#6d4c41",
 };
 
 export function statusColour(status) {

@@ -5,13 +5,21 @@
 import { Connection } from "./ws.js";
 import { Live } from "./live.js";
 import { el, showError, watchConnection } from "./ui.js";
+import { onLangChange, t } from "./i18n.js";
 
 const table = tableName();
 const conn = new Connection();
 const live = new Live(conn);
 watchConnection(conn);
-document.title = `serveur · Table ${table || ""}`;
-document.getElementById("table-title").textContent = table ? `Table ${table}` : "No table named in the address";
+function titles() {
+  document.title = t("table.docTitle", { table: table || "" });
+  document.getElementById("table-title").textContent = table ? t("table.title", { table }) : t("table.noName");
+}
+titles();
+onLangChange(() => {
+  titles();
+  render();
+});
 
 let cart = [];
 let asking = null;
@@ -51,9 +59,9 @@ function render() {
   const coming = cart.filter((o) => o.status === "assigned");
   const served = cart.filter((o) => o.status === "delivered");
   const atPass = [...live.orders.values()].filter((o) => o.table === table && o.status === "pending");
-  document.getElementById("coming").replaceChildren(...items(coming, "Nothing on the way."));
-  document.getElementById("served").replaceChildren(...items(served, "Nothing served yet."));
-  document.getElementById("at-pass").replaceChildren(...items(atPass, "Nothing waiting."));
+  document.getElementById("coming").replaceChildren(...items(coming, t("table.comingEmpty")));
+  document.getElementById("served").replaceChildren(...items(served, t("table.servedEmpty")));
+  document.getElementById("at-pass").replaceChildren(...items(atPass, t("table.passEmpty")));
 }
 
 live.addEventListener("change", (e) => {

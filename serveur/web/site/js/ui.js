@@ -1,5 +1,9 @@
 // Small DOM helpers shared by every page: element building, toasts for errors and results,
 // the connection banner, a confirmation dialog, and `act` to run a button's request.
+// Every word shown comes from the catalogs (i18n.js): `data-i18n*` attributes given to `el`
+// are applied at once and again after a language change.
+
+import { onLangChange, t, translateNode } from "./i18n.js";
 
 /** el("button", {class: "big", onclick: f, "aria-label": "Stop r1"}, "Stop") */
 export function el(tag, attrs = {}, ...children) {
@@ -11,6 +15,7 @@ export function el(tag, attrs = {}, ...children) {
     else if (key === "text") node.textContent = value;
     // CSSOM, not a style attribute: the Content-Security-Policy forbids inline style attributes.
     else if (key === "style") Object.assign(node.style, value);
+    else if (key === "data-i18n-args") node.setAttribute(key, JSON.stringify(value));
     else if (value === true) node.setAttribute(key, "");
     else node.setAttribute(key, String(value));
   }
@@ -18,6 +23,7 @@ export function el(tag, attrs = {}, ...children) {
     if (child === null || child === undefined || child === false) continue;
     node.append(child instanceof Node ? child : document.createTextNode(String(child)));
   }
+  if (Object.keys(attrs).some((k) => k.startsWith("data-i18n"))) translateNode(node);
   return node;
 }
 
@@ -38,7 +44,7 @@ export function toast(message, { kind = "info", ms } = {}) {
   if (recent.has(message) && now - recent.get(message) < 3000) return;
   recent.set(message, now);
   const error = kind === "error";
-  const close = el("button", { class: "toast-close", "aria-label": "Dismiss", text: "×" });
+  const close = el("button", { class: "toast-close", "data-i18n-aria-label": "toast.dismiss", text: "×" });
   const node = el(
     "div",
     { class: `toast toast-${kind}`, role: error ? "alert" : "status" },
@@ -50,10 +56,15 @@ export function toast(message, { kind = "info", ms } = {}) {
   setTimeout(() => node.remove(), ms ?? (error ? 12000 : 5000));
 }
 
+// Errors made in this page (ws.js), already worded in the page's language; any other code is
+// the server's, whose message is shown as it was sent, after a translated prefix.
+const CLIENT_CODES = new Set(["offline", "timeout", "connection_lost", "bad_json"]);
+
 /** A ServerError (or any error) as words for the person in front of the screen. */
 export function describeError(err) {
-  if (err && err.code) return `${err.message} (${err.code})`;
-  return String((err && err.message) || err);
+  if (err && err.code && CLIENT_CODES.has(err.code)) return `${err.message} (${err.code})`;
+  if (err && err.code) return t("error.server", { message: err.message, code: err.code });
+  return t("error.other", { message: String((err && err.message) || err) });
 }
 
 export function showError(err) {
@@ -77,7 +88,7 @@ export async function act(button, makeRequest) {
 }
 
 /** Ask before an action that cannot be undone; resolves true only on the explicit "yes". */
-export function confirmDialog(question, { yes = "Yes", no = "No", detail = "" } = {}) {
+export function confirmDialog(question, { yes = t("dialog.yes"), no = t("dialog.no"), detail = "" } = {}) {
   return new Promise((resolve) => {
     const titleId = `dlg-${Math.random().toString(36).slice(2)}`;
     const yesBtn = el("button", { class: "danger", text: yes });
@@ -112,9 +123,8 @@ export function watchConnection(conn) {
   document.body.prepend(banner);
   let timer = null;
   let wasOnline = false; // once live, any reconnecting means what the page shows may be stale
-  const LOST = "Connection to the server lost: what you see may be out of date.";
-  conn.addEventListener("state", (e) => {
-    const { state, retryIn } = e.detail;
+  let last = null; // the last state event's detail, shown again in a new language
+  const showState = ({ state, retryIn }) => {
     document.body.dataset.connection = state;
     clearInterval(timer);
     if (state === "online") {
@@ -125,16 +135,24 @@ export function watchConnection(conn) {
     }
     banner.hidden = false;
     if (state === "connecting") {
-      banner.textContent = wasOnline ? `${LOST} Reconnecting…` : "Connecting to the server…";
+      banner.textContent = wasOnline ? `${t("conn.lost")} ${t("conn.reconnecting")}` : t("conn.connecting");
       return;
     }
     const until = performance.now() + retryIn;
     const show = () => {
       const s = Math.max(0, Math.ceil((until - performance.now()) / 1000));
-      banner.textContent = `${LOST} Reconnecting${s ? ` in ${s} s` : ""}…`;
+      banner.textContent = `${t("conn.lost")} ${s ? t("conn.reconnectingIn", { s }) : t("conn.reconnecting")}`;
     };
     show();
     timer = setInterval(show, 500);
+  };
+  conn.addEventListener("state", (e) => {
+    last = { ...e.detail, retryIn: e.detail.retryIn, at: performance.now() };
+    showState(e.detail);
+  });
+  onLangChange(() => {
+    if (!last || last.state === "online") return;
+    showState({ state: last.state, retryIn: Math.max(0, last.retryIn - (performance.now() - last.at)) });
   });
   conn.addEventListener("problem", (e) => showError(e.detail.error));
   loginForm(conn);
@@ -149,21 +167,21 @@ function loginForm(conn) {
   const why = el("p", { class: "login-why", role: "alert" });
   const user = el("input", { name: "username", autocomplete: "username", required: true });
   const pass = el("input", { name: "password", type: "password", autocomplete: "current-password", required: true });
-  const token = el("input", { name: "token", autocomplete: "off", placeholder: "srv_…" });
+  const token = el("input", { name: "token", autocomplete: "off", "data-i18n-placeholder": "login.tokenPlaceholder" });
   const form = el(
     "form",
-    { class: "login", "aria-label": "Log in" },
-    el("h2", {}, "Log in to serveur"),
+    { class: "login", "data-i18n-aria-label": "login.form" },
+    el("h2", { "data-i18n": "login.title" }),
     why,
-    el("label", {}, "Login", user),
-    el("label", {}, "Password", pass),
-    el("button", { type: "submit", class: "primary" }, "Log in"),
+    el("label", {}, el("span", { "data-i18n": "login.user" }), user),
+    el("label", {}, el("span", { "data-i18n": "login.password" }), pass),
+    el("button", { type: "submit", class: "primary", "data-i18n": "login.submit" }),
     el(
       "details",
       {},
-      el("summary", {}, "This is a robot or table screen"),
-      el("label", {}, "Screen token", token),
-      el("button", { type: "button", class: "use-token" }, "Use token"),
+      el("summary", { "data-i18n": "login.device" }),
+      el("label", {}, el("span", { "data-i18n": "login.token" }), token),
+      el("button", { type: "button", class: "use-token", "data-i18n": "login.useToken" }),
     ),
   );
   const dialog = el("dialog", { class: "login-dialog" }, form);
@@ -171,13 +189,13 @@ function loginForm(conn) {
   dialog.addEventListener("cancel", (e) => e.preventDefault()); // no way around it but logging in
   form.addEventListener("submit", (e) => {
     e.preventDefault();
-    why.textContent = "Logging in…";
+    why.textContent = t("login.busy");
     conn.login({ username: user.value.trim(), password: pass.value });
     pass.value = "";
   });
   form.querySelector(".use-token").addEventListener("click", () => {
     if (!token.value.trim()) return;
-    why.textContent = "Logging in…";
+    why.textContent = t("login.busy");
     conn.login({ token: token.value.trim() });
     token.value = "";
   });
@@ -186,9 +204,9 @@ function loginForm(conn) {
     why.textContent = !err
       ? ""
       : err.code === "unauthorized"
-        ? "Wrong user name, password or token."
+        ? t("login.wrong")
         : err.code === "rate_limited"
-          ? `Too many attempts: wait ${Math.ceil(err.details?.retry_after ?? 1)} s and try again.`
+          ? t("login.rateLimited", { s: Math.ceil(err.details?.retry_after ?? 1) })
           : describeError(err);
     if (!dialog.open) dialog.showModal();
     (err && err.code !== "unauthorized" ? pass : user).focus();
@@ -202,10 +220,10 @@ function loginForm(conn) {
 
 export function formatDuration(seconds) {
   const s = Math.max(0, Math.floor(seconds));
-  if (s < 60) return `${s} s`;
+  if (s < 60) return t("duration.s", { s });
   const m = Math.floor(s / 60);
-  if (m < 60) return `${m} min ${String(s % 60).padStart(2, "0")} s`;
-  return `${Math.floor(m / 60)} h ${String(m % 60).padStart(2, "0")} min`;
+  if (m < 60) return t("duration.ms", { m, s: String(s % 60).padStart(2, "0") });
+  return t("duration.hm", { h: Math.floor(m / 60), m: String(m % 60).padStart(2, "0") });
 }
 
 /** A client-made key for idempotent creates. crypto.randomUUID needs https; this does not. */

@@ -12,6 +12,8 @@
 // or a screen's device token, given once in the address as `#token=...` (a fragment is never
 // sent to the server nor written to its logs) and removed from the address at once.
 
+import { t } from "./i18n.js";
+
 const BACKOFF_MIN_MS = 250;
 const BACKOFF_MAX_MS = 5000;
 const REPLY_TIMEOUT_MS = 15000;
@@ -141,7 +143,7 @@ export class Connection extends EventTarget {
     };
     entry.timer = setTimeout(() => {
       this._pending.delete(id);
-      entry.reject(new ServerError("timeout", "The server did not answer in time."));
+      entry.reject(new ServerError("timeout", t("error.timeout")));
     }, REPLY_TIMEOUT_MS);
     this._pending.set(id, entry);
     this._send(entry);
@@ -170,14 +172,14 @@ export class Connection extends EventTarget {
   request(msg, { resend = false, timeout = REPLY_TIMEOUT_MS } = {}) {
     return new Promise((resolve, reject) => {
       if (this.state !== "online" && !resend) {
-        reject(new ServerError("offline", "Not connected to the server: nothing was sent."));
+        reject(new ServerError("offline", t("error.offline")));
         return;
       }
       const id = this._nextId++;
       const entry = { msg: { ...msg, id }, resolve, reject, resend, sent: false, timer: null };
       entry.timer = setTimeout(() => {
         this._pending.delete(id);
-        reject(new ServerError("timeout", "The server did not answer in time."));
+        reject(new ServerError("timeout", t("error.timeout")));
       }, timeout);
       this._pending.set(id, entry);
       if (this.state === "online") this._send(entry);
@@ -238,7 +240,7 @@ export class Connection extends EventTarget {
     try {
       ws = new WebSocket(this.url);
     } catch (e) {
-      this._problem(new ServerError("offline", `Cannot open ${this.url}: ${e.message}`));
+      this._problem(new ServerError("offline", t("error.cannotOpen", { url: this.url, error: e.message })));
       this._scheduleRetry();
       return;
     }
@@ -267,10 +269,7 @@ export class Connection extends EventTarget {
         clearTimeout(entry.timer);
         this._pending.delete(id);
         entry.reject(
-          new ServerError(
-            "connection_lost",
-            "The connection dropped before the server answered: check whether it was done.",
-          ),
+new ServerError("connection_lost", t("error.connectionLost")),
         );
       }
     }
@@ -291,7 +290,7 @@ export class Connection extends EventTarget {
     try {
       msg = JSON.parse(text);
     } catch (e) {
-      this._problem(new ServerError("bad_json", `Unreadable message from the server: ${e.message}`));
+      this._problem(new ServerError("bad_json", t("error.badJson", { error: e.message })));
       return;
     }
     if (msg.servermsg === "update") {

@@ -4,6 +4,8 @@
 // 0 free .. 100 occupied. We keep that row order in the image and let the map view draw it
 // with a y-up transform, which is what flips it right way up (see view.js).
 
+import { t } from "../i18n.js";
+
 const UNKNOWN = [200, 204, 210];
 const FREE = [255, 255, 255];
 const OCCUPIED = [31, 38, 48];
@@ -12,7 +14,7 @@ export function decodeGrid(map) {
   const { width, height } = map;
   const raw = atob(map.data);
   if (raw.length !== width * height) {
-    throw new Error(`map data has ${raw.length} cells, expected ${width}×${height}`);
+    throw new Error(t("map.badGrid", { cells: raw.length, width, height }));
   }
   const canvas = document.createElement("canvas");
   canvas.width = width;

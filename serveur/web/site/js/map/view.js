@@ -10,6 +10,7 @@
 import { decodeGrid } from "./grid.js";
 import { arrow, drawGoal, drawGrid, drawRobot, drawScan, drawWaypoints } from "./draw.js";
 import { statusColour } from "../status.js";
+import { t } from "../i18n.js";
 
 const MIN_SCALE = 5;
 const MAX_SCALE = 400;
@@ -139,7 +140,7 @@ export class MapView {
     } else {
       ctx.fillStyle = "#555";
       ctx.font = "16px system-ui, sans-serif";
-      ctx.fillText("No map yet: it appears when a robot publishes one.", 20, 30);
+      ctx.fillText(t("map.none"), 20, 30);
     }
     drawWaypoints(ctx, this, [...live.waypoints.values()]);
     const selected = this.opts.selected();
@@ -153,7 +154,7 @@ export class MapView {
       const table = live.destination(name);
       const wp = table && live.waypoints.get(table);
       if (wp) drawGoal(ctx, this, pose, { ...wp, label: table }, colour);
-      else if (goals.has(name)) drawGoal(ctx, this, pose, goals.get(name), colour);
+      else if (goals.has(name)) drawGoal(ctx, this, pose, { label: t("map.goalLabel"), ...goals.get(name) }, colour);
     }
     for (const [name, robot] of live.robots) {
       const pose = live.pose(name);

@@ -4,6 +4,11 @@
 // dispatch the same dishes twice.
 
 import { act, el, formatDuration, newKey, toast } from "../ui.js";
+import { onLangChange, t } from "../i18n.js";
+
+function taskStatus(status) {
+  return status === "queued" ? t("task.queued") : status === "active" ? t("task.active") : status;
+}
 
 export class IssuePanel {
   constructor(root, conn, live) {
@@ -13,9 +18,9 @@ export class IssuePanel {
     this.key = newKey("cart");
     this.sending = new Set(); // ids of a cart being sent: their leaving "pending" is expected
     this.pendingBody = el("tbody");
-    this.cartList = el("ul", { class: "cart-list", "aria-label": "Cart" });
+    this.cartList = el("ul", { class: "cart-list", "data-i18n-aria-label": "issue.cart" });
     this.sendBtn = el("button", { class: "primary big", onclick: () => this._send() });
-    this.trips = el("ul", { class: "trips", "aria-label": "Trips" });
+    this.trips = el("ul", { class: "trips", "data-i18n-aria-label": "issue.trips" });
     root.append(
       el(
         "div",
@@ -23,21 +28,30 @@ export class IssuePanel {
         el(
           "section",
           { class: "card", "aria-labelledby": "pending-title" },
-          el("h2", { id: "pending-title" }, "Pending dishes"),
+          el("h2", { id: "pending-title", "data-i18n": "issue.pending" }),
           el(
             "table",
             { class: "pending", "aria-labelledby": "pending-title" },
-            el("thead", {}, el("tr", {}, ["Dish", "Table", "Waiting", ""].map((h) => el("th", { scope: "col" }, h)))),
+            el(
+              "thead",
+              {},
+              el(
+                "tr",
+                {},
+                ["issue.col.dish", "issue.col.table", "issue.col.waiting"].map((k) => el("th", { scope: "col", "data-i18n": k })),
+                el("th", { scope: "col" }),
+              ),
+            ),
             this.pendingBody,
           ),
         ),
         el(
           "section",
           { class: "card cart", "aria-labelledby": "cart-title" },
-          el("h2", { id: "cart-title" }, "Cart"),
+          el("h2", { id: "cart-title", "data-i18n": "issue.cart" }),
           this.cartList,
-          el("div", { class: "cart-actions" }, el("button", { class: "secondary", onclick: () => this._clear(), text: "Empty cart" }), this.sendBtn),
-          el("h2", { id: "trips-title" }, "Trips"),
+          el("div", { class: "cart-actions" }, el("button", { class: "secondary", onclick: () => this._clear(), "data-i18n": "issue.emptyCart" }), this.sendBtn),
+          el("h2", { id: "trips-title", "data-i18n": "issue.trips" }),
           this.trips,
         ),
       ),
@@ -47,6 +61,7 @@ export class IssuePanel {
     });
     // Waiting times tick; only their text changes.
     setInterval(() => this._tick(), 1000);
+    onLangChange(() => this.render());
     this.render();
   }
 
@@ -65,7 +80,7 @@ export class IssuePanel {
       this.cart = this.cart.filter((id) => pendingIds.has(id));
       this.key = newKey("cart");
       const surprising = gone.filter((id) => !this.sending.has(id)).length;
-      if (surprising) toast(`${surprising} dish(es) left the cart: no longer pending.`);
+      if (surprising) toast(t("issue.leftCart", { count: surprising }));
     }
     const inCart = new Set(this.cart);
     const rows = pending
@@ -81,15 +96,15 @@ export class IssuePanel {
             "td",
             {},
             el("button", {
-              "aria-label": `Add ${o.dish} for ${o.table} to cart`,
+              "aria-label": t("issue.addFor", { dish: o.dish, table: o.table }),
               onclick: () => this._setCart([...this.cart, o.id]),
-              text: "Add to cart",
+              text: t("issue.add"),
             }),
           ),
         ),
       );
     if (!rows.length) {
-      rows.push(el("tr", {}, el("td", { colspan: 4, class: "muted" }, pending.length ? "Everything pending is in the cart." : "No dish is waiting at the pass.")));
+      rows.push(el("tr", {}, el("td", { colspan: 4, class: "muted" }, pending.length ? t("issue.allInCart") : t("issue.noneWaiting"))));
     }
     this.pendingBody.replaceChildren(...rows);
     this._renderCart();
@@ -107,34 +122,37 @@ export class IssuePanel {
           el("span", { class: "table-tag" }, o.table),
           el("button", {
             class: "secondary",
-            "aria-label": `Remove ${o.dish} for ${o.table} from cart`,
+            "aria-label": t("issue.removeFor", { dish: o.dish, table: o.table }),
             onclick: () => this._setCart(this.cart.filter((x) => x !== o.id)),
-            text: "Remove",
+            text: t("issue.remove"),
           }),
         ),
       ),
     );
-    if (!items.length) this.cartList.append(el("li", { class: "muted" }, "Add dishes from the pending list."));
+    if (!items.length) this.cartList.append(el("li", { class: "muted" }, t("issue.cartEmpty")));
     const tables = new Set(items.map((o) => o.table));
     this.sendBtn.textContent = items.length
-      ? `Send ${items.length} dish${items.length > 1 ? "es" : ""} (${tables.size} table${tables.size > 1 ? "s" : ""})`
-      : "Send";
+      ? t("issue.sendCount", {
+          dishes: t("count.dishes", { count: items.length }),
+          tables: t("count.tables", { count: tables.size }),
+        })
+      : t("issue.send");
     this.sendBtn.disabled = !items.length;
   }
 
   _renderTrips() {
     const open = [...this.live.tasks.values()].filter((t) => t.status === "queued" || t.status === "active");
     this.trips.replaceChildren(
-      ...open.map((t) =>
+      ...open.map((trip) =>
         el(
           "li",
           {},
-          `Trip ${t.id} · ${t.status}${t.robot ? ` · ${t.robot}` : ""} · `,
-          t.stops.map((s) => `${s.table} (${s.orders.length})`).join(" → "),
+          (trip.robot ? t("issue.tripRobot", { id: trip.id, status: taskStatus(trip.status), robot: trip.robot }) : t("issue.trip", { id: trip.id, status: taskStatus(trip.status) })) + " · ",
+          trip.stops.map((s) => `${s.table} (${s.orders.length})`).join(" → "),
         ),
       ),
     );
-    if (!open.length) this.trips.append(el("li", { class: "muted" }, "No trip queued or under way."));
+    if (!open.length) this.trips.append(el("li", { class: "muted" }, t("issue.noTrips")));
   }
 
   _setCart(ids) {
@@ -156,8 +174,8 @@ export class IssuePanel {
     orders.forEach((id) => this.sending.delete(id));
     this._renderCart(); // act() re-enabled the button whatever the cart holds now
     if (!reply) return;
-    const trips = reply.tasks.map((t) => t.stops.map((s) => s.table).join(", "));
-    toast(`Sent: ${reply.tasks.length} trip${reply.tasks.length > 1 ? "s" : ""} (${trips.join(" | ")})`);
+    const trips = reply.tasks.map((task) => task.stops.map((s) => s.table).join(", "));
+    toast(t("issue.sent", { trips: t("count.trips", { count: reply.tasks.length }), tables: trips.join(" | ") }));
     if (this.cart.join() === orders.join()) this._setCart([]);
   }
 

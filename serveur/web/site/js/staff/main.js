@@ -11,6 +11,7 @@ import { WaypointsPanel } from "./waypoints.js";
 import { IssuePanel } from "./issue.js";
 import { NewOrderPanel } from "./neworder.js";
 import { RegisterRobot } from "./register.js";
+import { onLangChange, roleName, t } from "../i18n.js";
 
 const conn = new Connection();
 const live = new Live(conn);
@@ -18,12 +19,15 @@ watchConnection(conn);
 
 // Who is logged in, and the way out (a shared tablet at the pass changes hands).
 const who = el("span", { class: "who muted", "data-testid": "who" });
-const logout = el("button", { class: "logout", type: "button" }, "Log out");
+const logout = el("button", { class: "logout", type: "button", "data-i18n": "staff.logout" });
 document.querySelector(".topbar").append(who, logout);
-conn.addEventListener("session", (e) => {
-  const s = e.detail.session;
-  who.textContent = s.user ? `${s.user} (${s.role})` : s.role;
-});
+const showWho = () => {
+  const s = conn.session;
+  if (!s) return;
+  who.textContent = s.user ? t("staff.who", { user: s.user, role: roleName(s.role) }) : roleName(s.role);
+};
+conn.addEventListener("session", showWho);
+onLangChange(showWho);
 logout.addEventListener("click", () => conn.logout().catch(showError));
 
 // Which robot the map's scan, the tools, teleop and waypoints act on.
@@ -69,11 +73,17 @@ live.addEventListener("change", (e) => {
   view.requestDraw();
 });
 
-document.getElementById("selected-note").textContent = "Select a robot in the list or on the map.";
-selection.onChange((name) => {
-  document.getElementById("selected-title").textContent = name ? `Selected robot: ${name}` : "Selected robot";
+const showSelected = (name) => {
+  document.getElementById("selected-title").textContent = name ? t("selected.named", { name }) : t("selected.title");
   document.getElementById("selected-note").hidden = Boolean(name);
+};
+selection.onChange((name) => {
+  showSelected(name);
   view.requestDraw();
+});
+onLangChange(() => {
+  showSelected(selection.name);
+  view.requestDraw(); // the canvas's own words
 });
 
 setupTabs();

@@ -3,13 +3,12 @@
 
 import { act, toast } from "../ui.js";
 import { allowed } from "../status.js";
+import { onLangChange, t } from "../i18n.js";
 
+// hint: a catalog key.
 const TOOLS = {
-  initialpose: {
-    button: "tool-calibrate",
-    hint: "Press where the robot really is, drag toward where it faces, release.",
-  },
-  goal: { button: "tool-goal", hint: "Press where the robot should go, drag toward its heading, release." },
+  initialpose: { button: "tool-calibrate", hint: "map.calibrateHintFull" },
+  goal: { button: "tool-goal", hint: "map.goalHintFull" },
 };
 const REACHED_M = 0.3;
 
@@ -37,16 +36,24 @@ export class MapTools {
       this._setTool("pan");
       this._refresh();
     });
+    onLangChange(() => {
+      this._refresh();
+      this._showHint(this.view.tool);
+    });
     this._refresh();
   }
 
   _setTool(tool) {
     this.view.setTool(tool);
-    for (const [name, { button, hint }] of Object.entries(TOOLS)) {
+    for (const [name, { button }] of Object.entries(TOOLS)) {
       document.getElementById(button).setAttribute("aria-pressed", String(name === tool));
-      if (name === tool) this.hint.textContent = `${this.selection.name}: ${hint}`;
     }
-    if (tool === "pan") this.hint.textContent = "";
+    this._showHint(tool);
+  }
+
+  _showHint(tool) {
+    const hint = TOOLS[tool] && TOOLS[tool].hint;
+    this.hint.textContent = hint ? t("map.hintFor", { robot: this.selection.name, hint: t(hint) }) : "";
   }
 
   _refresh() {
@@ -55,7 +62,7 @@ export class MapTools {
       const ok = Boolean(robot && allowed(robot.status, tool));
       const b = document.getElementById(button);
       b.disabled = !ok;
-      b.title = ok ? TOOLS[tool].hint : "Take control of the selected robot first (it must be Manual).";
+      b.title = ok ? t(TOOLS[tool].hint) : t("map.needManual");
       if (!ok && this.view.tool === tool) this._setTool("pan");
     }
   }
@@ -73,12 +80,16 @@ export class MapTools {
     const msg = { clientmsg: "control", robot: name, action: tool, x: pose.x, y: pose.y, yaw };
     const reply = await act(null, () => this.conn.request(msg));
     if (!reply) return;
-    const where = `(${pose.x.toFixed(2)}, ${pose.y.toFixed(2)}) heading ${Math.round((yaw * 180) / Math.PI)}°`;
+    const where = t("map.where", {
+      x: pose.x.toFixed(2),
+      y: pose.y.toFixed(2),
+      heading: Math.round((yaw * 180) / Math.PI),
+    });
     if (tool === "goal") {
-      this.goals.set(name, { x: pose.x, y: pose.y, yaw, label: "goal" });
-      toast(`${name}: moving to ${where}`);
+      this.goals.set(name, { x: pose.x, y: pose.y, yaw });
+      toast(t("map.moving", { robot: name, where }));
     } else {
-      toast(`${name}: calibrated at ${where}`);
+      toast(t("map.calibrated", { robot: name, where }));
     }
     this.view.requestDraw();
   }

@@ -3,8 +3,10 @@
 // sending again after a dropped connection never makes a dish twice.
 
 import { act, byName, el, newKey, toast } from "../ui.js";
+import { onLangChange, t } from "../i18n.js";
 
-// A few quick picks; any dish can be typed.
+// A few quick picks; any dish can be typed. Dish names are the restaurant's data, not the
+// page's words: they are sent and shown as written, in every language.
 const MENU = ["Laksa", "Satay", "Nasi lemak", "Rendang", "Roti canai", "Char kway teow", "Teh tarik", "Cendol"];
 
 export class NewOrderPanel {
@@ -13,16 +15,18 @@ export class NewOrderPanel {
     this.live = live;
     this.table = null;
     this.lines = []; // {dish, table, key}
-    this.tables = el("div", { class: "table-grid", role: "group", "aria-label": "Table" });
-    this.dish = el("input", { id: "dish-name", type: "text", maxlength: 64, autocomplete: "off", placeholder: "Type a dish" });
-    this.linesList = el("ul", { class: "order-lines", "aria-label": "Order" });
-    this.sendBtn = el("button", { class: "primary big", onclick: () => this._send(), text: "Send to the pass" });
+    this.tables = el("div", { class: "table-grid", role: "group", "data-i18n-aria-label": "order.table" });
+    this.dish = el("input", {
+      id: "dish-name", type: "text", maxlength: 64, autocomplete: "off", "data-i18n-placeholder": "order.dishPlaceholder",
+    });
+    this.linesList = el("ul", { class: "order-lines", "data-i18n-aria-label": "order.order" });
+    this.sendBtn = el("button", { class: "primary big", onclick: () => this._send(), "data-i18n": "order.send" });
     const form = el(
       "form",
       { class: "dish-form" },
-      el("label", { for: "dish-name" }, "Dish"),
+      el("label", { for: "dish-name", "data-i18n": "order.dish" }),
       this.dish,
-      el("button", { type: "submit", text: "Add dish" }),
+      el("button", { type: "submit", "data-i18n": "order.addDish" }),
     );
     form.addEventListener("submit", (e) => {
       e.preventDefault();
@@ -33,28 +37,41 @@ export class NewOrderPanel {
       el(
         "div",
         { class: "order-grid" },
-        el("section", { class: "card", "aria-labelledby": "table-title" }, el("h2", { id: "table-title" }, "1. Table"), this.tables),
+        el("section", { class: "card", "aria-labelledby": "table-title" }, el("h2", { id: "table-title", "data-i18n": "order.step1" }), this.tables),
         el(
           "section",
           { class: "card", "aria-labelledby": "dishes-title" },
-          el("h2", { id: "dishes-title" }, "2. Dishes"),
+          el("h2", { id: "dishes-title", "data-i18n": "order.step2" }),
           el(
             "div",
-            { class: "menu", role: "group", "aria-label": "Menu" },
-            MENU.map((d) => el("button", { class: "secondary", "aria-label": `Add ${d}`, onclick: () => this._add(d), text: d })),
+            { class: "menu", role: "group", "data-i18n-aria-label": "order.menu" },
+            MENU.map((d) =>
+              el("button", {
+                class: "secondary",
+                "data-i18n-aria-label": "order.addNamed",
+                "data-i18n-args": { dish: d },
+                onclick: () => this._add(d),
+                text: d,
+              }),
+            ),
           ),
           form,
         ),
         el(
           "section",
           { class: "card", "aria-labelledby": "lines-title" },
-          el("h2", { id: "lines-title" }, "3. Order"),
+          el("h2", { id: "lines-title", "data-i18n": "order.step3" }),
           this.linesList,
           this.sendBtn,
         ),
       ),
     );
     live.addEventListener("change", (e) => e.detail.topic === "waypoints" && this._renderTables());
+    onLangChange(() => {
+      this._tablesShown = null; // same tables, new words
+      this._renderTables();
+      this._renderLines();
+    });
     this._renderTables();
     this._renderLines();
   }
@@ -68,13 +85,13 @@ export class NewOrderPanel {
         el("button", {
           class: "table-btn",
           "aria-pressed": String(n === this.table),
-          "aria-label": `Table ${n}`,
+          "aria-label": t("order.tableNamed", { table: n }),
           onclick: () => this._pick(n),
           text: n,
         }),
       ),
     );
-    if (!names.length) this.tables.append(el("p", { class: "muted" }, "No table waypoints yet."));
+    if (!names.length) this.tables.append(el("p", { class: "muted" }, t("order.noTables")));
   }
 
   _pick(name) {
@@ -88,7 +105,7 @@ export class NewOrderPanel {
     const d = dish.trim();
     if (!d) return;
     if (!this.table) {
-      toast("Pick a table first.", { kind: "error" });
+      toast(t("order.pickTable"), { kind: "error" });
       return;
     }
     this.lines.push({ dish: d, table: this.table, key: newKey("dish") });
@@ -105,17 +122,17 @@ export class NewOrderPanel {
           el("span", { class: "table-tag" }, line.table),
           el("button", {
             class: "secondary",
-            "aria-label": `Remove ${line.dish} for ${line.table}`,
+            "aria-label": t("order.removeFor", { dish: line.dish, table: line.table }),
             onclick: () => {
               this.lines = this.lines.filter((l) => l !== line);
               this._renderLines();
             },
-            text: "Remove",
+            text: t("order.remove"),
           }),
         ),
       ),
     );
-    if (!this.lines.length) this.linesList.append(el("li", { class: "muted" }, "Pick a table, then dishes."));
+    if (!this.lines.length) this.linesList.append(el("li", { class: "muted" }, t("order.empty")));
     this.sendBtn.disabled = !this.lines.length;
   }
 
@@ -130,7 +147,7 @@ export class NewOrderPanel {
       sent.push(`${line.dish} (${line.table})`);
       this._renderLines();
     }
-    if (sent.length) toast(`Sent to the pass: ${sent.join(", ")}`);
+    if (sent.length) toast(t("order.sent", { dishes: sent.join(", ") }));
     this._renderLines();
   }
 }

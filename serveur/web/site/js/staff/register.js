@@ -3,10 +3,11 @@
 // the server reaches it, Ready after. Staff do not see the form (the server would refuse).
 
 import { act, byName, el, toast } from "../ui.js";
+import { t } from "../i18n.js";
 
 const KINEMATICS = [
-  ["omni", "Omnidirectional"],
-  ["diff", "Differential drive"],
+  ["omni", "register.omni"],
+  ["diff", "register.diff"],
 ];
 
 export class RegisterRobot {
@@ -15,30 +16,30 @@ export class RegisterRobot {
     this.live = live;
     this.name = el("input", {
       id: "rr-name", type: "text", maxlength: 64, required: true, autocomplete: "off",
-      placeholder: "r3",
+      "data-i18n-placeholder": "register.namePlaceholder",
     });
     this.url = el("input", {
       id: "rr-url", type: "text", required: true, autocomplete: "off", spellcheck: "false",
-      placeholder: "ws://10.0.0.23:9090", pattern: "wss?://.+",
-      title: "The robot's rosbridge: ws://ADDRESS:9090 (wss:// with TLS)",
+      "data-i18n-placeholder": "register.urlPlaceholder", pattern: "wss?://.+",
+      "data-i18n-title": "register.urlHint",
     });
     this.home = el("select", { id: "rr-home" });
     this.kinematics = el(
       "select",
       { id: "rr-kinematics" },
-      KINEMATICS.map(([v, label]) => el("option", { value: v }, label)),
+      KINEMATICS.map(([v, key]) => el("option", { value: v, "data-i18n": key })),
     );
-    this.submit = el("button", { type: "submit", text: "Register robot" });
+    this.submit = el("button", { type: "submit", "data-i18n": "register.submit" });
     const form = el(
       "form",
-      { class: "wp-form", "aria-label": "Register a robot" },
-      el("label", { for: "rr-name" }, "Robot name"),
+      { class: "wp-form", "data-i18n-aria-label": "register.title" },
+      el("label", { for: "rr-name", "data-i18n": "register.name" }),
       this.name,
-      el("label", { for: "rr-url" }, "Rosbridge address"),
+      el("label", { for: "rr-url", "data-i18n": "register.url" }),
       this.url,
-      el("label", { for: "rr-home" }, "Home spot"),
+      el("label", { for: "rr-home", "data-i18n": "register.home" }),
       this.home,
-      el("label", { for: "rr-kinematics" }, "Drive"),
+      el("label", { for: "rr-kinematics", "data-i18n": "register.drive" }),
       this.kinematics,
       this.submit,
     );
@@ -49,7 +50,7 @@ export class RegisterRobot {
     this.section = el(
       "details",
       { class: "register", hidden: true },
-      el("summary", {}, "Register a robot"),
+      el("summary", { "data-i18n": "register.title" }),
       form,
     );
     root.append(this.section);
@@ -75,7 +76,7 @@ export class RegisterRobot {
     const keep = this.home.value;
     this.home.replaceChildren(
       ...homes.map((h) => el("option", { value: h }, h)),
-      el("option", { value: "" }, "(none yet)"),
+      el("option", { value: "", "data-i18n": "register.noHome" }),
     );
     if (homes.includes(keep)) this.home.value = keep;
   }
@@ -87,7 +88,7 @@ export class RegisterRobot {
     if (this.home.value) msg.home = this.home.value;
     const reply = await act(this.submit, () => this.conn.request(msg));
     if (!reply) return;
-    toast(`Registered ${reply.robot.name}: the server is connecting to it`);
+    toast(t("register.done", { name: reply.robot.name }));
     this.name.value = "";
     this.url.value = "";
   }

@@ -3,16 +3,17 @@
 
 import { act, confirmDialog, el } from "../ui.js";
 import { allowed, statusColour } from "../status.js";
+import { onLangChange, statusName, t } from "../i18n.js";
 
-// [action, label, request]; `ready` reads "Release" (hand back from Manual or leave Auto).
+// [action, label key, request]; `ready` reads "Release" (hand back from Manual or leave Auto).
 const ACTIONS = [
-  ["auto", "Auto", (r) => ({ clientmsg: "control", robot: r, action: "auto" })],
-  ["manual", "Take control", (r) => ({ clientmsg: "control", robot: r, action: "manual" })],
-  ["ready", "Release", (r) => ({ clientmsg: "ready", robot: r })],
-  ["stop", "Stop", (r, at) => ({ clientmsg: "stop", robot: r, ...at })],
-  ["continue", "Continue", (r, at) => ({ clientmsg: "continue", robot: r, ...at })],
-  ["next", "Food collected", (r, at) => ({ clientmsg: "next", robot: r, ...at })],
-  ["cancel", "Cancel trip", (r, at) => ({ clientmsg: "cancel", robot: r, ...at })],
+  ["auto", "robots.auto", (r) => ({ clientmsg: "control", robot: r, action: "auto" })],
+  ["manual", "robots.manual", (r) => ({ clientmsg: "control", robot: r, action: "manual" })],
+  ["ready", "robots.release", (r) => ({ clientmsg: "ready", robot: r })],
+  ["stop", "robots.stop", (r, at) => ({ clientmsg: "stop", robot: r, ...at })],
+  ["continue", "robots.continue", (r, at) => ({ clientmsg: "continue", robot: r, ...at })],
+  ["next", "robots.collected", (r, at) => ({ clientmsg: "next", robot: r, ...at })],
+  ["cancel", "robots.cancel", (r, at) => ({ clientmsg: "cancel", robot: r, ...at })],
 ];
 
 export class RobotsPanel {
@@ -26,6 +27,10 @@ export class RobotsPanel {
       if (["robots", "tasks", "waypoints"].includes(e.detail.topic)) this.render();
     });
     selection.onChange(() => this.render());
+    onLangChange(() => {
+      for (const row of this.rows.values()) row.signature = ""; // same data, new words
+      this.render();
+    });
   }
 
   render() {
@@ -58,23 +63,25 @@ export class RobotsPanel {
   }
 
   _trip(robot) {
-    if (robot.current_task === null) return "no trip";
+    if (robot.current_task === null) return t("robots.noTrip");
     const task = this.live.tasks.get(robot.current_task);
-    if (!task) return `trip ${robot.current_task}`;
+    if (!task) return t("robots.tripId", { id: robot.current_task });
     const tables = task.stops.map((s) => s.table).join(", ");
     const here = task.stops[task.current_stop];
-    return `trip ${task.id}: ${tables}${here ? ` (now ${here.table})` : ""}`;
+    return here
+      ? t("robots.tripNow", { id: task.id, tables, now: here.table })
+      : t("robots.trip", { id: task.id, tables });
   }
 
   _content(robot, trip, selected) {
     const name = robot.name;
-    const buttons = ACTIONS.filter(([action]) => allowed(robot.status, action)).map(([action, label, make]) =>
+    const buttons = ACTIONS.filter(([action]) => allowed(robot.status, action)).map(([action, key, make]) =>
       el("button", {
         class: action === "stop" || action === "cancel" ? "danger" : "",
-        "aria-label": `${label} ${name}`,
+        "aria-label": t("robots.actionFor", { action: t(key), name }),
         // The trip and stop shown now: the server refuses the command if the robot moved on.
         onclick: (e) => this._do(e.currentTarget, action, name, make(name, this.live.target(name))),
-        text: label,
+        text: t(key),
       }),
     );
     return [
@@ -83,7 +90,7 @@ export class RobotsPanel {
         {
           class: "robot-name",
           "aria-pressed": String(selected),
-          "aria-label": `Select ${name}`,
+          "aria-label": t("robots.select", { name }),
           onclick: () => this.selection.set(name),
         },
         name,
@@ -92,21 +99,21 @@ export class RobotsPanel {
         "span",
         { class: "status-badge", "data-status": robot.status },
         el("span", { class: "dot", "aria-hidden": "true", style: { background: statusColour(robot.status) } }),
-        robot.status,
+        statusName(robot.status),
       ),
-      el("span", { class: "battery" }, `battery ${battery(robot)}`),
+      el("span", { class: "battery" }, t("robots.battery", { value: battery(robot) })),
       el("span", { class: "trip" }, trip),
-      robot.last_error ? el("span", { class: "last-error" }, robot.last_error) : null,
-      el("div", { class: "actions", role: "group", "aria-label": `Actions for ${name}` }, buttons),
+      robot.last_error ? el("span", { class: "last-error" }, t("robots.lastError", { message: robot.last_error })) : null,
+      el("div", { class: "actions", role: "group", "aria-label": t("robots.actions", { name }) }, buttons),
     ];
   }
 
   async _do(button, action, name, msg) {
     if (action === "cancel") {
-      const yes = await confirmDialog(`Cancel ${name}'s trip?`, {
-        yes: "Yes, cancel the trip",
-        no: "No, keep it",
-        detail: "The robot goes home; the dishes not yet served go back to the pending list.",
+      const yes = await confirmDialog(t("robots.cancelQuestion", { name }), {
+        yes: t("robots.cancelYes"),
+        no: t("robots.cancelNo"),
+        detail: t("robots.cancelDetail"),
       });
       if (!yes) return;
     }
@@ -115,5 +122,7 @@ export class RobotsPanel {
 }
 
 function battery(robot) {
-  return robot.battery === null || robot.battery === undefined ? "—" : `${Math.round(robot.battery * 100)} %`;
+  return robot.battery === null || robot.battery === undefined
+    ? t("robots.batteryUnknown")
+    : t("robots.batteryPercent", { percent: Math.round(robot.battery * 100) });
 }

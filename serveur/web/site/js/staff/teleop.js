@@ -5,6 +5,7 @@
 
 import { el, showError } from "../ui.js";
 import { allowed } from "../status.js";
+import { onLangChange, t } from "../i18n.js";
 
 const PERIOD_MS = 200;
 const V_MAX = 0.5; // m/s
@@ -30,16 +31,16 @@ export class Teleop {
     this.target = null; // the robot being driven; fixed while a command is held
 
     this.note = el("p", { class: "muted teleop-note" });
-    this.joystick = pad("Joystick: drag to drive", "joystick");
-    this.rotor = pad("Rotation: drag left or right to turn", "rotor");
+    this.joystick = pad("teleop.joystick", "joystick");
+    this.rotor = pad("teleop.rotor", "rotor");
     root.append(
       el(
         "section",
         { class: "teleop", "aria-labelledby": "teleop-title" },
-        el("h3", { id: "teleop-title" }, "Drive"),
+        el("h3", { id: "teleop-title", "data-i18n": "teleop.title" }),
         this.note,
         el("div", { class: "pads" }, this.joystick.node, this.rotor.node),
-        el("p", { class: "hint" }, "Keys: W/S or ↑/↓ forward/back, A/D sideways, Q/E or ←/→ turn."),
+        el("p", { class: "hint", "data-i18n": "teleop.keys" }),
       ),
     );
     dragPad(this.joystick, (x, y) => this._input(() => (this.stick = [x, y])));
@@ -54,6 +55,7 @@ export class Teleop {
       this._releaseAll();
       this._refresh();
     });
+    onLangChange(() => this._refresh());
     this._refresh();
   }
 
@@ -65,9 +67,7 @@ export class Teleop {
   _refresh() {
     const on = this._enabled();
     for (const p of [this.joystick, this.rotor]) p.node.setAttribute("aria-disabled", String(!on));
-    this.note.textContent = on
-      ? `Driving ${this.selection.name}.`
-      : "Take control of the selected robot (Manual) to drive it.";
+    this.note.textContent = on ? t("teleop.driving", { robot: this.selection.name }) : t("teleop.needManual");
     if (!on && this.timer) this._releaseAll();
   }
 
@@ -146,9 +146,9 @@ function round(v) {
   return Math.round(v * 1000) / 1000 || 0; // never "-0"
 }
 
-function pad(label, kind) {
+function pad(labelKey, kind) {
   const knob = el("div", { class: "knob" });
-  const node = el("div", { class: `pad ${kind}`, role: "group", "aria-label": label }, knob);
+  const node = el("div", { class: `pad ${kind}`, role: "group", "data-i18n-aria-label": labelKey }, knob);
   return {
     node,
     knob,

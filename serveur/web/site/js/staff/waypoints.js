@@ -3,6 +3,7 @@
 
 import { act, byName, confirmDialog, el, toast } from "../ui.js";
 import { allowed } from "../status.js";
+import { onLangChange, t } from "../i18n.js";
 
 const KINDS = ["table", "home", "pass", "other"];
 
@@ -12,15 +13,15 @@ export class WaypointsPanel {
     this.live = live;
     this.selection = selection;
     this.name = el("input", { id: "wp-name", type: "text", maxlength: 64, required: true, autocomplete: "off" });
-    this.kind = el("select", { id: "wp-kind" }, KINDS.map((k) => el("option", { value: k }, k)));
-    this.saveBtn = el("button", { type: "submit", text: "Save waypoint" });
-    this.list = el("ul", { class: "goto-list", "aria-label": "Go to a waypoint" });
+    this.kind = el("select", { id: "wp-kind" }, KINDS.map((k) => el("option", { value: k, "data-i18n": `wp.kind.${k}` })));
+    this.saveBtn = el("button", { type: "submit", "data-i18n": "wp.save" });
+    this.list = el("ul", { class: "goto-list", "data-i18n-aria-label": "wp.gotoList" });
     const form = el(
       "form",
-      { class: "wp-form", "aria-label": "Save the robot's pose as a waypoint" },
-      el("label", { for: "wp-name" }, "Name"),
+      { class: "wp-form", "data-i18n-aria-label": "wp.form" },
+      el("label", { for: "wp-name", "data-i18n": "wp.name" }),
       this.name,
-      el("label", { for: "wp-kind" }, "Kind"),
+      el("label", { for: "wp-kind", "data-i18n": "wp.kind" }),
       this.kind,
       this.saveBtn,
     );
@@ -32,9 +33,9 @@ export class WaypointsPanel {
       el(
         "section",
         { class: "waypoints", "aria-labelledby": "wp-title" },
-        el("h3", { id: "wp-title" }, "Waypoints"),
+        el("h3", { id: "wp-title", "data-i18n": "wp.title" }),
         form,
-        el("h4", {}, "Go to"),
+        el("h4", { "data-i18n": "wp.goto" }),
         this.list,
       ),
     );
@@ -42,6 +43,10 @@ export class WaypointsPanel {
       if (e.detail.topic === "waypoints" || e.detail.topic === "robots") this.render();
     });
     selection.onChange(() => this.render());
+    onLangChange(() => {
+      this._signature = null; // same list, new words
+      this.render();
+    });
     this.render();
   }
 
@@ -61,8 +66,8 @@ export class WaypointsPanel {
           {},
           el("button", {
             disabled: !canGo,
-            "aria-label": `Go to ${n}`,
-            title: canGo ? `Send ${this.selection.name} to ${n}` : "Take control of the robot first",
+            "aria-label": t("wp.gotoNamed", { name: n }),
+            title: canGo ? t("wp.send", { robot: this.selection.name, name: n }) : t("wp.needControl"),
             onclick: (e) => this._goto(e.currentTarget, n),
             text: n,
           }),
@@ -77,10 +82,10 @@ export class WaypointsPanel {
     if (!robot || !name) return;
     const msg = { clientmsg: "create", type: "waypoint", name, robot, kind: this.kind.value };
     if (this.live.waypoints.has(name)) {
-      const yes = await confirmDialog(`Replace waypoint ${name}?`, {
-        yes: "Yes, replace it",
-        no: "No",
-        detail: `A waypoint named ${name} exists; it will move to ${robot}'s pose.`,
+      const yes = await confirmDialog(t("wp.replaceQuestion", { name }), {
+        yes: t("wp.replaceYes"),
+        no: t("wp.replaceNo"),
+        detail: t("wp.replaceDetail", { name, robot }),
       });
       if (!yes) return;
       msg.replace = true;
@@ -89,7 +94,7 @@ export class WaypointsPanel {
     this.render();
     if (reply) {
       const w = reply.waypoint;
-      toast(`Saved ${w.name} at (${w.x.toFixed(2)}, ${w.y.toFixed(2)})`);
+      toast(t("wp.saved", { name: w.name, x: w.x.toFixed(2), y: w.y.toFixed(2) }));
       this.name.value = "";
     }
   }
@@ -99,6 +104,6 @@ export class WaypointsPanel {
     const reply = await act(button, () =>
       this.conn.request({ clientmsg: "control", robot, action: "goto", waypoint }),
     );
-    if (reply) toast(`${robot}: going to ${waypoint}`);
+    if (reply) toast(t("wp.going", { robot, name: waypoint }));
   }
 }
