@@ -26,6 +26,7 @@ from serveur import __version__
 from serveur.errors import ServeurError
 
 if TYPE_CHECKING:
+    from serveur.core.runtime import CoreConfig
     from serveur.security.sessions import SecurityConfig
 
 __all__ = ["main"]
@@ -52,6 +53,41 @@ def _security(ns: argparse.Namespace) -> SecurityConfig:
         max_per_address=ns.max_connections_per_address,
         rate=ns.rate_limit,
         burst=max(ns.rate_limit * 4, 20.0),
+    )
+
+
+def _add_service_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("dinner service")
+    g.add_argument(
+        "--auto-depart",
+        action="store_true",
+        help="trips leave as soon as a robot takes them (default: the robot waits at the pass,"
+        " Loading, until staff press Go)",
+    )
+    g.add_argument(
+        "--table-timeout",
+        type=float,
+        default=180.0,
+        metavar="S",
+        help="a robot waiting this long at a table without \"food collected\" goes on, the"
+        " dishes returned to the pass (0: wait for ever; default 180)",
+    )
+    g.add_argument(
+        "--trays",
+        type=int,
+        default=4,
+        metavar="N",
+        help="tables one trip serves, one tray each, unless a robot says otherwise (default 4)",
+    )
+
+
+def _service_config(ns: argparse.Namespace) -> CoreConfig:
+    from serveur.core.runtime import CoreConfig
+
+    return CoreConfig(
+        auto_depart=ns.auto_depart,
+        table_timeout=ns.table_timeout or None,
+        capacity=ns.trays,
     )
 
 
@@ -108,6 +144,7 @@ async def _run(ns: argparse.Namespace) -> int:
         security=_security(ns),
         ssl=tls,
         robot_ssl=robot_tls,
+        config=_service_config(ns),
     )
     try:
         await app.start()
@@ -197,6 +234,7 @@ async def _demo(ns: argparse.Namespace) -> int:
         waypoints=waypoints,
         robots=specs,
         security=_security(ns),
+        config=_service_config(ns),
         create_owner=False,
         ssl=tls,
         robot_ssl=robot_tls,
@@ -316,6 +354,7 @@ def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     run.add_argument("--waypoints", help="waypoints JSON to import (tables, homes)")
     run.add_argument("--time-scale", type=float, default=1.0)
     _add_security_arguments(run)
+    _add_service_arguments(run)
     _add_tls_arguments(run)
     run.set_defaults(func=_run, is_async=True)
 
@@ -338,6 +377,7 @@ def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
         " on an existing one the demo accounts get new passwords",
     )
     _add_security_arguments(demo)
+    _add_service_arguments(demo)
     # The demo's own simulated robots stay on plain ws:// (loopback, same process);
     # --robot-cafile is for wss:// robots added from the console.
     _add_tls_arguments(demo)

@@ -5,9 +5,13 @@ These are what the store returns, what the server pushes to subscribers and what
 JSON a client receives and the JSON Schema that ``serveur schema`` prints.
 
 Lifecycle of a dish (an *order*):
-``pending`` (ready at the kitchen pass) -> ``assigned`` (in a task: on a trip, queued or under
-way) -> ``delivered`` (the guest pressed "food collected"). Cancelling a trip puts its
-undelivered orders back to ``pending``; ``cancelled`` is for an order the kitchen withdraws.
+``ordered`` (taken by a waiter or a POS) -> ``cooking`` (the kitchen started it) -> ``pending``
+(ready at the kitchen pass) -> ``assigned`` (in a task: on a trip, loading, queued or under
+way) -> ``delivered`` (the guest pressed "food collected") or ``returned`` (the table was
+skipped or timed out: the dish came back to the pass, never delivered, for staff to send again
+or void). ``voided`` is a dish withdrawn before it left the pass. A script may create a dish
+straight at ``pending`` (a kitchen display that only says "ready"). Cancelling a trip puts its
+undelivered orders back to ``pending``. :data:`ORDER_STEPS` is the rule for each step.
 
 A *task* is one trip of one robot: ordered stops, one per table, each carrying that table's
 dishes. Staff confirm a cart of dishes; the scheduler splits it into tasks of at most the tray
@@ -26,13 +30,17 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from serveur.status import RobotMode, RobotStatus
 
 __all__ = [
+    "ORDER_STEPS",
     "AuditRecord",
+    "DishAction",
     "EventRecord",
+    "MenuItem",
     "Order",
     "OrderStatus",
     "Robot",
     "Stop",
     "StopStatus",
+    "TableBlock",
     "Task",
     "TaskStatus",
     "WaypointKind",
@@ -41,10 +49,34 @@ __all__ = [
 
 
 class OrderStatus(StrEnum):
-    PENDING = "pending"
+    ORDERED = "ordered"
+    COOKING = "cooking"
+    PENDING = "pending"  # ready at the pass
     ASSIGNED = "assigned"
     DELIVERED = "delivered"
-    CANCELLED = "cancelled"
+    RETURNED = "returned"
+    VOIDED = "voided"
+
+
+class DishAction(StrEnum):
+    """What staff, the kitchen or a POS script may do to one dish (the ``dish`` instruction)."""
+
+    COOKING = "cooking"  # the kitchen started it
+    READY = "ready"  # at the pass (or, for a returned dish: send it again)
+    VOID = "void"  # withdraw it
+    EDIT = "edit"  # change quantity, note or table
+
+
+_O = OrderStatus
+#: From which statuses each dish action may be taken, and the status it leads to (None: the
+#: status does not change). A dish on a robot or delivered is beyond staff's edits: its trip
+#: is changed instead (skip, cancel).
+ORDER_STEPS: dict[DishAction, tuple[frozenset[OrderStatus], OrderStatus | None]] = {
+    DishAction.COOKING: (frozenset({_O.ORDERED}), _O.COOKING),
+    DishAction.READY: (frozenset({_O.ORDERED, _O.COOKING, _O.RETURNED}), _O.PENDING),
+    DishAction.VOID: (frozenset({_O.ORDERED, _O.COOKING, _O.PENDING, _O.RETURNED}), _O.VOIDED),
+    DishAction.EDIT: (frozenset({_O.ORDERED, _O.COOKING, _O.PENDING, _O.RETURNED}), None),
+}
 
 
 class TaskStatus(StrEnum):
@@ -58,7 +90,7 @@ class StopStatus(StrEnum):
     PENDING = "pending"  # not reached yet
     ARRIVED = "arrived"  # robot at the table, waiting for "food collected"
     DONE = "done"  # food collected
-    SKIPPED = "skipped"  # trip cancelled before this stop was served
+    SKIPPED = "skipped"  # not served: skipped by staff, timed out, or the trip was cancelled
 
 
 class WaypointKind(StrEnum):
@@ -93,6 +125,7 @@ class Robot(_Record):
     y: float | None = None
     yaw: float | None = None
     last_error: str | None = None
+    trays: int | None = Field(default=None, description="tables per trip; None: the site's")
     updated_at: float = 0.0
     status_since: float = Field(default=0.0, description="when it entered its status (epoch s)")
 
@@ -101,6 +134,27 @@ class Robot(_Record):
     def _link_from_json(cls, v: Any) -> Any:
         # The store keeps the options as a JSON object in one column.
         return json.loads(v) if isinstance(v, str) else v
+
+
+class MenuItem(_Record):
+    """A dish the console offers. ``price_cents`` is optional (many sites keep prices in the
+    POS); ``available`` False hides a dish that ran out without losing its place."""
+
+    dish: str
+    category: str = ""
+    price_cents: int | None = None
+    available: bool = True
+    position: int = 0
+
+
+class TableBlock(_Record):
+    """A table no robot is sent to: a robot could not reach it (``reason``), until staff clear
+    it."""
+
+    table: str
+    reason: str
+    robot: str | None = None
+    since: float
 
 
 class WaypointRecord(_Record):
@@ -114,7 +168,8 @@ class WaypointRecord(_Record):
 
 
 class Order(_Record):
-    """One dish for one table. ``ready_at`` is when it was ready at the pass."""
+    """One dish for one table (``quantity`` plates of it). ``ready_at`` is when it was ready at
+    the pass (None while ordered or cooking)."""
 
     id: int
     dish: str
@@ -122,9 +177,14 @@ class Order(_Record):
     status: OrderStatus = OrderStatus.PENDING
     task_id: int | None = None
     key: str | None = None
-    ready_at: float
+    ready_at: float | None = None
     dispatched_at: float | None = None
     delivered_at: float | None = None
+    quantity: int = 1
+    note: str | None = None
+    ordered_at: float | None = None
+    returned_at: float | None = None
+    voided_at: float | None = None
 
 
 class Stop(_Record):

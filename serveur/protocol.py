@@ -38,6 +38,8 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from serveur.domain import (
+    DishAction,
+    OrderStatus,
     WaypointKind,
 )
 from serveur.errors import BadJson, InvalidField, ServeurError, UnknownMessage
@@ -101,7 +103,9 @@ __all__ = [
     "ROBOT_TOPICS",
     "STATE_TOPICS",
     "VERBS",
+    "AckMsg",
     "CancelMsg",
+    "ClearMsg",
     "ClientMessage",
     "ContinueMsg",
     "ControlAuto",
@@ -111,14 +115,17 @@ __all__ = [
     "ControlManual",
     "ControlMessage",
     "ControlTeleop",
+    "CreateDish",
     "CreateMessage",
     "CreateOrder",
     "CreateRobot",
     "CreateTask",
     "CreateWaypoint",
     "DataMsg",
+    "DishMsg",
     "ErrorCode",
     "ErrorReply",
+    "GoMsg",
     "LoginMsg",
     "LogoutMsg",
     "MapSnapshot",
@@ -132,6 +139,7 @@ __all__ = [
     "ScanData",
     "ServerMessage",
     "Session",
+    "SkipMsg",
     "Snapshot",
     "StopMsg",
     "TargetMsg",
@@ -258,14 +266,36 @@ class CreateWaypoint(_ClientMsg):
         return self
 
 
+Quantity = Annotated[int, Field(ge=1, le=99)]
+Note = Annotated[str, Field(max_length=200)]
+
+
 class CreateOrder(_ClientMsg):
-    """A dish ready at the pass for a table. ``key`` makes a resend safe (idempotent)."""
+    """A dish for a table: ``ordered`` (the kitchen marks it ready with ``dish``) or, by
+    default, ``pending`` (ready at the pass). ``key`` makes a resend safe (idempotent)."""
 
     clientmsg: Literal["create"]
     type: Literal["order"]
     dish: Name
     table: Name
+    quantity: Quantity = 1
+    note: Note | None = Field(default=None, description='For the kitchen: "no chilli"')
+    status: Literal["ordered", "pending"] = Field(
+        default="pending", description="ordered: for the kitchen; pending: ready at the pass"
+    )
     key: Name | None = Field(default=None, description="Client-chosen idempotency key")
+
+
+class CreateDish(_ClientMsg):
+    """Add a dish to the menu, or change one (the owner's menu)."""
+
+    clientmsg: Literal["create"]
+    type: Literal["dish"]
+    name: Annotated[str, Field(min_length=1, max_length=64)]
+    category: Annotated[str, Field(max_length=64)] = ""
+    price_cents: Annotated[int, Field(ge=0, le=10_000_000)] | None = None
+    available: bool = True
+    position: Annotated[int, Field(ge=0, le=10_000)] = 0
 
 
 class CreateTask(_ClientMsg):
@@ -298,10 +328,14 @@ class CreateRobot(_ClientMsg):
         description="ROS names that differ from the defaults (docs/robots.md): ns, move_base,"
         " cmd_vel, pose, initialpose, battery, scan, map, frame",
     )
+    trays: Annotated[int, Field(ge=1, le=12)] | None = Field(
+        default=None, description="Tables one trip may serve (one tray each); null: the site's"
+    )
 
 
 CreateMessage: TypeAlias = Annotated[
-    CreateWaypoint | CreateOrder | CreateTask | CreateRobot, Field(discriminator="type")
+    CreateWaypoint | CreateOrder | CreateTask | CreateRobot | CreateDish,
+    Field(discriminator="type"),
 ]
 
 
@@ -421,6 +455,46 @@ class CancelMsg(_TargetMsg):
     clientmsg: Literal["cancel"]
 
 
+class GoMsg(_TargetMsg):
+    """Trays loaded at the pass: the robot leaves on its trip (it is Loading)."""
+
+    clientmsg: Literal["go"]
+
+
+class SkipMsg(_TargetMsg):
+    """Leave this table unserved: its dishes are returned to the pass, the robot goes on."""
+
+    clientmsg: Literal["skip"]
+
+
+class DishMsg(_ClientMsg):
+    """One step of a dish: the kitchen starts it or marks it ready (a returned dish: send it
+    again), staff void it, or edit its quantity, note or table. ``status``, if given, is the
+    status the client saw: a dish that has moved on since is refused with ``stale``."""
+
+    clientmsg: Literal["dish"]
+    order: OrderId
+    action: DishAction
+    status: OrderStatus | None = None
+    quantity: Quantity | None = None
+    note: Note | None = Field(default=None, description='edit: the new note ("" clears it)')
+    table: Name | None = Field(default=None, description="edit: move the dish to this table")
+
+
+class AckMsg(_ClientMsg):
+    """Staff have seen this alert (it stays until its cause ends)."""
+
+    clientmsg: Literal["ack"]
+    alert: OrderId
+
+
+class ClearMsg(_ClientMsg):
+    """A blocked table is reachable again: robots may be sent there."""
+
+    clientmsg: Literal["clear"]
+    table: Name
+
+
 class OrderMsg(_ClientMsg):
     """List orders: a table's (table screen) or those on a robot's tray (robot screen)."""
 
@@ -447,6 +521,11 @@ ClientMessage: TypeAlias = Annotated[
     | StopMsg
     | ContinueMsg
     | CancelMsg
+    | GoMsg
+    | SkipMsg
+    | DishMsg
+    | AckMsg
+    | ClearMsg
     | OrderMsg,
     Field(discriminator="clientmsg"),
 ]
@@ -454,7 +533,7 @@ _CLIENT: TypeAdapter[ClientMessage] = TypeAdapter(ClientMessage)
 
 #: Sub-discriminators of the nested verbs, with their tags (for clear error messages).
 _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
-    "create": ("type", ("waypoint", "order", "task", "robot")),
+    "create": ("type", ("waypoint", "order", "task", "robot", "dish")),
     "control": ("action", ("auto", "manual", "teleop", "initialpose", "goal", "goto")),
 }
 
@@ -470,6 +549,8 @@ _ACTIONS: Final[dict[type[BaseModel], Action]] = {
     StopMsg: Action.STOP,
     ContinueMsg: Action.CONTINUE,
     CancelMsg: Action.CANCEL,
+    GoMsg: Action.GO,
+    SkipMsg: Action.SKIP,
 }
 
 

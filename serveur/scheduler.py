@@ -48,6 +48,7 @@ __all__ = [
     "Fleet",
     "TripEstimate",
     "adaptive_hold",
+    "can_carry",
     "cart_order_trips",
     "choose_robot",
     "fifo_cart",
@@ -73,9 +74,9 @@ def group_by_table(orders: Iterable[Order]) -> list[tuple[str, list[int]]]:
     """Dishes per table; tables in the order their first dish became ready."""
     groups: dict[str, list[int]] = {}
     first: dict[str, tuple[float, int]] = {}
-    for o in sorted(orders, key=lambda o: (o.ready_at, o.id)):
+    for o in sorted(orders, key=lambda o: (o.ready_at or 0.0, o.id)):
         groups.setdefault(o.table, []).append(o.id)
-        first.setdefault(o.table, (o.ready_at, o.id))
+        first.setdefault(o.table, (o.ready_at or 0.0, o.id))
     return [(t, groups[t]) for t in sorted(groups, key=lambda t: first[t])]
 
 
@@ -484,6 +485,12 @@ class Candidate:
     name: str
     idle_since: float
     battery: float | None = None
+    trays: int | None = None  # tables one trip of it may serve; None: any trip
+
+
+def can_carry(c: Candidate, stops: int) -> bool:
+    """Has the robot a tray for each table of a trip of ``stops`` tables?"""
+    return c.trays is None or c.trays >= stops
 
 
 #: Below this charge a robot gets no new trip (it charges at home; staff can still drive it).
@@ -504,7 +511,9 @@ def choose_robot(
 class Fleet(Protocol):
     """What the dispatcher needs from the server core."""
 
-    async def queued_task_ids(self) -> list[int]: ...
+    async def queued_tasks(self) -> list[tuple[int, int]]:
+        """The queued trips, oldest first, as (task id, number of tables)."""
+        ...
 
     def free_robots(self) -> list[Candidate]: ...
 
@@ -534,10 +543,14 @@ class Dispatcher:
             # Every robot busy: most rounds in a rush (each new trip kicks one). Reading the
             # whole queue for nothing made each of them cost more as the backlog grew.
             return 0
-        for task_id in await self._fleet.queued_task_ids():
-            robot = choose_robot(self._fleet.free_robots())
-            if robot is None:
+        for task_id, stops in await self._fleet.queued_tasks():
+            free = self._fleet.free_robots()
+            if not free:
                 break
+            # A trip waits for a robot with a tray per table; smaller trips behind it go on.
+            robot = choose_robot([c for c in free if can_carry(c, stops)])
+            if robot is None:
+                continue
             if await self._fleet.start_trip(task_id, robot):
                 assigned += 1
         return assigned

@@ -333,7 +333,8 @@ class Server:
             return await self._data(conn, msg)
         if msg.clientmsg == "ping":
             return {"time": self.core.clock.epoch()}
-        return await self.core.handle(msg)
+        table = p.table if p is not None and p.role is Role.TABLE_SCREEN else None
+        return await self.core.handle(msg, actor=p.actor if p else None, table=table)
 
     async def _login(self, conn: _Conn, msg: P.LoginMsg) -> dict[str, Any]:
         p, token = await self.sessions.login(msg, conn.peer)

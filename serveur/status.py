@@ -39,6 +39,7 @@ class RobotStatus(StrEnum):
     OFFLINE = "Offline"  # no rosbridge link (or its status heartbeat stopped)
     READY = "Ready"  # linked, not activated
     AWAITING = "Awaiting"  # automatic, at home, no job
+    LOADING = "Loading"  # at the pass with a trip: staff load the trays, then press Go
     DELIVERING = "Delivering"  # moving to a table with food
     DELIVERED = "Delivered"  # at a table, waiting for "food collected" (next)
     STOPPED = "Stopped"  # halted by staff during a move
@@ -70,6 +71,8 @@ class Action(StrEnum):
     CONTINUE = "continue"
     CANCEL = "cancel"
     SAVE_WAYPOINT = "save_waypoint"  # create a waypoint at the robot's current pose
+    GO = "go"  # trays loaded: leave on the trip
+    SKIP = "skip"  # leave this table unserved, its dishes returned
 
 
 S = RobotStatus
@@ -81,12 +84,13 @@ ALLOWED: dict[RobotStatus, frozenset[Action]] = {
     S.OFFLINE: frozenset(),
     S.READY: frozenset({A.AUTO, A.MANUAL, A.SAVE_WAYPOINT}),
     S.AWAITING: frozenset({A.READY, A.SAVE_WAYPOINT}),
+    S.LOADING: frozenset({A.GO, A.CANCEL, A.MANUAL, A.SAVE_WAYPOINT}),
     S.DELIVERING: frozenset({A.STOP, A.SAVE_WAYPOINT}),
-    S.DELIVERED: frozenset({A.NEXT, A.SAVE_WAYPOINT}),
-    S.STOPPED: frozenset({A.CONTINUE, A.CANCEL, A.SAVE_WAYPOINT}),
+    S.DELIVERED: frozenset({A.NEXT, A.SKIP, A.SAVE_WAYPOINT}),
+    S.STOPPED: frozenset({A.CONTINUE, A.CANCEL, A.SKIP, A.SAVE_WAYPOINT}),
     S.TRANSIT: frozenset({A.STOP, A.SAVE_WAYPOINT}),
     S.MANUAL: frozenset({A.TELEOP, A.INITIALPOSE, A.GOAL, A.GOTO, A.READY, A.SAVE_WAYPOINT}),
-    S.ERROR: frozenset({A.CONTINUE, A.CANCEL, A.MANUAL, A.SAVE_WAYPOINT}),
+    S.ERROR: frozenset({A.CONTINUE, A.CANCEL, A.SKIP, A.MANUAL, A.SAVE_WAYPOINT}),
 }
 
 
@@ -98,7 +102,9 @@ class Event(StrEnum):
     AUTO = "auto"
     MANUAL = "manual"
     RELEASE = "release"  # the ``ready`` instruction
-    DISPATCH = "dispatch"  # a trip starts: goal sent to its first table
+    DISPATCH = "dispatch"  # a trip starts at once (auto-depart): goal sent to its first table
+    ASSIGN = "assign"  # a trip is given to the robot at the pass, to be loaded
+    GO = "go"  # loaded: the trip starts, goal sent to its first table
     GO_HOME = "go_home"  # an automatic robot is sent home without food
     ARRIVED = "arrived"  # the current goal succeeded
     NAV_FAILED = "nav_failed"  # the goal aborted, was rejected or never acknowledged
@@ -128,6 +134,16 @@ TRANSITIONS: dict[tuple[RobotStatus, Event], RobotStatus] = {
     (S.MANUAL, Event.RELEASE): S.READY,
     (S.AWAITING, Event.RELEASE): S.READY,
     (S.AWAITING, Event.DISPATCH): S.DELIVERING,
+    (S.AWAITING, Event.ASSIGN): S.LOADING,
+    (S.LOADING, Event.GO): S.DELIVERING,
+    (S.LOADING, Event.MANUAL): S.MANUAL,
+    # Cancelled before it left: the robot is still at the pass.
+    (S.LOADING, Event.CANCEL): S.AWAITING,
+    # A table skipped from a stopped or failed robot: on to the next table, or home.
+    (S.STOPPED, Event.NEXT_TABLE): S.DELIVERING,
+    (S.STOPPED, Event.NEXT_HOME): S.TRANSIT,
+    (S.ERROR, Event.NEXT_TABLE): S.DELIVERING,
+    (S.ERROR, Event.NEXT_HOME): S.TRANSIT,
     (S.AWAITING, Event.GO_HOME): S.TRANSIT,
     (S.DELIVERING, Event.ARRIVED): S.DELIVERED,
     (S.TRANSIT, Event.ARRIVED): S.AWAITING,

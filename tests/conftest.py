@@ -237,7 +237,7 @@ def make_app(
     from serveur.maps.navigation import load_demo
 
     nav_map, waypoints = load_demo()
-    cfg = config or CoreConfig(heartbeat=2.0, ack_timeout=3.0)
+    cfg = config or CoreConfig(heartbeat=2.0, ack_timeout=3.0, auto_depart=True)
     return App(
         db, port=port, clock=clock, nav_map=nav_map, waypoints=waypoints, robots=specs, config=cfg
     )

@@ -111,9 +111,9 @@ class FakeFleet:
         self.started: list[tuple[int, str]] = []
         self.queue_reads = 0
 
-    async def queued_task_ids(self) -> list[int]:
+    async def queued_tasks(self) -> list[tuple[int, int]]:
         self.queue_reads += 1
-        return [t for t in self.tasks if t not in {s for s, _ in self.started}]
+        return [(t, 1) for t in self.tasks if t not in {s for s, _ in self.started}]
 
     def free_robots(self) -> list[Candidate]:
         return [Candidate(r, t) for r, t in self.free.items()]
@@ -135,6 +135,29 @@ async def test_dispatch_gives_each_trip_to_one_robot() -> None:
     fleet.free["r3"] = 9.0
     assert await d.dispatch_once() == 1
     assert fleet.started[-1] == (3, "r3")
+
+
+async def test_a_trip_goes_to_a_robot_with_a_tray_for_each_table() -> None:
+    class TrayFleet(FakeFleet):
+        sizes = {1: 4, 2: 2}
+        trays = {"small": 2, "big": 4}
+
+        async def queued_tasks(self) -> list[tuple[int, int]]:
+            done = {s for s, _ in self.started}
+            return [(t, self.sizes[t]) for t in self.tasks if t not in done]
+
+        def free_robots(self) -> list[Candidate]:
+            return [Candidate(r, t, trays=self.trays[r]) for r, t in self.free.items()]
+
+    # "small" has waited longest, but trip 1 has four tables: it waits for "big", and trip 2
+    # behind it is not held up.
+    fleet = TrayFleet([1, 2], ["small"])
+    d = Dispatcher(fleet)
+    assert await d.dispatch_once() == 1
+    assert fleet.started == [(2, "small")]
+    fleet.free["big"] = 5.0
+    assert await d.dispatch_once() == 1
+    assert fleet.started[-1] == (1, "big")
 
 
 def test_cart_order_trips_keep_the_cart_order() -> None:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from serveur.clock import Clock
@@ -44,6 +44,7 @@ class Creation:
         publisher: Publisher,
         origin: Callable[[], str],
         kick: Callable[[], None],
+        reachable: Callable[[Iterable[str]], None],
     ) -> None:
         """``origin`` names where trips start (:meth:`Places.origin` over the robots' homes);
         ``kick`` tells the dispatcher trips were queued."""
@@ -54,12 +55,31 @@ class Creation:
         self._publisher = publisher
         self._origin = origin
         self._kick = kick
+        self._reachable = reachable
 
-    async def order(self, dish: str, table: str, key: str | None) -> Order:
-        """A dish ready at the pass now, for a table that must exist."""
+    async def order(
+        self,
+        dish: str,
+        table: str,
+        key: str | None,
+        *,
+        quantity: int = 1,
+        note: str | None = None,
+        status: OrderStatus = OrderStatus.PENDING,
+    ) -> Order:
+        """A dish for a table that must exist: ready at the pass now, or ordered."""
         now = self._clock.epoch()
         self._places.waypoint(table)
-        order = await self._store.add_order(dish, table, ready_at=now, key=key, now=now)
+        order = await self._store.add_order(
+            dish,
+            table,
+            ready_at=now,
+            key=key,
+            now=now,
+            quantity=quantity,
+            note=note,
+            status=status,
+        )
         self._publisher.pub("orders", order)
         return order
 
@@ -75,6 +95,7 @@ class Creation:
         if key is None and len(pending) != len(orders):
             bad = sorted(o.id for o in orders if o.status is not OrderStatus.PENDING)
             raise Conflict(f"orders not pending: {bad}", orders=bad)
+        self._reachable({o.table for o in pending})
         if self._config.policy == "baseline":
             trips = cart_order_trips(pending or orders, self._config.capacity)
         else:

@@ -41,14 +41,17 @@ from typing import Any
 
 from serveur import protocol as P
 from serveur.clock import Clock
+from serveur.core.alerts import RobotFact, Thresholds
 from serveur.core.creation import Creation
 from serveur.core.hub import Hub
 from serveur.core.link_reports import HANDOVER_GRACE, LinkReports
 from serveur.core.places import Places
 from serveur.core.publisher import Publisher
 from serveur.core.runtime import CoreConfig, Destination, Runtime, pose_dict
+from serveur.core.service import Service
 from serveur.core.trips import Trips
 from serveur.domain import (
+    MenuItem,
     OrderStatus,
     Robot,
     Task,
@@ -58,6 +61,7 @@ from serveur.domain import (
 )
 from serveur.errors import (
     Conflict,
+    Forbidden,
     InvalidField,
     LinkError,
     NotFound,
@@ -122,6 +126,21 @@ class Core:
             plan_in_child=plan_in_child,
         )
         self.publisher = Publisher(self.hub, store)
+        cfg = self.config
+        self.service = Service(
+            store,
+            clock,
+            places=self.places,
+            publisher=self.publisher,
+            kick=self.dispatcher.kick,
+            limits=Thresholds(
+                offline_after=cfg.alert_offline_after,
+                low_battery=cfg.alert_low_battery,
+                battery_ok=cfg.alert_low_battery + 0.05,
+                wait_at_table=cfg.alert_wait_at_table,
+                dish_at_pass=cfg.alert_dish_at_pass,
+            ),
+        )
         self.reports = LinkReports(
             self._rt,
             self,
@@ -148,6 +167,7 @@ class Core:
             publisher=self.publisher,
             origin=self._origin,
             kick=self.dispatcher.kick,
+            reachable=self.service.check_reachable,
         )
 
     # -- lifecycle ---------------------------------------------------------------------------
@@ -169,6 +189,7 @@ class Core:
             self._rt[robot.name].state = st
             await self._save_state(robot.name, st, event="robot.restored")
         self.dispatcher.start()
+        await self.service.start(self)
         for rt in self._rt.values():
             self._start_link(rt)
 
@@ -187,6 +208,7 @@ class Core:
         links = [rt.link for rt in self._rt.values() if rt.link is not None]
         halts = [asyncio.create_task(link.halt(), name=f"halt-{link.name}") for link in links]
         stopping = asyncio.create_task(self.dispatcher.stop())
+        await self.service.stop()
         if halts:
             _, late = await asyncio.wait(halts, timeout=budget)
             for task in late:
@@ -356,7 +378,9 @@ class Core:
         log.warning("%s: %s", rt.name, reason)
         await self.trips.hand_back(rt.name, task_id, reason)
         resume = rt.state.resume
-        if resume in (S.DELIVERING, S.DELIVERED):
+        if resume is S.LOADING:
+            resume = None  # back automatic, at the pass, without the trip
+        elif resume in (S.DELIVERING, S.DELIVERED):
             resume = S.TRANSIT
         await self._save_state(
             rt.name,
@@ -394,6 +418,12 @@ class Core:
             return await self.publisher.events_snapshot()
         if topic == "map":
             return self.places.map_snapshot()
+        if topic == "alerts":
+            return self.service.alerts.active()
+        if topic == "menu":
+            return await self.store.list_menu()
+        if topic == "blocks":
+            return list(self.service.blocks.values())
         kind, _, robot = topic.partition(":")
         rt = self._runtime(robot)
         if kind == "pose":
@@ -408,34 +438,69 @@ class Core:
             raise NotFound(f"no robot named {name!r}", robot=name)
         return rt
 
-    async def handle(self, msg: P.ClientMessage) -> dict[str, Any]:
-        """Carry out one instruction; the reply payload, or a ServeurError."""
+    async def handle(
+        self, msg: P.ClientMessage, *, actor: str | None = None, table: str | None = None
+    ) -> dict[str, Any]:
+        """Carry out one instruction; the reply payload, or a ServeurError.
+
+        ``actor`` (``user:ana``) is recorded with the steps a person takes; ``table`` is set
+        for a table screen: its ``next`` may only act on a robot serving that table.
+        """
         try:
-            return await self._handle(msg)
+            return await self._handle(msg, actor, table)
         finally:
             await self.flush_events()
 
-    async def _handle(self, msg: P.ClientMessage) -> dict[str, Any]:
+    async def _handle(
+        self, msg: P.ClientMessage, actor: str | None, table: str | None
+    ) -> dict[str, Any]:
         if self._halted:
             raise LinkError("the server is shutting down: robots are stopped")
         verb = msg.clientmsg
         if verb == "create":
-            return await self._create(msg)
+            return await self._create(msg, actor)
         if verb == "order":
             return await self._order(msg)
+        if isinstance(msg, P.DishMsg):
+            order = await self.service.dish(
+                msg.order,
+                msg.action,
+                seen=msg.status,
+                by=actor,
+                quantity=msg.quantity,
+                note=msg.note,
+                table=msg.table,
+            )
+            return {"order": order}
+        if isinstance(msg, P.AckMsg):
+            return {"alert": await self.service.ack(msg.alert, actor or "unknown")}
+        if isinstance(msg, P.ClearMsg):
+            return await self.service.clear(msg.table, actor)
         robot = P.robot_of(msg)
         action = P.action_of(msg)
         if robot is None or action is None:
             raise InvalidField(f"{verb!r} needs a robot")
         rt = self._runtime(robot)
         async with rt.lock:
+            if table is not None:
+                await self._check_at_table(rt, table)
             if isinstance(msg, P.TargetMsg):
                 await self._check_target(rt, msg)
             check_allowed(rt.state.status, action)
-            await self._act(rt, action, msg)
+            await self._act(rt, action, msg, actor)
             return {"robot": self._robot_view(rt.name)}
 
-    async def _act(self, rt: Runtime, action: Action, msg: Any) -> None:
+    async def _check_at_table(self, rt: Runtime, table: str) -> None:
+        """A table screen acts only on the robot standing at its own table."""
+        here = None
+        if rt.state.status is S.DELIVERED and self._robots[rt.name].current_task is not None:
+            task = await self.trips.current(rt.name)
+            if task.current_stop < len(task.stops):
+                here = task.stops[task.current_stop].table
+        if here != table:
+            raise Forbidden(f"{rt.name} is not at table {table}", robot=rt.name, table=table)
+
+    async def _act(self, rt: Runtime, action: Action, msg: Any, actor: str | None = None) -> None:
         link = rt.link
         assert link is not None
         if action is Action.AUTO:
@@ -478,6 +543,12 @@ class Core:
             await self._event(rt, Event.RELEASE)
         elif action is Action.NEXT:
             await self._next(rt)
+        elif action is Action.GO:
+            task = await self.trips.current(rt.name)
+            await self._event(rt, Event.GO)
+            await self._drive(rt, self._stop_dest(task))
+        elif action is Action.SKIP:
+            await self._skip(rt, "skipped by staff", actor)
         elif action is Action.STOP:
             await link.cancel_goal()
             rt.goal_id = None
@@ -493,8 +564,10 @@ class Core:
         elif action is Action.CANCEL:
             if self._robots[rt.name].current_task is not None:
                 await self.trips.abandon(rt.name, "cancelled by staff")
+            loading = rt.state.status is S.LOADING
             await self._event(rt, Event.CANCEL)
-            await self._drive(rt, self._home_dest(rt))
+            if not loading:  # a robot still at the pass stays there
+                await self._drive(rt, self._home_dest(rt))
 
     async def _check_target(self, rt: Runtime, msg: P.TargetMsg) -> None:
         """Refuse (``stale``) a command on a trip or stop the robot has moved on from."""
@@ -524,7 +597,19 @@ class Core:
             raise Unreachable(f"goal {message}", x=x, y=y, reason=reason)
 
     async def _next(self, rt: Runtime) -> None:
-        task = await self.trips.serve_stop(rt.name)
+        await self._go_on(rt, await self.trips.serve_stop(rt.name))
+
+    async def _skip(self, rt: Runtime, reason: str, actor: str | None) -> None:
+        """Leave the current table unserved: dishes returned, on to the next table or home."""
+        if self._robots[rt.name].current_task is None:
+            raise Conflict(f"robot {rt.name} has no trip: there is no table to skip")
+        if rt.state.status is not S.DELIVERED and rt.link is not None:
+            with contextlib.suppress(LinkError):
+                await rt.link.cancel_goal()
+        rt.goal_id = None
+        await self._go_on(rt, await self.trips.skip_stop(rt.name, reason, actor))
+
+    async def _go_on(self, rt: Runtime, task: Task) -> None:
         if task.current_stop < len(task.stops):
             await self._event(rt, Event.NEXT_TABLE)
             await self._drive(rt, self._stop_dest(task))
@@ -586,10 +671,27 @@ class Core:
             await self.trips.arrive(rt.name)
         await self._event(rt, Event.ARRIVED)
 
-    async def _create(self, msg: Any) -> dict[str, Any]:
+    async def _create(self, msg: Any, actor: str | None = None) -> dict[str, Any]:
         kind = msg.type
         if kind == "order":
-            return {"order": await self.creation.order(msg.dish, msg.table, msg.key)}
+            order = await self.creation.order(
+                msg.dish,
+                msg.table,
+                msg.key,
+                quantity=msg.quantity,
+                note=msg.note,
+                status=OrderStatus(msg.status),
+            )
+            return {"order": order}
+        if kind == "dish":
+            item = MenuItem(
+                dish=msg.name,
+                category=msg.category,
+                price_cents=msg.price_cents,
+                available=msg.available,
+                position=msg.position,
+            )
+            return {"dish": await self.service.put_dish(item, actor)}
         if kind == "task":
             return {"tasks": await self.creation.tasks(list(msg.orders), msg.key)}
         if kind == "waypoint":
@@ -620,6 +722,11 @@ class Core:
                 link=link,
                 now=self.clock.epoch(),
             )
+            if msg.trays is not None and msg.trays != robot.trays:
+                await self.store.set_trays(robot.name, msg.trays, now=self.clock.epoch())
+                robot = await self.store.get_robot(robot.name)
+                if robot.name in self._robots:
+                    self._robots[robot.name] = robot
             if robot.name not in self._rt:
                 self._add_runtime(robot)
                 self._start_link(self._rt[robot.name])
@@ -636,12 +743,17 @@ class Core:
 
     # -- dispatcher (scheduler.Fleet) -------------------------------------------------------
 
-    async def queued_task_ids(self) -> list[int]:
-        return [t.id for t in await self.store.list_tasks(status=TaskStatus.QUEUED)]
+    async def queued_tasks(self) -> list[tuple[int, int]]:
+        return [(t.id, len(t.stops)) for t in await self.store.list_tasks(status=TaskStatus.QUEUED)]
 
     def free_robots(self) -> list[Candidate]:
         return [
-            Candidate(rt.name, rt.idle_since, rt.battery)
+            Candidate(
+                rt.name,
+                rt.idle_since,
+                rt.battery,
+                self._robots[rt.name].trays or self.config.capacity,
+            )
             for rt in self._rt.values()
             if rt.state.status is S.AWAITING
             and rt.link is not None
@@ -656,13 +768,71 @@ class Core:
         async with rt.lock:
             if rt.state.status is not S.AWAITING:
                 return False
+            blocked = await self.trips.drop_blocked(task_id, self.service.blocks)
+            if blocked is None:
+                return False
             task = await self.trips.take(task_id, robot)
             if task is None:
                 return False
-            await self._event(rt, Event.DISPATCH)
-            await self._drive(rt, self._stop_dest(task))
+            if self.config.auto_depart:
+                await self._event(rt, Event.DISPATCH)
+                await self._drive(rt, self._stop_dest(task))
+            else:
+                await self._event(rt, Event.ASSIGN)
         await self.flush_events()
         return True
+
+    # -- the service watch (core.service.ServiceHost) ---------------------------------------
+
+    def robot_facts(self) -> list[RobotFact]:
+        facts = []
+        for name, rt in sorted(self._rt.items()):
+            robot = self._robots[name]
+            dest = rt.dest
+            facts.append(
+                RobotFact(
+                    name=name,
+                    status=rt.state.status,
+                    mode=rt.state.mode,
+                    since=robot.status_since,
+                    battery=rt.battery,
+                    table=dest.name if dest is not None and dest.kind == "table" else None,
+                    error=robot.last_error,
+                )
+            )
+        return facts
+
+    def table_timeouts(self) -> None:
+        """Post ``table_timeout`` to each robot at a table past the site's limit (once per
+        arrival: the arrival's time identifies it, so a robot that moved on is left alone)."""
+        limit = self.config.table_timeout
+        if limit is None:
+            return
+        now = self.clock.epoch()
+        for name, rt in self._rt.items():
+            robot = self._robots[name]
+            since = robot.status_since
+            if (
+                rt.state.status is S.DELIVERED
+                and robot.current_task is not None
+                and now - since >= limit
+                and rt.timed_out != since
+            ):
+                rt.timed_out = since
+                self.reports.post(name, "table_timeout", robot.current_task, since)
+
+    async def _table_timeout(self, rt: Runtime, task_id: int, since: float) -> None:
+        robot = self._robots[rt.name]
+        if (
+            rt.state.status is not S.DELIVERED
+            or robot.current_task != task_id
+            or robot.status_since != since
+        ):
+            return  # food collected (or skipped) meanwhile
+        limit = self.config.table_timeout or 0.0
+        log.warning("%s: nobody collected the food in %g s, going on", rt.name, limit)
+        await self._skip(rt, f"nobody collected the food in {limit:g} s", None)
+        await self.flush_events()
 
     # -- link reports, queued per robot (link_reports.ReportHandler) --------------------------
 
@@ -689,6 +859,8 @@ class Core:
             await self._hand_over(rt)
         elif kind == "persist_pose":
             await self._save_pose(rt)
+        elif kind == "table_timeout":
+            await self._table_timeout(rt, *args)
 
     async def _on_goal(self, rt: Runtime, goal_id: str, status: rb.GoalStatus, text: str) -> None:
         if goal_id != rt.goal_id:
@@ -720,6 +892,11 @@ class Core:
         await self._failed(rt, f"{what}: {text}" if text else what)
 
     async def _failed(self, rt: Runtime, reason: str) -> None:
+        dest = rt.dest
+        if rt.state.status is S.DELIVERING and dest is not None and dest.kind == "table":
+            # No second robot is sent where this one could not go: the table is blocked
+            # until staff clear it (its dishes wait at the pass, with the reason).
+            await self.service.block(dest.name, f"{rt.name}: {reason}", rt.name)
         if rt.state.status in (S.DELIVERING, S.TRANSIT):
             await self._event(rt, Event.NAV_FAILED, error=reason)
         else:

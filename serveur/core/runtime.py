@@ -42,6 +42,19 @@ class CoreConfig:
     #: "serveur": trips by area, stops in shortest-route order (scheduler.plan_trips);
     #: "baseline": the design report's behaviour, stops in the order of the cart (replay A/B).
     policy: str = "serveur"
+    #: False (the default, as on commercial waiter robots): a trip given to a robot waits at
+    #: the pass (Loading) until staff have loaded the trays and press Go. True: it leaves at
+    #: once (a site where the kitchen loads as the trip is planned, and the replay's A/B runs).
+    auto_depart: bool = False
+    #: A robot waiting at a table this long (simulated s) without "food collected" skips it:
+    #: the dishes are returned to the pass. None: it waits for ever. Three minutes: a party
+    #: that has not taken its food by then is away from the table or did not notice.
+    table_timeout: float | None = 180.0
+    #: When conditions become alerts (serveur.core.alerts.Thresholds).
+    alert_offline_after: float = 10.0
+    alert_low_battery: float = 0.20
+    alert_wait_at_table: float = 90.0
+    alert_dish_at_pass: float = 120.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,6 +90,7 @@ class Runtime:
     pose_saved_at: float = -1e9
     handover: asyncio.Task[None] | None = None  # the hand-over timer while Offline with a trip
     offline_since: float | None = None  # epoch (clock) the robot was last seen, while Offline
+    timed_out: float | None = None  # the arrival (status_since) a table timeout was posted for
 
 
 def pose_dict(pose: tuple[float, float, float], stamp: float) -> dict[str, float]:

@@ -11,7 +11,7 @@ about trips, including what a crash between two transactions leaves behind
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, MutableMapping
+from collections.abc import Callable, Mapping, MutableMapping
 
 from serveur.clock import Clock
 from serveur.core.places import Places
@@ -28,7 +28,7 @@ __all__ = ["Trips"]
 log = logging.getLogger(__name__)
 
 S = RobotStatus
-_RESUMABLE = {S.DELIVERING, S.DELIVERED, S.STOPPED, S.TRANSIT, S.ERROR}
+_RESUMABLE = {S.LOADING, S.DELIVERING, S.DELIVERED, S.STOPPED, S.TRANSIT, S.ERROR}
 
 
 class Trips:
@@ -88,9 +88,16 @@ class Trips:
                 robot = await self._store.get_robot(robot.name)
             else:
                 reached = task.stops[task.current_stop].status is StopStatus.ARRIVED
-                on_trip = (S.DELIVERING, S.DELIVERED, S.STOPPED, S.ERROR)
-                if resume not in on_trip or (resume is S.DELIVERED and not reached):
+                on_trip = (S.LOADING, S.DELIVERING, S.DELIVERED, S.STOPPED, S.ERROR)
+                if resume not in on_trip:
+                    # Taken, but the status change did not land: loading at the pass (or,
+                    # where trips leave at once, under way).
+                    left = task.current_stop > 0 or self._config.auto_depart
+                    resume = S.DELIVERING if left else S.LOADING
+                elif resume is S.DELIVERED and not reached:
                     resume = S.DELIVERING
+        if robot.current_task is None and resume is S.LOADING:
+            resume = None  # the trip was taken back: automatic again, at the pass
         if robot.current_task is None and resume in (S.DELIVERING, S.DELIVERED):
             resume = S.TRANSIT if robot.mode is RobotMode.AUTO else None
         return robot, resume
@@ -153,6 +160,37 @@ class Trips:
             self._robots[robot] = await self._store.get_robot(robot)
             self._publisher.pub_task(task)
         return task
+
+    async def skip_stop(self, robot: str, reason: str, by: str | None) -> Task:
+        """The current stop left unserved, its dishes returned; the trip, finished (``done``)
+        after its last stop."""
+        task = await self.current(robot)
+        stop = task.stops[task.current_stop]
+        task = await self._store.skip_stop(
+            task.id, stop.seq, now=self._clock.epoch(), reason=reason, by=by
+        )
+        self._publisher.pub_task(task)
+        await self._publisher.pub_orders(stop.orders)
+        if task.current_stop >= len(task.stops):
+            task = await self._store.finish_task(task.id, now=self._clock.epoch())
+            self._robots[robot] = await self._store.get_robot(robot)
+            self._publisher.pub_task(task)
+        return task
+
+    async def drop_blocked(self, task_id: int, blocks: Mapping[str, object]) -> Task | None:
+        """A queued trip without its blocked tables (their dishes back at the pass, pending);
+        None if nothing is left of it (cancelled) or it was taken meanwhile."""
+        task = await self._store.get_task(task_id)
+        if task.status is not TaskStatus.QUEUED:
+            return None
+        tables = [s.table for s in task.stops if s.table in blocks]
+        if not tables:
+            return task
+        orders = [o for s in task.stops if s.table in blocks for o in s.orders]
+        task = await self._store.drop_stops(task_id, tables, now=self._clock.epoch())
+        self._publisher.pub_task(task)
+        await self._publisher.pub_orders(orders)
+        return task if task.status is TaskStatus.QUEUED else None
 
     async def abandon(self, robot: str, reason: str) -> None:
         """Cancel the robot's trip (staff took over): undelivered orders go back to pending."""

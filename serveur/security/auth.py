@@ -10,7 +10,9 @@ The roles (docs/security.md has the threat model behind them):
 * **robot-screen** — bound to one robot: its own record, trip and tray, and
   next / stop / continue / cancel for that robot only (it sits in the dining room, where
   guests can touch it);
-* **table-screen** — bound to one table: read that table's cart, nothing else;
+* **table-screen** — bound to one table: read that table's cart and the trips coming to it,
+  and press "food collected" (``next``) for the robot standing at that table (the core
+  checks where the robot is);
 * **integration** — scripted clients, with exactly the scopes the owner gave its token.
 
 Passwords are hashed with scrypt (memory-hard, in the standard library: no compiled
@@ -75,6 +77,7 @@ class Scope(StrEnum):
     WAYPOINTS = "waypoints"  # create or replace waypoints
     ROBOTS = "robots"  # register robots
     AUDIT = "audit"  # read the audit trail
+    MENU = "menu"  # edit the menu
 
 
 STAFF_SCOPES: Final = frozenset(
@@ -86,7 +89,7 @@ DEVICE_ROLES: Final = (Role.STAFF, Role.ROBOT_SCREEN, Role.TABLE_SCREEN, Role.IN
 TOKEN_PREFIX: Final = "srv_"
 
 # What a robot screen may do to its own robot.
-_ROBOT_SCREEN_VERBS: Final = frozenset({"next", "stop", "continue", "cancel"})
+_ROBOT_SCREEN_VERBS: Final = frozenset({"next", "stop", "continue", "cancel", "go", "skip"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -148,7 +151,12 @@ def required_scope(msg: Any) -> Scope:
             "task": Scope.TASKS,
             "waypoint": Scope.WAYPOINTS,
             "robot": Scope.ROBOTS,
+            "dish": Scope.MENU,
         }[msg.type]
+    if verb == "dish":
+        return Scope.ORDERS
+    if verb in ("go", "skip", "ack", "clear"):
+        return Scope.TASKS
     if verb in ("control", "ready"):
         return Scope.CONTROL
     if verb in ("next", "stop", "continue", "cancel"):
@@ -162,7 +170,7 @@ def topic_allowed(p: Principal, topic: str) -> bool:
     if p.role is Role.ROBOT_SCREEN:
         return topic in ("robots", "tasks", "orders") or (kind == "pose" and robot == p.robot)
     if p.role is Role.TABLE_SCREEN:
-        return topic == "orders"
+        return topic in ("orders", "tasks", "menu")
     if topic == "audit":
         return Scope.AUDIT in p.scopes
     return Scope.READ in p.scopes
@@ -195,6 +203,8 @@ def authorize(p: Principal | None, msg: Any) -> None:
             if msg.table != p.table:
                 raise Forbidden(f"this screen belongs to table {p.table}", table=msg.table)
             return
+        if verb == "next":
+            return  # only for the robot at this table: the core checks (Core.handle)
         raise Forbidden(f"a table screen may not send {verb!r}")
     if verb == "data":
         _topics(p, msg.topics)
@@ -227,6 +237,10 @@ def visible(p: Principal, topic: str, record: Any, task_robot: Callable[[int], s
             return tid is not None and task_robot(tid) == p.robot
         return True  # pose:<own robot>, already checked by topic_allowed
     if p.role is Role.TABLE_SCREEN:
+        if topic == "tasks":
+            return any(s.table == p.table for s in getattr(record, "stops", ()))
+        if topic == "menu":
+            return True
         return topic == "orders" and getattr(record, "table", None) == p.table
     return True
 

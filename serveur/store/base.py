@@ -34,6 +34,7 @@ from types import TracebackType
 from typing import Any, Self, TypeVar
 
 from serveur.domain import (
+    DishAction,
     EventRecord,
     Order,
     OrderStatus,
@@ -45,7 +46,8 @@ from serveur.domain import (
 )
 from serveur.errors import InvalidField
 from serveur.status import RobotMode, RobotStatus
-from serveur.store.accounts import AccountsMixin, SqlTx, TokenRecord, UserRecord
+from serveur.store.accounts import SqlTx, TokenRecord, UserRecord
+from serveur.store.service import ServiceMixin
 
 __all__ = [
     "SqlTx",
@@ -66,7 +68,7 @@ __all__ = [
 _E = TypeVar("_E", bound=StrEnum)
 
 
-class Store(AccountsMixin, ABC):
+class Store(ServiceMixin, ABC):
     """The restaurant's persistent state. Use as ``async with open_store(url) as store:``.
 
     Errors: :class:`~serveur.errors.NotFound` for a missing robot/waypoint/order/task,
@@ -186,9 +188,20 @@ class Store(AccountsMixin, ABC):
 
     @abstractmethod
     async def add_order(
-        self, dish: str, table: str, *, ready_at: float, key: str | None = None, now: float
+        self,
+        dish: str,
+        table: str,
+        *,
+        ready_at: float | None,
+        key: str | None = None,
+        now: float,
+        quantity: int = 1,
+        note: str | None = None,
+        status: OrderStatus = OrderStatus.PENDING,
     ) -> Order:
-        """A dish ready at the pass for ``table``; ``key`` makes a resend return the same order."""
+        """A dish for ``table``: ready at the pass (``pending``, at ``ready_at``) or just
+        ``ordered`` (the kitchen marks it ready later); ``key`` makes a resend return the same
+        order."""
 
     @abstractmethod
     async def get_order(self, order_id: int) -> Order: ...
@@ -203,9 +216,9 @@ class Store(AccountsMixin, ABC):
     ) -> list[Order]:
         """Orders matching every given filter, by id."""
 
-    @abstractmethod
     async def cancel_order(self, order_id: int, *, now: float) -> Order:
-        """Withdraw a pending order (the kitchen's call); an order on a trip is a Conflict."""
+        """Void a dish that has not left the pass (an order on a trip is a Conflict)."""
+        return await self.step_order(order_id, DishAction.VOID, now=now)
 
     # -- tasks --------------------------------------------------------------------------
 

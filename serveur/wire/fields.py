@@ -61,7 +61,18 @@ MAX_ORDERS_PER_TASK: Final = 50
 #: Most topics one ``data`` request may name.
 MAX_TOPICS: Final = 64
 #: Topics whose updates carry one upserted record (``map`` carries the map snapshot).
-STATE_TOPICS: Final = ("robots", "orders", "tasks", "waypoints", "map", "events", "audit")
+STATE_TOPICS: Final = (
+    "robots",
+    "orders",
+    "tasks",
+    "waypoints",
+    "map",
+    "events",
+    "audit",
+    "alerts",
+    "menu",
+    "blocks",
+)
 #: Per-robot topic prefixes: ``pose:<robot>`` and ``scan:<robot>``.
 ROBOT_TOPICS: Final = ("pose", "scan")
 #: Every ``clientmsg`` verb, in the order the documentation lists them.
@@ -77,7 +88,12 @@ VERBS: Final = (
     "stop",
     "continue",
     "cancel",
+    "go",
+    "skip",
     "order",
+    "dish",
+    "ack",
+    "clear",
 )
 
 #: Limits of the work area: far beyond any restaurant, close enough to catch unit mistakes.

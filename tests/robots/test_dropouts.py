@@ -172,7 +172,7 @@ async def test_silent_robot_is_offline_within_the_heartbeat(tmp_path: Path) -> N
         nav_map=nav_map,
         waypoints=waypoints,
         robots=[RobotSpec("r1", sim.urls[0], "home1")],
-        config=CoreConfig(),  # the defaults: heartbeat 1 s
+        config=CoreConfig(auto_depart=True),  # the defaults otherwise: heartbeat 1 s
     )
     await app.start()
     r = Restaurant(app, sim, clock, tmp_path / "serveur.db", [], [])
@@ -211,7 +211,7 @@ async def test_hand_over_limit_counts_from_the_drop_across_a_restart(tmp_path: P
 
     def make(db: Path | str, clock: ScaledClock, specs: list[RobotSpec], port: int) -> App:
         nav_map, waypoints = load_demo()
-        cfg = CoreConfig(heartbeat=2.0, ack_timeout=3.0, handover_after=limit)
+        cfg = CoreConfig(heartbeat=2.0, ack_timeout=3.0, handover_after=limit, auto_depart=True)
         return App(
             db,
             port=port,

@@ -126,7 +126,7 @@ def tls_app(
         nav_map=nav_map,
         waypoints=waypoints,
         robots=specs,
-        config=CoreConfig(heartbeat=2.0, ack_timeout=3.0),
+        config=CoreConfig(heartbeat=2.0, ack_timeout=3.0, auto_depart=True),
         ssl=server_tls,
         robot_ssl=robot_tls,
     )

@@ -412,7 +412,7 @@ async def test_list_orders_filters(store: Store) -> None:
     await store.cancel_order(d, now=T0)
     assert [o.id for o in await store.list_orders()] == [a, b, c, d]
     assert [o.id for o in await store.list_orders(status=OrderStatus.PENDING)] == [b, c]
-    both = await store.list_orders(status=[OrderStatus.ASSIGNED, OrderStatus.CANCELLED])
+    both = await store.list_orders(status=[OrderStatus.ASSIGNED, OrderStatus.VOIDED])
     assert [o.id for o in both] == [a, d]
     assert await store.list_orders(status=[]) == []
     assert [o.id for o in await store.list_orders(table="T1")] == [a, b]
@@ -425,7 +425,7 @@ async def test_cancel_order(store: Store) -> None:
     await seed(store)
     a, b = await orders(store, "T1", "T2")
     cancelled = await store.cancel_order(a, now=T0 + 1)
-    assert cancelled.status is OrderStatus.CANCELLED
+    assert cancelled.status is OrderStatus.VOIDED
     with pytest.raises(Conflict):
         await store.cancel_order(a, now=T0)
     await store.create_tasks([[("T2", [b])]], now=T0)

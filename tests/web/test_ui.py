@@ -118,7 +118,7 @@ def ui_app(r_db: Path, clock: ScaledClock, specs: list[RobotSpec], port: int = 0
     browser shares the 2 CI cores with the server and the robots, and a stalled sim tick must
     not turn the robot Offline in the middle of a click-through."""
     nav_map, waypoints = load_demo()
-    cfg = CoreConfig(heartbeat=10.0, ack_timeout=5.0)
+    cfg = CoreConfig(heartbeat=10.0, ack_timeout=5.0, auto_depart=True)
     return App(
         r_db, port=port, clock=clock, nav_map=nav_map, waypoints=waypoints, robots=specs, config=cfg
     )

@@ -38,12 +38,12 @@ MAX_NAME = 255
 
 ROBOT = (
     "SELECT name, url, home, kinematics, link, mode, status, resume, current_task, battery,"
-    " x, y, yaw, last_error, updated_at, status_since FROM robot_info"
+    " x, y, yaw, last_error, updated_at, status_since, trays FROM robot_info"
 )
 WAYPOINT = "SELECT name, x, y, yaw, kind FROM waypoints"
 ORDER = (
     "SELECT id, dish, res_table AS `table`, status, task_num AS task_id, `key`, ready_at,"
-    " dispatched_at, delivered_at FROM orders"
+    " dispatched_at, delivered_at, quantity, note, ordered_at, returned_at, voided_at FROM orders"
 )
 EVENT = "SELECT id, ts, kind, robot, task_id, order_id, data FROM events"
 TASK = (
@@ -51,7 +51,17 @@ TASK = (
     " FROM task"
 )
 # Tables in parent-before-child order, as the SQLite schema has them (for backups).
-TABLES = ("waypoints", "robot_info", "task", "task_stop", "idempotency", "orders", "events")
+TABLES = (
+    "waypoints",
+    "robot_info",
+    "task",
+    "task_stop",
+    "idempotency",
+    "orders",
+    "events",
+    "menu",
+    "table_block",
+)
 # Every foreign key, as (table, its key, column, parent table, parent key), for the check.
 FOREIGN_KEYS = (
     ("robot_info", "name", "home", "waypoints", "name"),
@@ -61,6 +71,7 @@ FOREIGN_KEYS = (
     ("task_stop", "task_id", "waypoint", "waypoints", "name"),
     ("orders", "id", "res_table", "waypoints", "name"),
     ("orders", "id", "task_num", "task", "id"),
+    ("table_block", "waypoint", "waypoint", "waypoints", "name"),
 )
 
 

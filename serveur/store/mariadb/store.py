@@ -51,6 +51,7 @@ from serveur.store.mariadb.rows import (
     sql_in,
 )
 from serveur.store.mariadb.tasks import MariaDBTasks
+from serveur.store.service import check_note, check_quantity
 
 __all__ = ["MAX_NAME", "MariaDBStore"]
 
@@ -342,14 +343,29 @@ class MariaDBStore(MariaDBTasks):
     # -- orders -------------------------------------------------------------------------
 
     async def add_order(
-        self, dish: str, table: str, *, ready_at: float, key: str | None = None, now: float
+        self,
+        dish: str,
+        table: str,
+        *,
+        ready_at: float | None,
+        key: str | None = None,
+        now: float,
+        quantity: int = 1,
+        note: str | None = None,
+        status: OrderStatus = OrderStatus.PENDING,
     ) -> Order:
         check_text(dish, "dish")
         check_text(table, "table")
-        check_finite(ready_at, "ready_at")
+        check_quantity(quantity)
+        note = check_note(note)
+        if status not in (OrderStatus.ORDERED, OrderStatus.PENDING):
+            raise InvalidField("a new order is ordered or pending", field="status")
+        ready_at = check_finite(ready_at, "ready_at") if status is OrderStatus.PENDING else None
         if key is not None:
             check_name(key, "key")
-        fingerprint = digest(["order", dish, table])
+        fingerprint = digest(
+            ["order", dish, table] + ([quantity, note] if quantity != 1 or note else [])
+        )
 
         async def work(db: Tx) -> Order:
             if key is not None:
@@ -358,12 +374,21 @@ class MariaDBStore(MariaDBTasks):
                     return await self._order(db, done["order_id"])
             await self._waypoint(db, table)
             order_id = await db.insert(
-                "INSERT INTO orders (dish, res_table, `key`, ready_at) VALUES (%s, %s, %s, %s)",
-                (dish, table, key, ready_at),
+                "INSERT INTO orders (dish, res_table, `key`, ready_at, status, quantity, note,"
+                " ordered_at) VALUES (%s, %s, %s, %s, %s, %s, %s, %s)",
+                (dish, table, key, ready_at, status.value, quantity, note, now),
             )
             if key is not None:
                 await self._remember(db, key, "order", fingerprint, {"order_id": order_id}, now)
-            data = {"dish": dish, "table": table, "key": key, "ready_at": ready_at}
+            data = {
+                "dish": dish,
+                "table": table,
+                "key": key,
+                "ready_at": ready_at,
+                "status": status.value,
+                "quantity": quantity,
+                "note": note,
+            }
             await self._event(db, "order.created", now, order_id=order_id, data=data)
             return await self._order(db, order_id)
 
@@ -394,25 +419,6 @@ class MariaDBStore(MariaDBTasks):
         sql = f"{ORDER} WHERE {' AND '.join(where)} ORDER BY id"
         rows = await self._db.auto(lambda db: db.all(sql, params))
         return [Order(**r) for r in rows]
-
-    async def cancel_order(self, order_id: int, *, now: float) -> Order:
-        async def work(db: Tx) -> Order:
-            order = await self._order(db, order_id, lock=True)
-            changed = await db.run(
-                "UPDATE orders SET status = 'cancelled' WHERE id = %s AND status = 'pending'",
-                (order_id,),
-            )
-            if changed != 1:
-                raise Conflict(
-                    f"order {order_id} is {order.status.value}: only a pending order can be"
-                    " cancelled",
-                    order=order_id,
-                    status=order.status.value,
-                )
-            await self._event(db, "order.cancelled", now, order_id=order_id)
-            return await self._order(db, order_id)
-
-        return await self._db.write(work)
 
     async def cart(self, table: str) -> list[Order]:
         async def work(db: Tx) -> list[dict[str, Any]]:
@@ -531,6 +537,7 @@ def _fill_sqlite(
         conn.execute("PRAGMA foreign_keys = OFF")  # robot_info and task refer to each other
         conn.execute("BEGIN")
         for table in TABLES:
+            conn.execute(f"DELETE FROM {table}")  # the menu a fresh schema is seeded with
             cols = columns[table]
             names = ", ".join(f'"{c}"' for c in cols)
             conn.executemany(

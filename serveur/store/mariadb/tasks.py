@@ -254,7 +254,8 @@ class MariaDBTasks(MariaDBRows):
             changed = await db.run(
                 "UPDATE task SET status = 'done', finished_at = %s"
                 " WHERE id = %s AND status = 'active' AND NOT EXISTS"
-                " (SELECT 1 FROM task_stop WHERE task_id = %s AND status <> 'done')",
+                " (SELECT 1 FROM task_stop WHERE task_id = %s"
+                "  AND status NOT IN ('done', 'skipped'))",
                 (now, task_id, task_id),
             )
             if changed != 1:

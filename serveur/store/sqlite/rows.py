@@ -48,15 +48,17 @@ __all__ = [
 BUSY_TIMEOUT_MS = 10_000
 #: STRICT tables need 3.37 (Raspberry Pi OS bookworm ships 3.40).
 _MIN_SQLITE = (3, 37, 0)
+#: The line by which a migration asks to run with foreign keys off (a table rebuild).
+_FK_OFF = "-- serveur: foreign_keys off"
 
 ROBOT = (
     "SELECT name, url, home, kinematics, link, mode, status, resume, current_task, battery,"
-    " x, y, yaw, last_error, updated_at, status_since FROM robot_info"
+    " x, y, yaw, last_error, updated_at, status_since, trays FROM robot_info"
 )
 WAYPOINT = "SELECT name, x, y, yaw, kind FROM waypoints"
 ORDER = (
     'SELECT id, dish, res_table AS "table", status, task_num AS task_id, key, ready_at,'
-    " dispatched_at, delivered_at FROM orders"
+    " dispatched_at, delivered_at, quantity, note, ordered_at, returned_at, voided_at FROM orders"
 )
 EVENT = "SELECT id, ts, kind, robot, task_id, order_id, data FROM events"
 TASK = (
@@ -213,8 +215,13 @@ class SQLiteRows(Store):
         """Apply the migrations not yet recorded, each in its own ``BEGIN IMMEDIATE``.
 
         ``applied_at`` is wall time: migrating is a real-world event, not part of a service's
-        simulated timeline. Note for later migrations: ``PRAGMA foreign_keys`` is ignored
-        inside a transaction; a table rebuild must use ``PRAGMA defer_foreign_keys = ON``.
+        simulated timeline. ``PRAGMA foreign_keys`` is ignored inside a transaction, and a
+        table another table refers to cannot be rebuilt with them on (dropping it deletes its
+        rows first; deferring the check does not help, the count of violations is not undone
+        by the rename). A migration that rebuilds one says so with the line
+        ``-- serveur: foreign_keys off``: it runs with them off, and ``foreign_key_check`` must
+        find nothing before it commits (SQLite's own procedure for "other kinds of table
+        schema changes").
         """
         await db.execute(
             "CREATE TABLE IF NOT EXISTS schema_migrations ("
@@ -232,6 +239,9 @@ class SQLiteRows(Store):
         for m in history:
             if m.version in applied:
                 continue
+            rebuild = _FK_OFF in m.sql
+            if rebuild:
+                await db.execute("PRAGMA foreign_keys = OFF")
             await db.execute("BEGIN IMMEDIATE")
             try:
                 # Another process may have applied it while we waited for the write lock.
@@ -240,6 +250,14 @@ class SQLiteRows(Store):
                 ):
                     for statement in split_sql(m.sql):
                         await db.execute(statement)
+                    if rebuild:
+                        broken = await sql_all(db, "PRAGMA foreign_key_check")
+                        if broken:
+                            raise StoreError(
+                                f"migration {m.version:03d} would break foreign keys:"
+                                f" {[tuple(r) for r in broken[:5]]}",
+                                version=m.version,
+                            )
                     await db.execute(
                         "INSERT INTO schema_migrations (version, name, applied_at)"
                         " VALUES (?, ?, ?)",
@@ -249,6 +267,9 @@ class SQLiteRows(Store):
             except BaseException:
                 await asyncio.shield(db.rollback())
                 raise
+            finally:
+                if rebuild:
+                    await db.execute("PRAGMA foreign_keys = ON")
 
     @asynccontextmanager
     async def _tx(

@@ -27,6 +27,7 @@ from serveur.domain import EventRecord, Order, OrderStatus, Robot, WaypointRecor
 from serveur.errors import Conflict, InvalidField, NotFound, StoreError
 from serveur.status import RobotMode, RobotStatus
 from serveur.store.base import check_finite, check_text, digest, link_json, status_values
+from serveur.store.service import check_note, check_quantity
 from serveur.store.sqlite.rows import (
     BUSY_TIMEOUT_MS,
     EVENT,
@@ -275,14 +276,29 @@ class SQLiteStore(SQLiteTasks):
     # -- orders -------------------------------------------------------------------------
 
     async def add_order(
-        self, dish: str, table: str, *, ready_at: float, key: str | None = None, now: float
+        self,
+        dish: str,
+        table: str,
+        *,
+        ready_at: float | None,
+        key: str | None = None,
+        now: float,
+        quantity: int = 1,
+        note: str | None = None,
+        status: OrderStatus = OrderStatus.PENDING,
     ) -> Order:
         check_text(dish, "dish")
         check_text(table, "table")
-        check_finite(ready_at, "ready_at")
+        check_quantity(quantity)
+        note = check_note(note)
+        if status not in (OrderStatus.ORDERED, OrderStatus.PENDING):
+            raise InvalidField("a new order is ordered or pending", field="status")
+        ready_at = check_finite(ready_at, "ready_at") if status is OrderStatus.PENDING else None
         if key is not None:
             check_text(key, "key")
-        fingerprint = digest(["order", dish, table])
+        fingerprint = digest(
+            ["order", dish, table] + ([quantity, note] if quantity != 1 or note else [])
+        )
         async with self._tx("write") as db:
             if key is not None:
                 done = await self._replayed(db, key, "order", fingerprint)
@@ -291,12 +307,21 @@ class SQLiteStore(SQLiteTasks):
             await self._waypoint(db, table)
             order_id = await sql_insert(
                 db,
-                "INSERT INTO orders (dish, res_table, key, ready_at) VALUES (?, ?, ?, ?)",
-                (dish, table, key, ready_at),
+                "INSERT INTO orders (dish, res_table, key, ready_at, status, quantity, note,"
+                " ordered_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                (dish, table, key, ready_at, status.value, quantity, note, now),
             )
             if key is not None:
                 await self._remember(db, key, "order", fingerprint, {"order_id": order_id}, now)
-            data = {"dish": dish, "table": table, "key": key, "ready_at": ready_at}
+            data = {
+                "dish": dish,
+                "table": table,
+                "key": key,
+                "ready_at": ready_at,
+                "status": status.value,
+                "quantity": quantity,
+                "note": note,
+            }
             await self._event(db, "order.created", now, order_id=order_id, data=data)
             return await self._order(db, order_id)
 
@@ -326,24 +351,6 @@ class SQLiteStore(SQLiteTasks):
         async with self._tx("auto") as db:
             rows = await sql_all(db, f"{ORDER} WHERE {' AND '.join(where)} ORDER BY id", params)
         return [Order(**dict(r)) for r in rows]
-
-    async def cancel_order(self, order_id: int, *, now: float) -> Order:
-        async with self._tx("write") as db:
-            order = await self._order(db, order_id)
-            changed = await sql_run(
-                db,
-                "UPDATE orders SET status = 'cancelled' WHERE id = ? AND status = 'pending'",
-                (order_id,),
-            )
-            if changed != 1:
-                raise Conflict(
-                    f"order {order_id} is {order.status.value}: only a pending order can be"
-                    " cancelled",
-                    order=order_id,
-                    status=order.status.value,
-                )
-            await self._event(db, "order.cancelled", now, order_id=order_id)
-            return await self._order(db, order_id)
 
     async def cart(self, table: str) -> list[Order]:
         async with self._tx("read") as db:

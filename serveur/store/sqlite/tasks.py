@@ -267,7 +267,8 @@ class SQLiteTasks(SQLiteRows):
                 db,
                 "UPDATE task SET status = 'done', finished_at = ?"
                 " WHERE id = ? AND status = 'active' AND NOT EXISTS"
-                " (SELECT 1 FROM task_stop WHERE task_id = ? AND status <> 'done')",
+                " (SELECT 1 FROM task_stop WHERE task_id = ?"
+                "  AND status NOT IN ('done', 'skipped'))",
                 (now, task_id, task_id),
             )
             if changed != 1:

@@ -1,0 +1,207 @@
+"""Alerts: what staff must see on every screen, raised once, acknowledged, cleared (pure; no I/O).
+
+A robot in Error, gone Offline, low on battery, waiting at a table long past the usual; dishes
+standing at the pass; a table no robot could reach. Before this module such a robot only
+changed colour in one row of the map tab. An alert is *raised once* when its condition starts
+(not every second while it lasts), *acknowledged* by a person (who and when are kept: "Ana saw
+it at 19:42"), and *cleared* when the condition ends, acknowledged or not — an alert that
+outlives its cause teaches staff to ignore alerts. This mirrors how Home Assistant logs a
+device's availability: once down, once up.
+
+:func:`conditions` turns a snapshot of the restaurant into the set of conditions that hold now;
+:class:`AlertBook` compares it with the alerts already raised. The core's watch loop
+(:mod:`serveur.core.watch`) feeds both every second of the service clock and publishes what
+changed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from enum import StrEnum
+
+from pydantic import BaseModel, ConfigDict
+
+from serveur.errors import Conflict, NotFound
+from serveur.status import RobotMode, RobotStatus
+
+__all__ = [
+    "Alert",
+    "AlertBook",
+    "AlertKind",
+    "DishFact",
+    "RobotFact",
+    "Thresholds",
+    "conditions",
+]
+
+
+class AlertKind(StrEnum):
+    ROBOT_ERROR = "robot_error"  # subject: the robot
+    ROBOT_OFFLINE = "robot_offline"
+    LOW_BATTERY = "low_battery"
+    WAITING_AT_TABLE = "waiting_at_table"
+    DISH_WAITING = "dish_waiting"  # subject: the table whose dishes wait at the pass
+    TABLE_UNREACHABLE = "table_unreachable"  # subject: the table
+
+
+#: Kinds that need someone now (the console sounds them); the others are warnings.
+CRITICAL = frozenset({AlertKind.ROBOT_ERROR, AlertKind.ROBOT_OFFLINE, AlertKind.TABLE_UNREACHABLE})
+
+
+class Alert(BaseModel):
+    """One alert as screens see it (``alerts`` topic). ``cleared_at`` set: it is over."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    id: int
+    kind: AlertKind
+    subject: str
+    severity: str
+    message: str
+    raised_at: float
+    acked_at: float | None = None
+    acked_by: str | None = None
+    cleared_at: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Thresholds:
+    """When a condition becomes an alert (service-clock seconds; battery 0..1)."""
+
+    offline_after: float = 10.0  # a Wi-Fi blip is not an alert
+    low_battery: float = 0.20
+    battery_ok: float = 0.25  # cleared only above this: no flapping around the threshold
+    wait_at_table: float = 90.0
+    dish_at_pass: float = 120.0
+
+
+@dataclass(frozen=True, slots=True)
+class RobotFact:
+    name: str
+    status: RobotStatus
+    mode: RobotMode
+    since: float  # when it entered ``status``
+    battery: float | None
+    table: str | None = None  # the table it is at or going to
+    error: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class DishFact:
+    table: str
+    ready_at: float
+
+
+Key = tuple[AlertKind, str]
+
+
+def _minutes(seconds: float) -> str:
+    m = int(seconds // 60)
+    return f"{m} min" if m >= 1 else f"{int(seconds)} s"
+
+
+def conditions(
+    robots: Iterable[RobotFact],
+    dishes: Iterable[DishFact],
+    blocked: Mapping[str, str],
+    *,
+    now: float,
+    active: Iterable[Key] = (),
+    limits: Thresholds = Thresholds(),
+) -> dict[Key, str]:
+    """The alert conditions that hold at ``now``, each with the message staff read.
+
+    ``blocked`` maps a blocked table to why; ``active`` are the keys raised already (the
+    battery alert clears only above ``battery_ok``). Dishes for a blocked table are not
+    "waiting at the pass": the table's own alert says why they wait.
+    """
+    active = set(active)
+    out: dict[Key, str] = {}
+    for r in robots:
+        if r.status is RobotStatus.ERROR:
+            out[(AlertKind.ROBOT_ERROR, r.name)] = f"{r.name} is stuck" + (
+                f": {r.error}" if r.error else ""
+            )
+        if r.status is RobotStatus.OFFLINE and now - r.since >= limits.offline_after:
+            out[(AlertKind.ROBOT_OFFLINE, r.name)] = f"{r.name} is not connected"
+        if r.battery is not None:
+            key = (AlertKind.LOW_BATTERY, r.name)
+            limit = limits.battery_ok if key in active else limits.low_battery
+            if r.battery < limit:
+                out[key] = f"{r.name} battery {round(r.battery * 100)}%"
+        if r.status is RobotStatus.DELIVERED and now - r.since >= limits.wait_at_table:
+            where = f" at {r.table}" if r.table else ""
+            out[(AlertKind.WAITING_AT_TABLE, r.name)] = (
+                f"{r.name} waiting{where} for {_minutes(now - r.since)}"
+            )
+    oldest: dict[str, float] = {}
+    for d in dishes:
+        if d.table not in blocked:
+            oldest[d.table] = min(oldest.get(d.table, d.ready_at), d.ready_at)
+    for table, ready_at in oldest.items():
+        if now - ready_at >= limits.dish_at_pass:
+            out[(AlertKind.DISH_WAITING, table)] = (
+                f"dishes for {table} at the pass for {_minutes(now - ready_at)}"
+            )
+    for table, reason in blocked.items():
+        out[(AlertKind.TABLE_UNREACHABLE, table)] = f"robots cannot reach {table}: {reason}"
+    return out
+
+
+class AlertBook:
+    """The alerts raised and not yet cleared; numbering is per server run."""
+
+    def __init__(self) -> None:
+        self._active: dict[Key, Alert] = {}
+        self._by_id: dict[int, Key] = {}
+        self._next = 1
+
+    def active(self) -> list[Alert]:
+        """Alerts not cleared, oldest first."""
+        return sorted(self._active.values(), key=lambda a: a.id)
+
+    def keys(self) -> set[Key]:
+        return set(self._active)
+
+    def update(self, now_holding: Mapping[Key, str], now: float) -> list[Alert]:
+        """Raise the conditions that are new, clear the alerts whose condition ended; the
+        alerts that changed (cleared ones with ``cleared_at`` set), for publishing."""
+        changed: list[Alert] = []
+        for key in [k for k in self._active if k not in now_holding]:
+            alert = self._active.pop(key).model_copy(update={"cleared_at": now})
+            del self._by_id[alert.id]
+            changed.append(alert)
+        for key, message in now_holding.items():
+            if key in self._active:
+                continue
+            kind, subject = key
+            alert = Alert(
+                id=self._next,
+                kind=kind,
+                subject=subject,
+                severity="critical" if kind in CRITICAL else "warning",
+                message=message,
+                raised_at=now,
+            )
+            self._next += 1
+            self._active[key] = alert
+            self._by_id[alert.id] = key
+            changed.append(alert)
+        return changed
+
+    def ack(self, alert_id: int, by: str, now: float) -> Alert:
+        """A person has seen the alert. Unknown or cleared: NotFound; seen already: Conflict."""
+        key = self._by_id.get(alert_id)
+        if key is None:
+            raise NotFound(f"no alert {alert_id} is raised (cleared already?)", alert=alert_id)
+        alert = self._active[key]
+        if alert.acked_at is not None:
+            raise Conflict(
+                f"alert {alert_id} was acknowledged already by {alert.acked_by}",
+                alert=alert_id,
+                acked_by=alert.acked_by,
+            )
+        alert = alert.model_copy(update={"acked_at": now, "acked_by": by})
+        self._active[key] = alert
+        return alert
