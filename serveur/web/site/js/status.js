@@ -6,20 +6,21 @@ const T = true;
 const _ = false;
 const ACTIONS = [
   "auto", "manual", "teleop", "initialpose", "goal", "goto",
-  "ready", "next", "stop", "continue", "cancel", "save_waypoint",
+  "ready", "next", "stop", "continue", "cancel", "save_waypoint", "go", "skip",
 ];
 // prettier-ignore
 const TABLE = {
-  //          auto man tele init goal goto ready next stop cont canc save
-  Offline:    [_, _, _, _, _, _, _, _, _, _, _, _],
-  Ready:      [T, T, _, _, _, _, _, _, _, _, _, T],
-  Awaiting:   [_, _, _, _, _, _, T, _, _, _, _, T],
-  Delivering: [_, _, _, _, _, _, _, _, T, _, _, T],
-  Delivered:  [_, _, _, _, _, _, _, T, _, _, _, T],
-  Stopped:    [_, _, _, _, _, _, _, _, _, T, T, T],
-  Transit:    [_, _, _, _, _, _, _, _, T, _, _, T],
-  Manual:     [_, _, T, T, T, T, T, _, _, _, _, T],
-  Error:      [_, T, _, _, _, _, _, _, _, T, T, T],
+  //          auto man tele init goal goto ready next stop cont canc save go skip
+  Offline:    [_, _, _, _, _, _, _, _, _, _, _, _, _, _],
+  Ready:      [T, T, _, _, _, _, _, _, _, _, _, T, _, _],
+  Awaiting:   [_, _, _, _, _, _, T, _, _, _, _, T, _, _],
+  Loading:    [_, T, _, _, _, _, _, _, _, _, T, T, T, _],
+  Delivering: [_, _, _, _, _, _, _, _, T, _, _, T, _, _],
+  Delivered:  [_, _, _, _, _, _, _, T, _, _, _, T, _, T],
+  Stopped:    [_, _, _, _, _, _, _, _, _, T, T, T, _, T],
+  Transit:    [_, _, _, _, _, _, _, _, T, _, _, T, _, _],
+  Manual:     [_, _, T, T, T, T, T, _, _, _, _, T, _, _],
+  Error:      [_, T, _, _, _, _, _, _, _, T, T, T, _, T],
 };
 
 export const STATUSES = Object.keys(TABLE);
