@@ -17,6 +17,7 @@ document.getElementById("robot-name").textContent = name || "";
 let cart = []; // the dishes for the current stop, from `order` {robot}
 let cartFor = ""; // which stop the cart belongs to
 let shown = "";
+let loaded = false; // a robots snapshot came: "no robot named" can be said
 
 function robotName() {
   const parts = window.location.pathname.split("/").filter(Boolean);
@@ -100,7 +101,7 @@ function view(robot) {
         el(
           "ul",
           { class: "cart-items", "aria-label": t("robot.yourDishes") },
-          cart.length ? cart.map((o) => el("li", {}, o.dish)) : el("li", { class: "muted" }, "…"),
+          cart.length ? cart.map((o) => el("li", {}, o.dish)) : el("li", { class: "muted" }, t("robot.cartLoading")),
         ),
         bigButton(t("robot.collected"), (b) => send(b, "next")),
       ];
@@ -159,13 +160,14 @@ function render() {
 
 live.addEventListener("change", (e) => {
   if (e.detail.topic === "orders") cartFor = ""; // a dish changed: ask again for this stop
+  if (e.detail.topic === "robots") loaded = true;
   if (["robots", "tasks", "orders"].includes(e.detail.topic)) render();
 });
 conn.addEventListener("session", () => render()); // what this screen may do depends on who it is
 onLangChange(() => {
   document.title = t("robot.docTitle", { name: name || t("robot.docTitleNone") });
   shown = ""; // same robot, new words: draw again
-  render();
+  if (loaded || !name) render();
 });
 document.title = t("robot.docTitle", { name: name || t("robot.docTitleNone") });
 if (!name) render();

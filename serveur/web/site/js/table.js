@@ -18,11 +18,12 @@ function titles() {
 titles();
 onLangChange(() => {
   titles();
-  render();
+  if (loaded) render();
 });
 
 let cart = [];
 let asking = null;
+let loaded = false; // the orders came: "nothing ..." can be said
 
 function tableName() {
   const parts = window.location.pathname.split("/").filter(Boolean);
@@ -67,6 +68,7 @@ function render() {
 live.addEventListener("change", (e) => {
   const { topic, record } = e.detail;
   if (topic !== "orders" || (record && record.table !== table)) return;
+  loaded = true;
   render();
   refresh();
 });

@@ -147,7 +147,7 @@ export function watchConnection(conn) {
     timer = setInterval(show, 500);
   };
   conn.addEventListener("state", (e) => {
-    last = { ...e.detail, retryIn: e.detail.retryIn, at: performance.now() };
+    last = { ...e.detail, at: performance.now() };
     showState(e.detail);
   });
   onLangChange(() => {

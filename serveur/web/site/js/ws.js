@@ -268,9 +268,7 @@ export class Connection extends EventTarget {
       } else {
         clearTimeout(entry.timer);
         this._pending.delete(id);
-        entry.reject(
-new ServerError("connection_lost", t("error.connectionLost")),
-        );
+        entry.reject(new ServerError("connection_lost", t("error.connectionLost")));
       }
     }
   }
