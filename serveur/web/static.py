@@ -7,7 +7,9 @@ ever get one of those in-memory files: the path is looked up in a dict of known 
 
 Pages: ``/`` and ``/staff`` (staff console), ``/robot/<name>`` (a robot's screen; also
 ``/robot.html?robot=<name>``) and ``/table/<name>`` (a table's screen). The page's script reads
-the name from its own URL, so the server does not template anything.
+the name from its own URL, so the server does not template anything. Nor does it pick a language:
+the pages' words are in the catalogs ``/i18n/<lang>.json`` (plain files, ``application/json``),
+which ``js/i18n.js`` fetches and applies in the browser.
 """
 
 from __future__ import annotations
