@@ -31,6 +31,8 @@ from serveur.status import RobotMode, RobotStatus
 
 __all__ = [
     "ORDER_STEPS",
+    "Alert",
+    "AlertKind",
     "AuditRecord",
     "DishAction",
     "EventRecord",
@@ -134,6 +136,29 @@ class Robot(_Record):
     def _link_from_json(cls, v: Any) -> Any:
         # The store keeps the options as a JSON object in one column.
         return json.loads(v) if isinstance(v, str) else v
+
+
+class AlertKind(StrEnum):
+    ROBOT_ERROR = "robot_error"  # subject: the robot
+    ROBOT_OFFLINE = "robot_offline"
+    LOW_BATTERY = "low_battery"
+    WAITING_AT_TABLE = "waiting_at_table"
+    DISH_WAITING = "dish_waiting"  # subject: the table whose dishes wait at the pass
+    TABLE_UNREACHABLE = "table_unreachable"  # subject: the table
+
+
+class Alert(_Record):
+    """One alert as screens see it (``alerts`` topic). ``cleared_at`` set: it is over."""
+
+    id: int
+    kind: AlertKind
+    subject: str
+    severity: str
+    message: str
+    raised_at: float
+    acked_at: float | None = None
+    acked_by: str | None = None
+    cleared_at: float | None = None
 
 
 class MenuItem(_Record):

@@ -38,8 +38,6 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from serveur.domain import (
-    DishAction,
-    OrderStatus,
     WaypointKind,
 )
 from serveur.errors import BadJson, InvalidField, ServeurError, UnknownMessage
@@ -474,8 +472,11 @@ class DishMsg(_ClientMsg):
 
     clientmsg: Literal["dish"]
     order: OrderId
-    action: DishAction
-    status: OrderStatus | None = None
+    action: Literal["cooking", "ready", "void", "edit"]
+    status: (
+        Literal["ordered", "cooking", "pending", "assigned", "delivered", "returned", "voided"]
+        | None
+    ) = None
     quantity: Quantity | None = None
     note: Note | None = Field(default=None, description='edit: the new note ("" clears it)')
     table: Name | None = Field(default=None, description="edit: move the dish to this table")

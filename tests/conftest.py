@@ -112,9 +112,9 @@ class Client:
                     self._changed.notify_all()
 
     def _apply(self, topic: str, data: Any) -> None:
-        if topic in ("robots", "orders", "tasks", "waypoints", "events"):
-            key = "name" if topic in ("robots", "waypoints") else "id"
-            self.records.setdefault(topic, {})[data[key]] = data
+        keys = {"robots": "name", "waypoints": "name", "menu": "dish", "blocks": "table"}
+        if topic in ("robots", "orders", "tasks", "waypoints", "events", "alerts", "menu", "blocks"):
+            self.records.setdefault(topic, {})[data[keys.get(topic, "id")]] = data
         else:
             self.streams[topic] = data
 

@@ -139,6 +139,8 @@ class ServerProcess(ServeurProcess):
             str(demo_waypoints_path()),
             "--time-scale",
             str(self.time_scale),
+            # These tests drive whole trips as a script would, without pressing Go.
+            "--auto-depart",
         ]
         for i, (name, url) in enumerate(self.robots.items()):
             args += ["--robot", f"{name}={url},home=home{i + 1}"]

@@ -918,3 +918,17 @@ def test_schema_is_valid_and_accepts_the_doc_examples() -> None:
     assert not client.is_valid(TELEOP | {"vx": 3})
     assert not client.is_valid(TELEOP | {"vz": 0})
     assert not client.is_valid({"clientmsg": "data", "topics": ["bogus"]})
+
+
+def test_the_dish_messages_literals_are_the_enums_values() -> None:
+    # Strict parsing wants enum objects for enum fields, so the wire's fields are literals:
+    # they must list exactly the domain's values.
+    from typing import get_args
+
+    from serveur.domain import DishAction, OrderStatus
+
+    action = P.DishMsg.model_fields["action"].annotation
+    status = P.DishMsg.model_fields["status"].annotation
+    assert get_args(action) == tuple(a.value for a in DishAction)
+    [literal, _none] = get_args(status)
+    assert get_args(literal) == tuple(s.value for s in OrderStatus)

@@ -18,10 +18,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from enum import StrEnum
 
-from pydantic import BaseModel, ConfigDict
-
+from serveur.domain import Alert, AlertKind
 from serveur.errors import Conflict, NotFound
 from serveur.status import RobotMode, RobotStatus
 
@@ -36,33 +34,8 @@ __all__ = [
 ]
 
 
-class AlertKind(StrEnum):
-    ROBOT_ERROR = "robot_error"  # subject: the robot
-    ROBOT_OFFLINE = "robot_offline"
-    LOW_BATTERY = "low_battery"
-    WAITING_AT_TABLE = "waiting_at_table"
-    DISH_WAITING = "dish_waiting"  # subject: the table whose dishes wait at the pass
-    TABLE_UNREACHABLE = "table_unreachable"  # subject: the table
-
-
 #: Kinds that need someone now (the console sounds them); the others are warnings.
 CRITICAL = frozenset({AlertKind.ROBOT_ERROR, AlertKind.ROBOT_OFFLINE, AlertKind.TABLE_UNREACHABLE})
-
-
-class Alert(BaseModel):
-    """One alert as screens see it (``alerts`` topic). ``cleared_at`` set: it is over."""
-
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-    id: int
-    kind: AlertKind
-    subject: str
-    severity: str
-    message: str
-    raised_at: float
-    acked_at: float | None = None
-    acked_by: str | None = None
-    cleared_at: float | None = None
 
 
 @dataclass(frozen=True, slots=True)

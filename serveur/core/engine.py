@@ -51,6 +51,7 @@ from serveur.core.runtime import CoreConfig, Destination, Runtime, pose_dict
 from serveur.core.service import Service
 from serveur.core.trips import Trips
 from serveur.domain import (
+    DishAction,
     MenuItem,
     OrderStatus,
     Robot,
@@ -464,8 +465,8 @@ class Core:
         if isinstance(msg, P.DishMsg):
             order = await self.service.dish(
                 msg.order,
-                msg.action,
-                seen=msg.status,
+                DishAction(msg.action),
+                seen=None if msg.status is None else OrderStatus(msg.status),
                 by=actor,
                 quantity=msg.quantity,
                 note=msg.note,

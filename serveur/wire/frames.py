@@ -15,7 +15,17 @@ from typing import Annotated, Any, Final, Literal, TypeAlias
 import pydantic_core
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
-from serveur.domain import AuditRecord, EventRecord, Order, Robot, Task, WaypointRecord
+from serveur.domain import (
+    Alert,
+    AuditRecord,
+    EventRecord,
+    MenuItem,
+    Order,
+    Robot,
+    TableBlock,
+    Task,
+    WaypointRecord,
+)
 from serveur.errors import ServeurError
 from serveur.wire.fields import RequestId, Topic
 
@@ -94,6 +104,9 @@ Snapshot: TypeAlias = (
     | list[WaypointRecord]
     | list[EventRecord]
     | list[AuditRecord]
+    | list[Alert]
+    | list[MenuItem]
+    | list[TableBlock]
     | MapSnapshot
     | PoseData
     | ScanData
@@ -108,6 +121,9 @@ UpdateData: TypeAlias = (
     | WaypointRecord
     | EventRecord
     | AuditRecord
+    | Alert
+    | MenuItem
+    | TableBlock
     | MapSnapshot
     | PoseData
     | ScanData
@@ -141,14 +157,19 @@ class OkReply(_ServerModel):
     id: RequestId | None = None
     data: dict[str, Snapshot] | None = Field(default=None, description="data: topic -> snapshot")
     waypoint: WaypointRecord | None = Field(default=None, description="create waypoint")
-    order: Order | None = Field(default=None, description="create order")
+    order: Order | None = Field(default=None, description="create order, dish")
     tasks: list[Task] | None = Field(default=None, description="create task: the trips made")
     robot: Robot | None = Field(
-        default=None, description="create robot, control, ready, next, stop, continue, cancel"
+        default=None,
+        description="create robot, control, ready, next, stop, continue, cancel, go, skip",
     )
     orders: list[Order] | None = Field(default=None, description="order")
     session: Session | None = Field(default=None, description="login, logout")
     time: float | None = Field(default=None, description="ping: the server's clock (epoch s)")
+    alert: Alert | None = Field(default=None, description="ack: the alert, acknowledged")
+    dish: MenuItem | None = Field(default=None, description="create dish: the menu entry")
+    table: str | None = Field(default=None, description="clear: the table cleared")
+    cleared: bool | None = Field(default=None, description="clear: false if it was not blocked")
 
 
 class Session(_ServerModel):
