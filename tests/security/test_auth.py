@@ -1,0 +1,206 @@
+"""The authorisation rules, password hashing and throttles — pure, no sockets."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import pytest
+
+from serveur import protocol as P
+from serveur.errors import Forbidden, InvalidField, RateLimited, Unauthorized
+from serveur.security import auth
+from serveur.security.auth import Principal, Role, Scope
+
+ROBOT = {"robot": "r1"}
+
+
+def parse(body: dict[str, Any]) -> Any:
+    return P.parse_client(json.dumps(body))
+
+
+# One example of every instruction (verb, and sub-type where there is one).
+MESSAGES: dict[str, dict[str, Any]] = {
+    "data": {"clientmsg": "data", "topics": ["robots"]},
+    "create waypoint": {"clientmsg": "create", "type": "waypoint", "name": "w", "x": 1, "y": 2},
+    "create order": {"clientmsg": "create", "type": "order", "dish": "soup", "table": "T1"},
+    "create task": {"clientmsg": "create", "type": "task", "orders": [1]},
+    "create robot": {"clientmsg": "create", "type": "robot", "name": "r9", "url": "ws://h:1"},
+    "control auto": {"clientmsg": "control", "action": "auto", **ROBOT},
+    "control manual": {"clientmsg": "control", "action": "manual", **ROBOT},
+    "control teleop": {"clientmsg": "control", "action": "teleop", "vx": 0, "wz": 0, **ROBOT},
+    "control initialpose": {
+        "clientmsg": "control",
+        "action": "initialpose",
+        "x": 1,
+        "y": 1,
+        "yaw": 0,
+        **ROBOT,
+    },
+    "control goal": {"clientmsg": "control", "action": "goal", "x": 1, "y": 1, "yaw": 0, **ROBOT},
+    "control goto": {"clientmsg": "control", "action": "goto", "waypoint": "T1", **ROBOT},
+    "ready": {"clientmsg": "ready", **ROBOT},
+    "next": {"clientmsg": "next", **ROBOT},
+    "stop": {"clientmsg": "stop", **ROBOT},
+    "continue": {"clientmsg": "continue", **ROBOT},
+    "cancel": {"clientmsg": "cancel", **ROBOT},
+    "order table": {"clientmsg": "order", "table": "T1"},
+    "order robot": {"clientmsg": "order", **ROBOT},
+    "go": {"clientmsg": "go", **ROBOT},
+    "skip": {"clientmsg": "skip", **ROBOT},
+    "dish": {"clientmsg": "dish", "order": 1, "action": "ready"},
+    "ack": {"clientmsg": "ack", "alert": 1},
+    "clear": {"clientmsg": "clear", "table": "T1"},
+    "create dish": {"clientmsg": "create", "type": "dish", "name": "Laksa"},
+}
+
+OWNER = Principal(Role.OWNER, 1, user="o", scopes=auth.OWNER_SCOPES)
+STAFF = Principal(Role.STAFF, 2, user="s", scopes=auth.STAFF_SCOPES)
+R1_SCREEN = Principal(Role.ROBOT_SCREEN, 3, robot="r1")
+R2_SCREEN = Principal(Role.ROBOT_SCREEN, 4, robot="r2")
+T1_SCREEN = Principal(Role.TABLE_SCREEN, 5, table="T1")
+T2_SCREEN = Principal(Role.TABLE_SCREEN, 6, table="T2")
+POS = Principal(Role.INTEGRATION, 7, scopes=frozenset({Scope.ORDERS, Scope.READ}))
+
+# Who may send what. Anything not listed for a principal must be refused.
+ALLOWED: dict[str, set[str]] = {
+    "owner": set(MESSAGES),
+    "staff": set(MESSAGES) - {"create robot", "create dish"},  # the menu is the owner's
+    "r1 screen": {"next", "stop", "continue", "cancel", "go", "skip", "order robot", "data"},
+    "r2 screen": {"data"},  # its own robot's view of the robots topic
+    # "Food collected" on the table's own screen: the core checks the robot is at T1.
+    "T1 screen": {"order table", "next"},
+    "T2 screen": {"next"},
+    # A POS or kitchen display script: dishes in, dishes ready.
+    "pos": {"create order", "dish", "data", "order table", "order robot"},
+}
+PRINCIPALS = {
+    "owner": OWNER,
+    "staff": STAFF,
+    "r1 screen": R1_SCREEN,
+    "r2 screen": R2_SCREEN,
+    "T1 screen": T1_SCREEN,
+    "T2 screen": T2_SCREEN,
+    "pos": POS,
+}
+
+
+@pytest.mark.parametrize("who", list(PRINCIPALS))
+@pytest.mark.parametrize("what", list(MESSAGES))
+def test_the_whole_permission_table(who: str, what: str) -> None:
+    msg = parse(MESSAGES[what])
+    p = PRINCIPALS[who]
+    if what in ALLOWED[who]:
+        auth.authorize(p, msg)
+    else:
+        with pytest.raises(Forbidden):
+            auth.authorize(p, msg)
+
+
+def test_anonymous_may_only_log_in() -> None:
+    for body in MESSAGES.values():
+        with pytest.raises(Unauthorized):
+            auth.authorize(None, parse(body))
+    auth.authorize(None, parse({"clientmsg": "login", "token": "srv_x"}))
+
+
+def test_topics_per_role() -> None:
+    assert auth.topic_allowed(STAFF, "events") and not auth.topic_allowed(STAFF, "audit")
+    assert auth.topic_allowed(OWNER, "audit")
+    assert auth.topic_allowed(R1_SCREEN, "pose:r1") and not auth.topic_allowed(R1_SCREEN, "pose:r2")
+    assert not auth.topic_allowed(R1_SCREEN, "events")
+    assert auth.topic_allowed(T1_SCREEN, "orders") and not auth.topic_allowed(T1_SCREEN, "robots")
+    for who in (T1_SCREEN, R1_SCREEN):
+        with pytest.raises(Forbidden):
+            auth.authorize(who, parse({"clientmsg": "data", "topics": ["waypoints"]}))
+
+
+class _Rec:
+    def __init__(self, **kw: Any) -> None:
+        self.__dict__.update(kw)
+
+
+def test_views_of_screens() -> None:
+    tasks = {10: "r1", 11: "r2"}
+    look = tasks.get
+    assert auth.visible(R1_SCREEN, "robots", _Rec(name="r1"), look)
+    assert not auth.visible(R1_SCREEN, "robots", _Rec(name="r2"), look)
+    assert auth.visible(R1_SCREEN, "tasks", _Rec(robot="r1"), look)
+    assert not auth.visible(R1_SCREEN, "tasks", _Rec(robot=None), look)
+    assert auth.visible(R1_SCREEN, "orders", _Rec(task_id=10, table="T5"), look)
+    assert not auth.visible(R1_SCREEN, "orders", _Rec(task_id=11, table="T5"), look)
+    assert not auth.visible(R1_SCREEN, "orders", _Rec(task_id=None, table="T5"), look)
+    assert auth.visible(T1_SCREEN, "orders", _Rec(table="T1"), look)
+    assert not auth.visible(T1_SCREEN, "orders", _Rec(table="T2"), look)
+    assert auth.visible(STAFF, "orders", _Rec(table="T2"), look)
+
+
+def test_unknown_verbs_need_a_rule() -> None:
+    with pytest.raises(Forbidden):
+        auth.required_scope(_Rec(clientmsg="launch"))
+
+
+def test_scopes_parse() -> None:
+    assert auth.parse_scopes("orders, read,") == {Scope.ORDERS, Scope.READ}
+    with pytest.raises(InvalidField):
+        auth.parse_scopes("orders,root")
+
+
+def test_passwords_hash_and_verify() -> None:
+    h = auth.hash_password("correct horse", n=2**10)
+    assert h.startswith("scrypt$1024$") and "correct horse" not in h
+    assert auth.verify_password("correct horse", h)
+    assert not auth.verify_password("correct hors", h)
+    assert h != auth.hash_password("correct horse", n=2**10)  # salted
+    assert not auth.verify_password("x", "garbage")
+    assert not auth.verify_password("x", "bcrypt$1$2$3$4$5")
+    with pytest.raises(InvalidField):
+        auth.check_password_strength("short")
+
+
+def test_tokens_are_random_and_stored_as_digests() -> None:
+    a, b = auth.new_token(), auth.new_token()
+    assert a != b and a.startswith(auth.TOKEN_PREFIX) and len(a) > 40
+    assert len(auth.token_digest(a)) == 64 and auth.token_digest(a) != auth.token_digest(b)
+
+
+def test_login_throttle_doubles_and_clears() -> None:
+    t = auth.LoginThrottle(free=3, base=1.0, cap=8.0)
+    keys = ["addr:1.2.3.4", "user:bob"]
+    for _ in range(2):
+        t.failure(keys, 0.0)
+    t.check(keys, 0.0)  # two failures: free
+    t.failure(keys, 0.0)  # third: locked 1 s
+    with pytest.raises(RateLimited) as exc:
+        t.check(keys, 0.5)
+    assert exc.value.details["retry_after"] == 0.5
+    t.check(keys, 1.0)
+    t.failure(keys, 1.0)  # fourth: 2 s
+    with pytest.raises(RateLimited):
+        t.check(["user:bob"], 2.9)
+    for _ in range(10):
+        t.failure(keys, 3.0)
+    with pytest.raises(RateLimited) as exc:
+        t.check(keys, 3.0)
+    assert exc.value.details["retry_after"] == 8.0  # capped
+    t.check(["addr:other"], 3.0)  # other keys unaffected
+    t.success(keys)
+    t.check(keys, 3.0)
+
+
+def test_login_throttle_memory_is_bounded() -> None:
+    t = auth.LoginThrottle(max_keys=100)
+    for i in range(1000):
+        t.failure([f"addr:{i}"], 0.0)
+    assert len(t._keys) == 100
+
+
+def test_rate_limiter_bucket() -> None:
+    lim = auth.RateLimiter(rate=10.0, burst=5.0, now=0.0)
+    assert [lim.allow(0.0) for _ in range(5)] == [0.0] * 5
+    wait = lim.allow(0.0)
+    assert wait == pytest.approx(0.1)
+    assert lim.allow(0.1) == 0.0  # one token back after 0.1 s
+    assert lim.allow(0.1) > 0
+    assert [lim.allow(10.0) for _ in range(5)] == [0.0] * 5  # refilled, never above burst
+    assert lim.allow(10.0) > 0
