@@ -160,12 +160,21 @@ ROBOT_STATUSES = tuple(v.value for v in RobotStatus)
 MODE_STATUSES = {
     "off": ("Ready", "Offline"),
     "manual": ("Manual", "Offline"),
-    "auto": ("Awaiting", "Delivering", "Delivered", "Stopped", "Transit", "Error", "Offline"),
+    "auto": (
+        "Awaiting",
+        "Loading",
+        "Delivering",
+        "Delivered",
+        "Stopped",
+        "Transit",
+        "Error",
+        "Offline",
+    ),
 }
 #: A robot carrying a trip is moving to a table, at one, halted, failed or offline.
-WITH_TRIP = ("Delivering", "Delivered", "Stopped", "Error", "Offline")
+WITH_TRIP = ("Loading", "Delivering", "Delivered", "Stopped", "Error", "Offline")
 #: Offline robots remember the move to resume; never Ready/Awaiting/Manual (re-derived by mode).
-OFFLINE_RESUME = ("Delivering", "Delivered", "Stopped", "Transit", "Error")
+OFFLINE_RESUME = ("Loading", "Delivering", "Delivered", "Stopped", "Transit", "Error")
 
 
 class InvariantViolation(AssertionError):
@@ -185,7 +194,7 @@ _MODE_SQL = " OR ".join(
 ALWAYS: tuple[tuple[str, str], ...] = (
     # -- orders
     (
-        "order status is one of pending/assigned/delivered/cancelled",
+        "order status is a known one (ordered ... voided)",
         f"SELECT id, status FROM orders WHERE status IS NULL OR status NOT IN {_q(ORDER_STATUSES)}",
     ),
     (
@@ -220,10 +229,21 @@ ALWAYS: tuple[tuple[str, str], ...] = (
         " WHERE o.status = 'delivered' AND (s.status <> 'done' OR o.delivered_at IS NULL)",
     ),
     (
-        "a pending or cancelled order has no dispatch or delivery time",
+        "a pending or cancelled order has no dispatch or delivery time (nor an ordered, cooking"
+        " or voided one)",
         "SELECT id, status, dispatched_at, delivered_at FROM orders"
-        " WHERE status IN ('pending', 'cancelled')"
+        " WHERE status IN ('ordered', 'cooking', 'pending', 'voided')"
         "   AND (dispatched_at IS NOT NULL OR delivered_at IS NOT NULL)",
+    ),
+    (
+        "a returned order has a return time and was never delivered",
+        "SELECT id, returned_at, delivered_at FROM orders WHERE status = 'returned'"
+        " AND (returned_at IS NULL OR delivered_at IS NOT NULL)",
+    ),
+    (
+        "a dish from the pass on has been ready",
+        "SELECT id, status FROM orders"
+        " WHERE status NOT IN ('ordered', 'cooking', 'voided') AND ready_at IS NULL",
     ),
     (
         "an assigned order is dispatched exactly while its trip is active",
@@ -264,7 +284,7 @@ ALWAYS: tuple[tuple[str, str], ...] = (
         "an active trip's stops before current_stop are done, those after it pending",
         "SELECT t.id, t.current_stop, s.seq, s.status FROM task t"
         " JOIN task_stop s ON s.task_id = t.id WHERE t.status = 'active' AND ("
-        "   (s.seq < t.current_stop AND s.status <> 'done')"
+        "   (s.seq < t.current_stop AND s.status NOT IN ('done', 'skipped'))"
         "   OR (s.seq = t.current_stop AND s.status NOT IN ('pending', 'arrived'))"
         "   OR (s.seq > t.current_stop AND s.status <> 'pending'))",
     ),
@@ -286,9 +306,10 @@ ALWAYS: tuple[tuple[str, str], ...] = (
         "SELECT task_id, seq FROM task_stop WHERE status = 'arrived' AND arrived_at IS NULL",
     ),
     (
-        "a done trip has every stop done and a finish time",
+        "a done trip has every stop done (or skipped) and a finish time",
         "SELECT t.id, t.finished_at FROM task t WHERE t.status = 'done' AND (t.finished_at IS NULL"
-        " OR EXISTS (SELECT 1 FROM task_stop s WHERE s.task_id = t.id AND s.status <> 'done'))",
+        " OR EXISTS (SELECT 1 FROM task_stop s WHERE s.task_id = t.id"
+        "            AND s.status NOT IN ('done', 'skipped')))",
     ),
     (
         "a cancelled trip has a finish time, no stop left to serve and no assigned dish",

@@ -219,13 +219,17 @@ class ServiceMixin(AccountsMixin):
                 sql = f"UPDATE orders SET {', '.join(sets)} WHERE id = ? AND status IN ({ok})"
             else:
                 assert to is not None
-                stamp = {
-                    OrderStatus.PENDING: "ready_at",
-                    OrderStatus.VOIDED: "voided_at",
-                    OrderStatus.COOKING: None,
-                }[to]
-                sets += ["status = ?"] + ([f"{stamp} = ?"] if stamp else [])
-                params += [to.value] + ([now] if stamp else [])
+                sets.append("status = ?")
+                params.append(to.value)
+                if to is OrderStatus.PENDING:
+                    # A returned dish sent again keeps its first ready time (it has waited
+                    # since then: the dispatcher ranks it so, the statistics count it so)
+                    # and is off any trip until it is dispatched again.
+                    sets += ["ready_at = COALESCE(ready_at, ?)", "dispatched_at = NULL"]
+                    params.append(now)
+                elif to is OrderStatus.VOIDED:
+                    sets.append("voided_at = ?")
+                    params.append(now)
                 data["to"] = to.value
                 sql = f"UPDATE orders SET {', '.join(sets)} WHERE id = ? AND status IN ({ok})"
             if action is DishAction.EDIT and not sets:
