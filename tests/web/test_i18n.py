@@ -1,7 +1,10 @@
 """The pages' words come from catalogs (serveur/web/site/i18n/*.json, applied by js/i18n.js).
 
-Static checks: every catalog has exactly en.json's keys (and each text the same placeholders),
-every key the site names exists, every key is used, and no HTML file carries words of its own.
+Two sets of catalogs, merged per language by i18n.js: the main one (``i18n/<lang>.json``: staff
+and shared words) and the guests' (``i18n/guest/<lang>.json``: the robot and table screens'
+service words). Static checks: in each set every catalog has exactly the English one's keys (and
+each text the same placeholders), no key is in both sets, every key the site names exists in
+their union, every key is used, and no HTML file carries words of its own.
 In Chromium (as tests/web/test_ui.py runs it: Debian's /usr/bin/chromium, a real server, no
 sleeps): each page opened with ``?lang=zh`` and ``?lang=ms`` shows that language and sets
 ``<html lang>``, and the page's language picker switches at once, without reloading the page
@@ -24,7 +27,16 @@ from serveur.web.static import StaticSite
 
 SITE = Path(__file__).resolve().parents[2] / "serveur" / "web" / "site"
 LANGS = ("en", "zh", "ms")
-CATALOGS = {lang: json.loads((SITE / "i18n" / f"{lang}.json").read_text("utf-8")) for lang in LANGS}
+
+def _load(folder: Path) -> dict[str, dict[str, Any]]:
+    return {lang: json.loads((folder / f"{lang}.json").read_text("utf-8")) for lang in LANGS}
+
+
+MAIN = _load(SITE / "i18n")
+GUEST = _load(SITE / "i18n" / "guest")
+SETS = {"main": MAIN, "guest": GUEST}
+# What a page holds per language: the two sets merged (i18n.js), as the tests below read it.
+CATALOGS = {lang: {**MAIN[lang], **GUEST[lang]} for lang in LANGS}
 EN = CATALOGS["en"]
 HTML_FILES = sorted(SITE.glob("*.html"))
 JS_FILES = sorted((SITE / "js").rglob("*.js"))
@@ -69,16 +81,28 @@ def placeholders(value: Any) -> set[str]:
     return {p for text in texts(value) for p in re.findall(r"\{(\w+)\}", text)}
 
 
-def test_every_catalog_has_the_same_keys_and_placeholders() -> None:
-    for lang, catalog in CATALOGS.items():
-        assert set(catalog) == set(EN), (lang, set(catalog) ^ set(EN))
+@pytest.mark.parametrize("name", sorted(SETS))
+def test_every_catalog_has_the_same_keys_and_placeholders(name: str) -> None:
+    catalogs = SETS[name]
+    en = catalogs["en"]
+    assert en, f"the {name} catalogs are empty"
+    for lang, catalog in catalogs.items():
+        assert set(catalog) == set(en), (name, lang, set(catalog) ^ set(en))
         for key, value in catalog.items():
-            assert all(isinstance(t, str) and t for t in texts(value)), (lang, key)
+            assert all(isinstance(t, str) and t for t in texts(value)), (name, lang, key)
             if isinstance(value, dict):
-                assert "other" in value and set(value) <= PLURAL_FORMS, (lang, key)
-                assert "count" in placeholders(value), (lang, key)
+                assert "other" in value and set(value) <= PLURAL_FORMS, (name, lang, key)
+                assert "count" in placeholders(value), (name, lang, key)
             # A translation may reorder the placeholders, never drop or invent one.
-            assert placeholders(value) == placeholders(EN[key]), (lang, key)
+            assert placeholders(value) == placeholders(en[key]), (name, lang, key)
+
+
+def test_no_key_is_in_both_catalog_sets() -> None:
+    # i18n.js merges the sets: a key in both would have one text silently replace the other.
+    assert sorted(set(MAIN["en"]) & set(GUEST["en"])) == []
+    # The guests' words have their own namespace, so it is plain which file holds a key.
+    assert all(key.startswith("guest.") for key in GUEST["en"])
+    assert not any(key.startswith("guest.") for key in MAIN["en"])
 
 
 def keys_named_in_site() -> set[str]:
@@ -143,10 +167,14 @@ def test_html_files_hold_no_words_of_their_own(page: str) -> None:
 
 def test_catalogs_are_served_as_json() -> None:
     site = StaticSite.load(SITE)
-    for lang in LANGS:
-        asset = site.resolve(f"/i18n/{lang}.json")
-        assert asset is not None and asset.content_type.startswith("application/json")
-        assert json.loads(asset.body.decode("utf-8")) == CATALOGS[lang]
+    for folder, catalogs in (("/i18n/", MAIN), ("/i18n/guest/", GUEST)):
+        for lang in LANGS:
+            asset = site.resolve(f"{folder}{lang}.json")
+            assert asset is not None and asset.content_type.startswith("application/json")
+            assert json.loads(asset.body.decode("utf-8")) == catalogs[lang]
+    # i18n.js fetches both sets, by these very paths.
+    script = (SITE / "js" / "i18n.js").read_text("utf-8")
+    assert 'SETS = ["", "guest/"]' in script and "`/i18n/${set}${lang}.json`" in script
 
 
 # --- in Chromium -----------------------------------------------------------------------------

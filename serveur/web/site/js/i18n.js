@@ -1,7 +1,9 @@
 // The pages' words, in the language of the person in front of the screen.
 //
-// Catalogs are /i18n/<lang>.json, flat {"key": "text"} objects with the same keys in every
-// language (tests/web/test_i18n.py checks). A text may hold {name} placeholders, and a plural
+// Catalogs are /i18n/<lang>.json (the staff's and shared words) and /i18n/guest/<lang>.json (what
+// guests read on the robot and table screens), flat {"key": "text"} objects merged per language
+// into one; each set has the same keys in every language and no key is in both sets
+// (tests/web/test_i18n.py checks). A text may hold {name} placeholders, and a plural
 // text is an object of Intl.PluralRules categories ({"one": "...", "other": "..."}), chosen by
 // the `count` parameter. All catalogs are fetched once at start from this page's own server
 // (no CDN: restaurants are offline), so switching language later needs no network at all.
@@ -66,15 +68,23 @@ export function initialLang(loc = window.location) {
   return "en";
 }
 
-async function loadCatalog(lang) {
+// The catalog sets merged for each language: main (staff and shared words), then guest.
+const SETS = ["", "guest/"];
+
+async function fetchCatalog(path) {
   try {
-    const reply = await fetch(`/i18n/${lang}.json`);
+    const reply = await fetch(path);
     if (!reply.ok) throw new Error(`HTTP ${reply.status}`);
-    catalogs[lang] = await reply.json();
+    return await reply.json();
   } catch (err) {
-    catalogs[lang] = {};
-    console.warn(`catalog ${lang} not loaded: ${err}`);
+    console.warn(`catalog ${path} not loaded: ${err}`);
+    return {};
   }
+}
+
+async function loadCatalog(lang) {
+  const parts = await Promise.all(SETS.map((set) => fetchCatalog(`/i18n/${set}${lang}.json`)));
+  catalogs[lang] = Object.assign({}, ...parts);
 }
 
 /** The current language ("en", "zh" or "ms"). */
@@ -96,6 +106,17 @@ export function t(key, params = {}) {
   let text = catalogs[current]?.[key] ?? catalogs.en?.[key] ?? key;
   if (text && typeof text === "object") text = text[plural(params.count ?? 0)] ?? text.other ?? key;
   return String(text).replace(/\{(\w+)\}/g, (whole, name) => (name in params ? String(params[name]) : whole));
+}
+
+/**
+ * A dish as guests and the pass read it: "Laksa", "Laksa ×2", "Laksa ×2 — no chilli".
+ * The quantity is shown only above one, so a single dish reads as its name alone.
+ */
+export function dishLabel(order) {
+  const count = Number(order.quantity ?? 1);
+  let text = count > 1 ? t("guest.dish.quantity", { dish: order.dish, count }) : String(order.dish);
+  if (order.note) text = t("guest.dish.note", { dish: text, note: order.note });
+  return text;
 }
 
 /** A robot status (the wire value stays English) in the current language. */

@@ -1,11 +1,16 @@
 // The robot's own screen (the report's Robot UI, Appendix B): one big screen per status with
 // big touch targets. URL: /robot/<name> or /robot.html?robot=<name>.
+//
+// Guests touch it: every status says what the robot does in their words, never the robot's raw
+// navigation error (that is shown only to staff logged in here). At the pass (Loading) it tells
+// staff which dishes go on which tray for which table, and Go sends the trip; at a table it
+// names the tray to take, "Food collected" goes on, and a small Skip is set apart for staff.
 
 import { Connection } from "./ws.js";
 import { Live } from "./live.js";
 import { act, confirmDialog, el, showError, watchConnection } from "./ui.js";
 import { statusColour } from "./status.js";
-import { onLangChange, statusName, t } from "./i18n.js";
+import { dishLabel, onLangChange, statusName, t } from "./i18n.js";
 
 const name = robotName();
 const conn = new Connection();
@@ -47,14 +52,80 @@ async function cancelTrip(button) {
   if (yes) await act(button, () => request({ clientmsg: "cancel", ...live.target(name) }));
 }
 
-function view(robot) {
-  const dest = live.destination(name);
-  switch (robot.status) {
+/** Staff are logged in on this screen (not the robot's own token): they may see more. */
+function staffHere() {
+  return Boolean(conn.session && conn.session.scopes.includes("control"));
+}
+
+/** What the screen shows, as plain data: drawn again only when it changes. */
+function model(robot) {
+  const task = robot.current_task === null ? null : live.tasks.get(robot.current_task) || null;
+  const stop = task ? task.stops[task.current_stop] || null : null;
+  const staff = staffHere();
+  return {
+    status: robot.status,
+    resume: robot.resume,
+    dest: live.destination(name),
+    staff,
+    // Tray k holds the dishes of the stop with seq k-1 (stops in visiting order).
+    tray: stop ? stop.seq + 1 : null,
+    // The robot's raw navigation error is for staff: guests never read "move_base ABORTED".
+    error: staff && robot.status === "Error" ? robot.last_error : null,
+    trays:
+      robot.status === "Loading" && task
+        ? [...task.stops]
+            .sort((a, b) => a.seq - b.seq)
+            .map((s) => ({
+              tray: s.seq + 1,
+              table: s.table,
+              dishes: s.orders.map((id) => (live.orders.has(id) ? dishLabel(live.orders.get(id)) : null)),
+            }))
+        : [],
+    cart: robot.status === "Delivered" ? cart.map(dishLabel) : [],
+  };
+}
+
+function dishItems(labels) {
+  return labels.length
+    ? labels.map((label) => el("li", {}, label ?? t("robot.cartLoading")))
+    : [el("li", { class: "muted" }, t("robot.cartLoading"))];
+}
+
+/** The small controls only staff should press, set apart from the guest's big buttons. */
+function staffControls(...buttons) {
+  return el(
+    "div",
+    { class: "staff-controls" },
+    el("span", { class: "staff-label" }, t("guest.robot.forStaff")),
+    ...buttons,
+  );
+}
+
+async function skipTable(button, table) {
+  const yes = await confirmDialog(t("guest.robot.skipQuestion", { table }), {
+    yes: t("guest.robot.skipYes"),
+    no: t("guest.robot.skipNo"),
+    detail: t("guest.robot.skipDetail"),
+  });
+  if (yes) await send(button, "skip");
+}
+
+function skipButton(m) {
+  return el("button", {
+    class: "secondary small",
+    onclick: (e) => skipTable(e.currentTarget, m.dest),
+    text: t("guest.robot.skip"),
+  });
+}
+
+function view(m) {
+  const dest = m.dest;
+  switch (m.status) {
     case "Ready":
       return [
         el("p", { class: "hello" }, t("robot.hello", { name })),
         // Activating is staff's call (the screen's own token may not); staff logged in here may.
-        ...(conn.session && conn.session.scopes.includes("control")
+        ...(m.staff
           ? [
               bigButton(t("robot.activate"), (b) => act(b, () => request({ clientmsg: "control", action: "auto" }))),
               el("p", { class: "sub" }, t("robot.activateSub")),
@@ -63,6 +134,28 @@ function view(robot) {
       ];
     case "Awaiting":
       return [el("p", { class: "hello" }, t("robot.hello", { name })), el("h1", {}, t("robot.awaiting"))];
+    case "Loading":
+      // Staff at the pass: which dishes go on which tray for which table, then Go.
+      return [
+        el("h1", {}, t("robot.loading")),
+        el("p", { class: "sub" }, t("robot.loadingSub")),
+        m.trays.length
+          ? el(
+              "ol",
+              { class: "trays", "aria-label": t("guest.robot.trays") },
+              m.trays.map((tr) =>
+                el(
+                  "li",
+                  { class: "tray", "data-tray": tr.tray },
+                  el("h2", { class: "tray-head" }, t("guest.robot.trayTo", { tray: tr.tray, table: tr.table })),
+                  el("ul", { class: "tray-dishes", "aria-label": t("guest.trayDishes", { tray: tr.tray }) }, dishItems(tr.dishes)),
+                ),
+              ),
+            )
+          : null,
+        bigButton(t("guest.robot.go"), (b) => send(b, "go")),
+        el("p", { class: "sub" }, t("guest.robot.goHint")),
+      ];
     case "Delivering":
       return [
         el("p", { class: "sub" }, t("robot.deliveringTo")),
@@ -77,15 +170,14 @@ function view(robot) {
     case "Stopped":
     case "Error":
       return [
-        el("h1", {}, robot.status === "Stopped" ? t("robot.stopped") : t("robot.stuck")),
-        // The robot's own error text, as the server sends it, after a word in this language.
-        robot.last_error && robot.status === "Error"
-          ? el("p", { class: "sub" }, t("robot.lastError", { message: robot.last_error }))
-          : null,
+        el("h1", {}, m.status === "Stopped" ? t("robot.stopped") : t("robot.stuck")),
+        m.status === "Error" ? el("p", { class: "help" }, t("guest.robot.needHelp")) : null,
+        // What went wrong, in the robot's own words: only for staff logged in on this screen.
+        m.error ? el("p", { class: "sub detail" }, t("robot.lastError", { message: m.error })) : null,
         el(
           "p",
           { class: "sub" },
-          robot.resume === "Transit" ? t("robot.onWayHome") : dest ? t("robot.onWayTo", { table: dest }) : "",
+          m.resume === "Transit" ? t("robot.onWayHome") : dest ? t("robot.onWayTo", { table: dest }) : "",
         ),
         el(
           "div",
@@ -93,20 +185,17 @@ function view(robot) {
           bigButton(t("robot.continue"), (b) => send(b, "continue")),
           bigButton(t("robot.cancel"), (b) => cancelTrip(b), "danger"),
         ),
+        dest && m.resume !== "Transit" ? staffControls(skipButton(m)) : null,
       ];
     case "Delivered":
       return [
         el("p", { class: "sub" }, t("robot.arrived")),
         el("h1", { class: "destination" }, dest ? t("robot.table", { table: dest }) : t("robot.yourTable")),
-        el(
-          "ul",
-          { class: "cart-items", "aria-label": t("robot.yourDishes") },
-          cart.length ? cart.map((o) => el("li", {}, o.dish)) : el("li", { class: "muted" }, t("robot.cartLoading")),
-        ),
+        m.tray ? el("p", { class: "take-tray" }, t("guest.takeTray", { tray: m.tray })) : null,
+        el("ul", { class: "cart-items", "aria-label": t("robot.yourDishes") }, dishItems(m.cart)),
         bigButton(t("robot.collected"), (b) => send(b, "next")),
+        staffControls(skipButton(m)),
       ];
-    case "Loading":
-      return [el("h1", {}, t("robot.loading")), el("p", { class: "sub" }, t("robot.loadingSub"))];
     case "Manual":
       return [el("h1", {}, t("robot.manual")), el("p", { class: "sub" }, t("robot.keepClear"))];
     default:
@@ -148,14 +237,15 @@ function render() {
     return;
   }
   refreshCart(robot);
-  const signature = JSON.stringify([robot.status, robot.resume, robot.last_error, live.destination(name), cart.map((o) => o.id)]);
+  const m = model(robot);
+  const signature = JSON.stringify(m);
   document.body.dataset.status = robot.status;
   const badge = document.getElementById("robot-status");
   badge.textContent = statusName(robot.status);
   badge.style.background = statusColour(robot.status);
   if (signature === shown) return;
   shown = signature;
-  screen.replaceChildren(...view(robot).filter(Boolean));
+  screen.replaceChildren(...view(m).filter(Boolean));
 }
 
 live.addEventListener("change", (e) => {

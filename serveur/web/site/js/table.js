@@ -1,11 +1,13 @@
-// A table's screen: its virtual cart — dishes on the way and served (`order` {table}), plus
-// the ones ready at the pass (from the `orders` topic). URL: /table/<name> or ?table=<name>.
-// Refreshed whenever an order of this table changes.
+// A table's screen: a robot standing at this table (which tray to take, its dishes, and a big
+// "Food collected"), then the table's virtual cart — dishes on a robot and served
+// (`order` {table}), plus the ones ready at the pass (the `orders` topic). The `tasks` topic
+// brings only the trips with a stop at this table. URL: /table/<name> or ?table=<name>.
+// Refreshed whenever an order or a trip of this table changes.
 
 import { Connection } from "./ws.js";
 import { Live } from "./live.js";
-import { el, showError, watchConnection } from "./ui.js";
-import { onLangChange, t } from "./i18n.js";
+import { act, el, showError, toast, watchConnection } from "./ui.js";
+import { dishLabel, onLangChange, t } from "./i18n.js";
 
 const table = tableName();
 const conn = new Connection();
@@ -18,12 +20,14 @@ function titles() {
 titles();
 onLangChange(() => {
   titles();
+  shown = "";
   if (loaded) render();
 });
 
 let cart = [];
 let asking = null;
 let loaded = false; // the orders came: "nothing ..." can be said
+let shown = ""; // what the robot panel shows, so a redraw does not replace a button being pressed
 
 function tableName() {
   const parts = window.location.pathname.split("/").filter(Boolean);
@@ -51,13 +55,72 @@ async function refresh() {
   }
 }
 
+/** The newest copy of an order: the topic's update, else the cart's answer. */
+function order(id) {
+  return live.orders.get(id) || cart.find((o) => o.id === id) || null;
+}
+
+/** The robots standing at this table now: trips whose current stop is here and reached. */
+function arrivals() {
+  const out = [];
+  for (const task of live.tasks.values()) {
+    const stop = task.status === "active" ? task.stops[task.current_stop] : null;
+    if (stop && stop.table === table && stop.status === "arrived" && task.robot) {
+      out.push({ robot: task.robot, task: task.id, stop: stop.seq, orders: stop.orders });
+    }
+  }
+  return out;
+}
+
+async function collected(button, here) {
+  const reply = await act(button, async () => {
+    try {
+      return await conn.request({ clientmsg: "next", robot: here.robot, task: here.task, stop: here.stop });
+    } catch (err) {
+      // The robot left (timed out, or staff skipped): say so in the guest's words.
+      if (["stale", "forbidden", "not_allowed_in_status"].includes(err.code)) {
+        toast(t("guest.table.movedOn"), { kind: "error" });
+        return null;
+      }
+      throw err;
+    }
+  });
+  if (reply) toast(t("guest.table.enjoy"));
+}
+
+function herePanel(here) {
+  const tray = here.stop + 1; // tray k holds the dishes of the stop with seq k-1
+  const labels = here.orders.map((id) => order(id)).map((o) => (o ? dishLabel(o) : t("robot.cartLoading")));
+  return el(
+    "section",
+    { class: "here", "data-robot": here.robot },
+    el("h2", { class: "here-title" }, t("guest.table.here")),
+    el("p", { class: "take-tray" }, t("guest.takeTray", { tray })),
+    el(
+      "ul",
+      { class: "here-dishes", "aria-label": t("guest.trayDishes", { tray }) },
+      labels.map((label) => el("li", {}, label)),
+    ),
+    el("button", { class: "big collected", onclick: (e) => collected(e.currentTarget, here), text: t("robot.collected") }),
+    el("p", { class: "hint" }, t("guest.table.collectedHint")),
+  );
+}
+
 function items(orders, empty) {
   if (!orders.length) return [el("li", { class: "muted" }, empty)];
-  return orders.map((o) => el("li", { "data-order": o.id }, el("span", { class: "dish" }, o.dish)));
+  return orders.map((o) => el("li", { "data-order": o.id }, el("span", { class: "dish" }, dishLabel(o))));
 }
 
 function render() {
-  const coming = cart.filter((o) => o.status === "assigned");
+  const here = arrivals();
+  const onTray = new Set(here.flatMap((h) => h.orders));
+  const panel = JSON.stringify(here.map((h) => [h, h.orders.map((id) => order(id) && dishLabel(order(id)))]));
+  if (panel !== shown) {
+    shown = panel;
+    document.getElementById("here").replaceChildren(...here.map(herePanel));
+  }
+  // On the way: on a robot, except the dishes of a robot already here (shown above).
+  const coming = cart.filter((o) => o.status === "assigned" && !onTray.has(o.id));
   const served = cart.filter((o) => o.status === "delivered");
   const atPass = [...live.orders.values()].filter((o) => o.table === table && o.status === "pending");
   document.getElementById("coming").replaceChildren(...items(coming, t("table.comingEmpty")));
@@ -67,10 +130,14 @@ function render() {
 
 live.addEventListener("change", (e) => {
   const { topic, record } = e.detail;
+  if (topic === "tasks") {
+    if (loaded) render();
+    return;
+  }
   if (topic !== "orders" || (record && record.table !== table)) return;
   loaded = true;
   render();
   refresh();
 });
-conn.subscribe(["orders"]);
+conn.subscribe(["orders", "tasks"]);
 conn.start();
