@@ -31,6 +31,20 @@ def _cmd_replay(ns: argparse.Namespace) -> int:
 
 
 def _replay_command(ns: argparse.Namespace) -> int:
+    bad = [
+        name
+        for name, ok in (
+            ("--load-fixed", ns.load_fixed >= 0),
+            ("--load-per-dish", ns.load_per_dish >= 0),
+            ("--load-spread", ns.load_spread >= 0),
+            ("--away", 0 <= ns.away <= 1),
+            ("--table-timeout", ns.table_timeout >= 0),
+        )
+        if not ok
+    ]
+    if bad:
+        print(f"serveur replay: out of range: {', '.join(bad)}", file=sys.stderr)
+        return 2
     opts = ReplayOptions(
         robots=ns.robots,
         time_scale=ns.time_scale,
@@ -41,6 +55,11 @@ def _replay_command(ns: argparse.Namespace) -> int:
         hold=ns.hold,
         hold_max=ns.hold_max,
         rank=ns.rank,
+        load_fixed=ns.load_fixed,
+        load_per_dish=ns.load_per_dish,
+        load_spread=ns.load_spread,
+        away=ns.away,
+        table_timeout=ns.table_timeout or None,
         progress=not ns.quiet,
     )
     from serveur.replay.service import run_replay
@@ -108,6 +127,41 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
         default="best",
         help="serveur staff: tables first-ready, by plates per robot-second, or the better "
         "(default best)",
+    )
+    d = ReplayOptions()
+    p.add_argument(
+        "--load-fixed",
+        type=float,
+        default=d.load_fixed,
+        help="staff at the pass: seconds to load a trip and press Go, fixed part "
+        f"(default {d.load_fixed:g}; an assumption, see docs/performance.md)",
+    )
+    p.add_argument(
+        "--load-per-dish",
+        type=float,
+        default=d.load_per_dish,
+        help=f"... plus this per plate (default {d.load_per_dish:g})",
+    )
+    p.add_argument(
+        "--load-spread",
+        type=float,
+        default=d.load_spread,
+        help="... times a seeded log-normal factor of this sigma "
+        f"(default {d.load_spread:g}; 0: always the same)",
+    )
+    p.add_argument(
+        "--away",
+        type=float,
+        default=d.away,
+        help="probability a party is away from its table when its food comes, for 3-12 "
+        f"min (default {d.away:g}; seeded)",
+    )
+    p.add_argument(
+        "--table-timeout",
+        type=float,
+        default=d.table_timeout,
+        help="the server's: seconds a robot waits at a table before it goes on and the "
+        f"dishes are returned (default {d.table_timeout:g}; 0: wait for ever)",
     )
     p.add_argument("--out", default="replay-out", help="output directory (default replay-out)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

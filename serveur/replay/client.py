@@ -24,7 +24,15 @@ WAIT = 60.0  # wall seconds any single protocol round trip may take before the r
 
 
 class ReplayError(RuntimeError):
-    """The replay could not run (server refused an instruction, robots never came up...)."""
+    """The replay could not run (server refused an instruction, robots never came up...).
+
+    ``code`` is the server's error code when the server refused an instruction (``stale``:
+    the robot had moved on from the trip or stop the instruction named), else None.
+    """
+
+    def __init__(self, message: str, code: str | None = None) -> None:
+        super().__init__(message)
+        self.code = code
 
 
 class ProtocolClient:
@@ -55,7 +63,8 @@ class ProtocolClient:
         await self.ws.send(json.dumps({"clientmsg": verb, "id": rid, **fields}))
         reply = await asyncio.wait_for(fut, WAIT)
         if reply["servermsg"] != "ok":
-            raise ReplayError(f"{verb} {fields}: {reply.get('code')}: {reply.get('message')}")
+            code = reply.get("code")
+            raise ReplayError(f"{verb} {fields}: {code}: {reply.get('message')}", code)
         return reply
 
     async def close(self) -> None:

@@ -1,10 +1,29 @@
-"""The replay's pure parts: its options, the guests' dwell model and what a replay measured.
+"""The replay's pure parts: its options, the guests' and the pass's models, what a replay measured.
 
 Split from :mod:`serveur.replay.service` because none of it needs a server, an event loop or
 a socket: the benchmark's analytic model (``bench/policy_model.py``) prices trips with the very same
 guests (:func:`stop_dwell`), the tests check the statistics on hand-made numbers, and
 :mod:`serveur.replay.report` reads :class:`PolicyResult` — all without importing the server.
 Everything here is also importable from :mod:`serveur.replay.service`.
+
+The models and where their numbers come from (none is a measurement of a real restaurant: each
+is an assumption, stated here, and each has an option so a site can put its own figures in):
+
+* **dwell** (:func:`dish_dwell`, :func:`stop_dwell`): guests take 6-20 s to notice the robot
+  and lift a dish, a long tail to 40 s, 2 s more per extra plate;
+* **loading at the pass** (:func:`loading_time`): since the dinner service, a trip waits at
+  the pass (status ``Loading``) until staff have put its plates on the trays and pressed Go.
+  Staff take a fixed part (walk to the robot, read the trip's trays on its screen, press Go:
+  ``load_fixed``, 10 s) plus a part per plate (lift it off the pass onto its tray:
+  ``load_per_dish``, 4 s), times a seeded spread (log-normal, ``load_spread`` 0.3: half the
+  trips within -18 %/+22 % of that, one in a hundred twice as long: a crowded pass). No
+  published timing of tray loading was found; these are an assumption sized on carrying
+  plates by hand (a plate every few seconds);
+* **guests away** (:func:`absences`): with probability ``away`` (3 %) a party is away from its
+  table (a smoke, a phone call, the washroom) from the moment its first dish is ready, for
+  3-12 minutes (uniform). A robot that arrives meanwhile waits; if they are not back within
+  the server's ``table_timeout`` (180 s, the server's default) it skips the table and the
+  dishes go back to the pass, for staff to send again. Also an assumption: no source.
 """
 
 from __future__ import annotations
@@ -15,13 +34,19 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from serveur.replay.orders import LogOrder, parties
+
 __all__ = [
     "POLICIES",
+    "Absence",
     "PolicyResult",
     "ReplayOptions",
+    "absences",
     "dish_dwell",
+    "loading_time",
     "peak_utilisation",
     "percentile",
+    "service_events",
     "stop_dwell",
 ]
 
@@ -42,6 +67,12 @@ class ReplayOptions:
     hold_max: float = 60.0  # ... growing to this as tables queue (scheduler.adaptive_hold)
     rank: str = "best"  # serveur staff: how tables are ranked (scheduler.RANKS)
     lookahead: float = 60.0  # the kitchen display shows dishes this far ahead of ready
+    # Loading at the pass (loading_time): fixed s a trip + s a plate, times a seeded spread.
+    load_fixed: float = 10.0
+    load_per_dish: float = 4.0
+    load_spread: float = 0.3  # sigma of the log-normal factor (0: always the mean)
+    away: float = 0.03  # probability a party is away when its food comes (absences)
+    table_timeout: float | None = 180.0  # the server's: a robot waits this long at a table
     overtime: float = 3600.0  # give up this long after the last dish was ready
     progress: bool = True
 
@@ -61,6 +92,48 @@ def stop_dwell(seed: int, lines: Sequence[int]) -> float:
     if not lines:
         return 0.0
     return max(dish_dwell(seed, n) for n in lines) + 2.0 * (len(lines) - 1)
+
+
+def loading_time(opts: ReplayOptions, key: int, dishes: int) -> float:
+    """Seconds staff take to load a trip of ``dishes`` plates and press Go (seeded by ``key``,
+    the trip's first log line, so the same cart loads as fast under either policy)."""
+    base = opts.load_fixed + opts.load_per_dish * dishes
+    if base <= 0.0:
+        return 0.0
+    factor = 1.0
+    if opts.load_spread > 0.0:
+        rng = random.Random(f"load:{opts.seed}:{key}:{dishes}")
+        factor = min(3.0, max(0.5, rng.lognormvariate(0.0, opts.load_spread)))
+    return round(base * factor, 1)
+
+
+#: How long a party is away when it is (seconds, uniform): see the module's docstring.
+AWAY_FOR = (180.0, 720.0)
+
+
+@dataclass(frozen=True, slots=True)
+class Absence:
+    """A party away from ``table`` from ``start`` to ``end`` (seconds of service); ``line``:
+    its first dish's log line."""
+
+    table: str
+    start: float
+    end: float
+    line: int
+
+
+def absences(orders: Sequence[LogOrder], seed: int, away: float) -> list[Absence]:
+    """The parties of a log (:func:`serveur.replay.orders.parties`) that are away when their
+    food comes: each with probability ``away``, seeded per party by its first dish's line,
+    from its first dish's ready time for :data:`AWAY_FOR` seconds."""
+    out = []
+    for party in parties(orders):
+        first = party[0]
+        rng = random.Random(f"away:{seed}:{first.line}")
+        if rng.random() < away:
+            end = first.ready_at + rng.uniform(*AWAY_FOR)
+            out.append(Absence(first.table, first.ready_at, end, first.line))
+    return out
 
 
 def peak_utilisation(
@@ -97,6 +170,50 @@ def percentile(values: Sequence[float], q: float) -> float:
 
 
 @dataclass
+class ServiceEvents:
+    """The dinner service's steps as the server's event log recorded them.
+
+    ``loading``: robot -> seconds it spent ``Loading`` at the pass; ``timeouts``: stops the
+    server skipped because nobody collected (``stop.skipped`` with no person behind it);
+    ``skips``: stops staff skipped; ``returned`` / ``resent``: order id -> how many times the
+    dish came back to the pass / was sent again (``order.ready`` from ``returned``).
+    """
+
+    loading: dict[str, float] = field(default_factory=dict)
+    timeouts: int = 0
+    skips: int = 0
+    returned: dict[int, int] = field(default_factory=dict)
+    resent: dict[int, int] = field(default_factory=dict)
+
+
+def service_events(events: Sequence[dict[str, Any]], end: float) -> ServiceEvents:
+    """Read :class:`ServiceEvents` off event records (``ts``, ``kind``, ``robot``,
+    ``order_id``, ``data``; oldest first), a robot still Loading at ``end`` counted to it."""
+    out = ServiceEvents()
+    since: dict[str, float] = {}  # robot -> when it entered Loading
+    for e in events:
+        kind, data, robot = e["kind"], e.get("data") or {}, e.get("robot")
+        if kind.startswith("robot.") and robot is not None and "status" in data:
+            if robot in since and data["status"] != "Loading":
+                out.loading[robot] = out.loading.get(robot, 0.0) + e["ts"] - since.pop(robot)
+            if data["status"] == "Loading" and robot not in since:
+                since[robot] = e["ts"]
+        elif kind == "stop.skipped":
+            if data.get("by") is None:
+                out.timeouts += 1
+            else:
+                out.skips += 1
+            for oid in data.get("orders", []):
+                out.returned[oid] = out.returned.get(oid, 0) + 1
+        elif kind == "order.ready" and data.get("from") == "returned":
+            oid = e["order_id"]
+            out.resent[oid] = out.resent.get(oid, 0) + 1
+    for robot, t in since.items():
+        out.loading[robot] = out.loading.get(robot, 0.0) + max(0.0, end - t)
+    return out
+
+
+@dataclass
 class PolicyResult:
     """Everything one replay measured (service times in seconds from opening)."""
 
@@ -110,6 +227,16 @@ class PolicyResult:
     recoveries: int = 0
     sim_seconds: float = 0.0
     wall_seconds: float = 0.0
+    #: The dinner service, from the server's event log (:func:`service_events`): seconds
+    #: robots spent Loading, tables timed out, dishes returned and sent again.
+    loading: float = 0.0
+    table_timeouts: int = 0
+    staff_skips: int = 0
+    returned: int = 0
+    resent: int = 0
+    #: What the replay's players did, to check the event log against: Go pressed, loading
+    #: seconds staff took, dishes sent again, stops the guests were back too late for.
+    players: dict[str, Any] = field(default_factory=dict)
 
     def waits(self) -> list[float]:
         return [o["wait"] for o in self.orders if o["wait"] is not None]
@@ -138,5 +265,14 @@ class PolicyResult:
             "recoveries": self.recoveries,
             "peak_utilisation": peak_utilisation(
                 [[(a, b) for a, b in r.get("busy_spans", [])] for r in self.robots]
+            ),
+            "loading_s": self.loading,
+            "loading_per_trip": self.loading / len(trips) if trips else 0.0,
+            "table_timeouts": self.table_timeouts,
+            "staff_skips": self.staff_skips,
+            "returned": self.returned,
+            "resent": self.resent,
+            "resent_delivered": sum(
+                1 for o in self.orders if o.get("resent") and o["wait"] is not None
             ),
         }

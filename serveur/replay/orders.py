@@ -42,6 +42,7 @@ __all__ = [
     "generate_orders",
     "map_tables",
     "parse_orders",
+    "parties",
     "read_orders",
 ]
 
@@ -155,6 +156,28 @@ def read_orders(path: str | Path, *, tables: Collection[str] | None = None) -> l
     except (OSError, UnicodeDecodeError) as exc:
         raise OrderLogError(str(p), [(0, f"cannot read the file: {exc}")]) from exc
     return parse_orders(text, tables=tables, source=str(p))
+
+
+#: Dishes for one table less than this apart (s) belong to one party (a generated party's
+#: dishes leave within :data:`_SPREAD` of each other; a table's next party sits down 45 min on).
+PARTY_GAP = 600.0
+
+
+def parties(orders: Iterable[LogOrder], gap: float = PARTY_GAP) -> list[list[LogOrder]]:
+    """The log's parties: each table's dishes, cut where ``gap`` seconds pass without one.
+
+    A log has no party column (a kitchen display exports dishes), so a party is read off the
+    times: its dishes come out together. Parties in the order of their first dish.
+    """
+    open_: dict[str, list[LogOrder]] = {}
+    out: list[list[LogOrder]] = []
+    for o in sorted(orders, key=lambda o: (o.ready_at, o.line)):
+        party = open_.get(o.table)
+        if party is None or o.ready_at - party[-1].ready_at > gap:
+            party = open_[o.table] = []
+            out.append(party)
+        party.append(o)
+    return out
 
 
 def format_orders(orders: Iterable[LogOrder]) -> str:

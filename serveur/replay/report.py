@@ -230,6 +230,19 @@ def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOpti
         ),
         ("dishes per trip", [f"{stats[n]['dishes_per_trip']:.1f}" for n in names]),
         ("tables per trip", [f"{stats[n]['tables_per_trip']:.1f}" for n in names]),
+        (
+            "loading at the pass: total / per trip",
+            [
+                f"{round(stats[n]['loading_s'] / 60):d} min / "
+                f"{round(stats[n]['loading_per_trip']):d} s"
+                for n in names
+            ],
+        ),
+        ("table timeouts", [str(stats[n]["table_timeouts"]) for n in names]),
+        (
+            "dishes returned / re-sent",
+            [f"{stats[n]['returned']} / {stats[n]['resent']}" for n in names],
+        ),
     ]
     # Robots busiest first, not by name: which of two equal robots took a trip depends on
     # which came home a few milliseconds earlier, and the summary should not flip with that.
@@ -246,8 +259,13 @@ def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOpti
     lines = [
         f"serveur replay of {source}: {stats[names[0]]['orders']} dishes, {opts.robots} robots, "
         f"seed {opts.seed}, capacity {opts.capacity} tables",
-        "wait = dish ready at the pass -> guest pressed Food collected (server's records);",
+        "wait = dish first ready at the pass -> guest pressed Food collected (server's records;",
+        "a dish returned from a table and re-sent counts from its first ready time);",
         "lower bound = path home->table at max speed + the dish's own guest dwell.",
+        f"Loading: {opts.load_fixed:g} s + {opts.load_per_dish:g} s a plate (spread "
+        f"{opts.load_spread:g}); parties away: {100 * opts.away:g} %; table timeout: "
+        + ("off" if opts.table_timeout is None else f"{opts.table_timeout:g} s")
+        + ".",
         "",
         " " * width + "".join(f"{n:>{colw}}" for n in names),
     ]
@@ -271,6 +289,7 @@ def _report(results: dict[str, PolicyResult], source: str, opts: ReplayOptions) 
                 "orders": r.orders,
                 "sim_seconds": r.sim_seconds,
                 "wall_seconds": r.wall_seconds,
+                "players": r.players,
             }
             for name, r in results.items()
         },

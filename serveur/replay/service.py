@@ -18,8 +18,14 @@ the staff console. The replay itself is only a client of the websocket protocol
   soonest: a free robot now, or one due back from its trip; tables with the most plates per
   robot-second choose first; a hold for a table's next dish seen on the kitchen display,
   10 s growing to 60 s as tables queue) — both in :mod:`serveur.replay.staff`;
+* **the staff** also load each trip at the pass: the server runs as a site does
+  (``auto_depart`` off), so a robot given a trip waits ``Loading`` until staff press Go after
+  a seeded loading time (:func:`~serveur.replay.model.loading_time`), and dishes returned from
+  a table that timed out are sent again once their robot is back at the pass;
 * **the guests** press "Food collected" (``next``) a seeded dwell time after the robot stops
-  (:mod:`serveur.replay.guests`).
+  (:mod:`serveur.replay.guests`); a few parties are away when their food comes
+  (:func:`~serveur.replay.model.absences`), and the server's ``table_timeout`` sends the
+  robot on without them.
 
 The server runs with ``CoreConfig(policy=...)``: ``baseline`` visits tables in cart order,
 ``serveur`` plans trips by area and stops by shortest route. Waits (ready -> collected) come
@@ -64,9 +70,11 @@ from serveur.replay.model import (
     POLICIES,
     PolicyResult,
     ReplayOptions,
+    absences,
     dish_dwell,
     peak_utilisation,
     percentile,
+    service_events,
     stop_dwell,
 )
 from serveur.replay.orders import LogOrder
@@ -117,9 +125,14 @@ class _Service:
         self._scale = opts.time_scale or 1.0
         self.console = Console(clock)
         self.finished = asyncio.Event()
-        self.staff = Staff(self.console, self.log, opts, policy, self.finished)
+        self.staff = Staff(self.console, self.log, opts, policy, self.finished, self._spawn)
         self.guests = Guests(
-            self.console, opts.seed, self.staff.line_of, len(self.log), self.finished
+            self.console,
+            opts.seed,
+            self.staff.line_of,
+            len(self.log),
+            self.finished,
+            absences(self.log, opts.seed, opts.away),
         )
         self.busy: dict[str, float] = {}
         self.busy_since: dict[str, float] = {}
@@ -173,6 +186,8 @@ class _Service:
                 self.spans.setdefault(name, []).append((since, self.now()))
         if status == "Awaiting":
             self.staff.robot_home(name)
+        elif status == "Loading":
+            self.staff.robot_loading(name, robot)
         if status == "Delivered":
             task = self.console.tasks.get(robot["current_task"] or -1)
             if task is not None and task["current_stop"] < len(task["stops"]):
@@ -180,7 +195,11 @@ class _Service:
                 key = (task["id"], stop["seq"])
                 if key not in self.served:
                     self.served.add(key)
-                    self._spawn(self.guests.collect(name, stop["orders"]))
+                    self._spawn(
+                        self.guests.collect(
+                            name, task["id"], stop["seq"], stop["table"], stop["orders"]
+                        )
+                    )
         elif status == "Error":
             self.nav_errors += 1
             self._spawn(self.staff.rescue(name))
@@ -365,6 +384,21 @@ class _Service:
                     "finished": None if t.finished_at is None else t.finished_at - epoch0,
                 }
             )
+        events: list[dict[str, Any]] = []
+        last = 0
+        while batch := await store.list_events(since_id=last, limit=1000):
+            last = batch[-1].id
+            events += [
+                {
+                    "ts": e.ts - epoch0,
+                    "kind": e.kind,
+                    "robot": e.robot,
+                    "order_id": e.order_id,
+                    "data": e.data,
+                }
+                for e in batch
+            ]
+        ev = service_events(events, self.now())
         lines = dict(self.staff.line_of)
         for o in await store.list_orders():
             line = lines.get(o.id)
@@ -372,23 +406,41 @@ class _Service:
                 continue
             lo = by_line[line]
             travel = min(self.console.distance(h, o.table) for h in homes) / vmax if homes else 0.0
-            wait = None if o.delivered_at is None else o.delivered_at - o.ready_at
+            # From the first time the dish was ready: a dish sent again waited all along.
+            first = self.staff.first_ready.get(o.id, o.ready_at or 0.0)
+            wait = None if o.delivered_at is None else o.delivered_at - first
             result.orders.append(
                 {
                     "line": line,
                     "table": o.table,
                     "dish": o.dish,
                     "ready_at": lo.ready_at,
-                    "created": o.ready_at - epoch0,
+                    "created": first - epoch0,
                     "collected": None if o.delivered_at is None else o.delivered_at - epoch0,
                     "wait": wait,
                     "lower_bound": travel + dish_dwell(self.opts.seed, line),
                     "robot": robot_of.get(o.task_id or -1),
                     "task": o.task_id,
+                    "status": o.status.value,
+                    "returned": ev.returned.get(o.id, 0),
+                    "resent": ev.resent.get(o.id, 0),
                 }
             )
         result.orders.sort(key=lambda d: d["line"])
         result.undelivered = len(self.log) - sum(1 for o in result.orders if o["wait"] is not None)
+        result.loading = sum(ev.loading.values())
+        result.table_timeouts = ev.timeouts
+        result.staff_skips = ev.skips
+        result.returned = sum(ev.returned.values())
+        result.resent = sum(ev.resent.values())
+        staff = self.staff
+        result.players = {
+            "go_pressed": len(staff.loaded),
+            "loading_s": sum(staff.loaded.values()),
+            "resent": staff.resent,
+            "guests_missed": len(self.guests.missed),
+            "parties_away": sum(len(a) for a in self.guests.away.values()),
+        }
         for name in sorted(robots):
             pts = result.paths.get(name, [])
             dist = sum(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in itertools.pairwise(pts))
@@ -404,6 +456,7 @@ class _Service:
                     "distance": dist,
                     "busy": busy,
                     "trips": trips,
+                    "loading": ev.loading.get(name, 0.0),
                     "busy_spans": [[round(a, 1), round(b, 1)] for a, b in spans],
                 }
             )

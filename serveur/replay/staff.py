@@ -5,8 +5,15 @@ people at the pass do under each policy — and it reads best on its own. :class
 only through a :class:`~serveur.replay.client.Console` (the robots and trips the server's
 updates show, and protocol instructions); the service tells it when a robot leaves or comes
 back (:meth:`Staff.robot_left`, :meth:`Staff.robot_home`), when the pass is worth another
-look (:meth:`Staff.look_again`) and when a dish came back from a cancelled trip
-(:meth:`Staff.on_order`).
+look (:meth:`Staff.look_again`), when a robot waits at the pass for its trays
+(:meth:`Staff.robot_loading`) and when a dish came back from a cancelled trip or a table that
+timed out (:meth:`Staff.on_order`).
+
+The server runs as a site does: a trip given to a robot waits at the pass (``Loading``) until
+staff have loaded its trays and pressed Go; staff take
+:func:`serveur.replay.model.loading_time` for it (a fixed part and a part per plate, seeded).
+A dish returned from a table nobody collected at comes back on its robot: once that robot is
+at the pass again, staff send it again (``dish`` ``ready``: pending, then a new cart).
 
 * the ``baseline`` staff fill each cart first-in first-out up to the tray's tables
   (:func:`serveur.scheduler.fifo_cart`, the design report);
@@ -20,11 +27,11 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Coroutine, Sequence
 from typing import Any
 
 from serveur.replay.client import Console, ReplayError
-from serveur.replay.model import ReplayOptions
+from serveur.replay.model import ReplayOptions, loading_time
 from serveur.replay.orders import LogOrder
 from serveur.scheduler import Dish, TripEstimate, fifo_cart, suggest_carts
 
@@ -38,7 +45,9 @@ class Staff:
 
     ``line_of`` (server order id -> log line) is filled as the kitchen creates dishes; the
     guests key their dwell by it and the service its records. :attr:`recoveries` counts the
-    robots staff had to take in manual control.
+    robots staff had to take in manual control, :attr:`loaded` each trip's loading time
+    (task id -> s, Go pressed), :attr:`resent` the returned dishes sent again. ``spawn`` runs
+    a player's job (loading a robot, sending dishes again) beside the pass's loop.
     """
 
     def __init__(
@@ -48,13 +57,22 @@ class Staff:
         opts: ReplayOptions,
         policy: str,
         finished: asyncio.Event,
+        spawn: Callable[[Coroutine[Any, Any, None]], None],
     ) -> None:
         self.console = console
         self.log = log
         self.opts = opts
         self.policy = policy
         self.finished = finished
+        self.spawn = spawn
         self.line_of: dict[int, int] = {}  # server order id -> log line (dwell key)
+        self.ready_of: dict[int, float] = {}  # server order id -> log ready_at (service s)
+        self.first_ready: dict[int, float] = {}  # server order id -> its first ready stamp
+        self.task_of: dict[int, int] = {}  # server order id -> the trip it last rode
+        self.returned: dict[str, list[int]] = {}  # robot -> dishes it brings back to the pass
+        self.loading: set[int] = set()  # trips being loaded
+        self.loaded: dict[int, float] = {}
+        self.resent = 0
         self.pending: dict[int, Dish] = {}  # server order id -> dish, not yet carted
         self.created = 0  # dishes of the log the kitchen has put on the pass
         self.carted: set[int] = set()
@@ -82,20 +100,71 @@ class Staff:
         if task is None or not home:
             return
         stops = [(s["table"], len(s["orders"])) for s in task["stops"]]
-        self.eta[name] = c.now() + TripEstimate().trip(home, stops, c.distance)
+        dishes = sum(n for _, n in stops)
+        loading = 0.0
+        if robot.get("status") == "Loading":  # staff's rule of thumb: the model's mean
+            loading = self.opts.load_fixed + self.opts.load_per_dish * dishes
+        self.eta[name] = c.now() + loading + TripEstimate().trip(home, stops, c.distance)
 
     def robot_home(self, name: str) -> None:
-        """The robot is back and Awaiting: nobody expects it anymore."""
+        """The robot is back at the pass: nobody expects it anymore, and the dishes it
+        brought back from a table that timed out are sent again."""
         self.eta.pop(name, None)
+        back = self.returned.pop(name, [])
+        if back:
+            self.spawn(self._send_again(back))
+
+    def robot_loading(self, name: str, robot: dict[str, Any]) -> None:
+        """A trip waits at the pass on ``name``: staff load its trays, then press Go."""
+        self.robot_home(name)  # at the pass: what it brought back is unloaded first
+        task = robot.get("current_task")
+        if task is not None and task not in self.loading:
+            self.loading.add(task)
+            self.spawn(self._load(name, task))
 
     def on_order(self, order: dict[str, Any]) -> None:
-        """A dish back to ``pending`` after its trip was cancelled goes on a new cart."""
+        """A dish back to ``pending`` (its trip cancelled, or sent again after it was
+        returned) goes on a new cart; a returned dish rides back to the pass on its robot."""
         oid = order["id"]
-        if order["status"] == "pending" and oid in self.carted and oid in self.line_of:
+        if order.get("task_id") is not None:
+            self.task_of[oid] = order["task_id"]
+        status = order["status"]
+        if status == "pending" and oid in self.carted and oid in self.line_of:
             self.carted.discard(oid)
-            line = self.line_of[oid]
-            ready = next(o.ready_at for o in self.log if o.line == line)
-            self.pending[oid] = Dish(oid, order["table"], ready)
+            self.pending[oid] = Dish(oid, order["table"], self.ready_of[oid])
+            self.wake.set()
+        elif status == "returned" and oid in self.line_of:
+            task = self.console.tasks.get(self.task_of.get(oid, -1), {})
+            robot = task.get("robot")
+            r = self.console.robots.get(robot or "", {})
+            at_pass = r.get("status") in ("Awaiting", "Loading")
+            if robot is None or (at_pass and r.get("current_task") != task.get("id")):
+                self.spawn(self._send_again([oid]))  # its robot is at the pass already
+            else:
+                self.returned.setdefault(robot, []).append(oid)
+
+    async def _load(self, robot: str, task_id: int) -> None:
+        """Load the trip's plates (:func:`loading_time`), then press Go for it."""
+        c = self.console
+        await c.until(lambda: task_id in c.tasks and c.tasks[task_id]["stops"], f"trip {task_id}")
+        orders = [oid for s in c.tasks[task_id]["stops"] for oid in s["orders"]]
+        key = min((self.line_of.get(o, 0) for o in orders), default=0)
+        secs = loading_time(self.opts, key, len(orders))
+        await c.clock.sleep(secs)
+        try:
+            await c.call("go", robot=robot, task=task_id)
+        except ReplayError as exc:
+            # The trip was taken back meanwhile (the robot's link was lost): nothing to send.
+            if exc.code not in ("stale", "not_allowed_in_status"):
+                raise
+            return
+        self.loaded[task_id] = secs
+
+    async def _send_again(self, orders: list[int]) -> None:
+        """Returned dishes back on the pass: ready again (pending), for a new cart."""
+        for oid in orders:
+            await self.console.call("dish", order=oid, action="ready", status="returned")
+            self.resent += 1
 
     # the pass --------------------------------------------------------------------------
 
@@ -138,6 +207,8 @@ class Staff:
             )
             oid = reply["order"]["id"]
             self.line_of[oid] = o.line
+            self.ready_of[oid] = o.ready_at
+            self.first_ready[oid] = reply["order"]["ready_at"]
             self.pending[oid] = Dish(oid, o.table, o.ready_at)
             self.created += 1
 
@@ -194,7 +265,7 @@ class Staff:
         out = []
         for name, r in self.console.robots.items():
             eta = self.eta.get(name)
-            if eta is None or r["status"] not in ("Delivering", "Delivered", "Transit"):
+            if eta is None or r["status"] not in ("Loading", "Delivering", "Delivered", "Transit"):
                 continue
             if now - eta <= 15.0:
                 out.append(max(1.0, eta - now))

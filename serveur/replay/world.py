@@ -70,8 +70,10 @@ def server_config(opts: ReplayOptions, policy: str) -> tuple[CoreConfig, Securit
         moving_pose_ms=500 if fast else 0,
         status_ms=int(min(1000.0, 250.0 * heartbeat)) if fast else 0,
         battery_ms=30_000 if fast else 0,  # 1 % of charge takes minutes
-        auto_depart=True,
-        table_timeout=None,
+        # As a site runs: a trip waits at the pass until the replay's staff press Go, and a
+        # robot nobody collects from moves on after the timeout (simulated s; None: never).
+        auto_depart=False,
+        table_timeout=opts.table_timeout,
     )
     # The per-connection rate limit counts wall seconds, but the replay's one client
     # speaks for a whole kitchen and staff in accelerated time: at 200x a rush is
