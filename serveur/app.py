@@ -37,11 +37,13 @@ class RobotSpec:
     kinematics: str = "omni"
     #: ROS name options (serveur.robots.names): ns, move_base, cmd_vel, pose, ..., frame.
     link: Mapping[str, str] = field(default_factory=dict)
+    #: Tables one trip may serve (a tray each); None: the site's default (``--trays``).
+    trays: int | None = None
 
 
 def parse_robot_spec(text: str) -> RobotSpec:
-    """``NAME=URL[,home=WAYPOINT][,kinematics=omni|diff][,ns=/r1][,OPTION=NAME...]`` as given to
-    ``--robot``; the ROS name options are those of :class:`~serveur.robots.names.RosNames`."""
+    """``NAME=URL[,home=WP][,kinematics=omni|diff][,trays=N][,ns=/r1][,OPTION=NAME...]`` as given
+    to ``--robot``; the ROS name options are those of :class:`~serveur.robots.names.RosNames`."""
     name, sep, rest = text.partition("=")
     if not sep or not name or not rest:
         raise ValueError(f"--robot wants NAME=URL[,home=WAYPOINT], got {text!r}")
@@ -50,19 +52,25 @@ def parse_robot_spec(text: str) -> RobotSpec:
     link: dict[str, str] = {}
     for opt in opts:
         k, sep, v = opt.partition("=")
-        if sep and k in ("home", "kinematics"):
+        if sep and k in ("home", "kinematics", "trays"):
             fields[k] = v
         elif sep and k in OPTION_KEYS:
             link[k] = v
         else:
             raise ValueError(
-                f"unknown robot option {opt!r} (home=, kinematics=, {'=, '.join(OPTION_KEYS)}=)"
+                f"unknown robot option {opt!r}"
+                f" (home=, kinematics=, trays=, {'=, '.join(OPTION_KEYS)}=)"
             )
     RosNames.from_options(link)  # a bad name is refused here, not on the robot
     kinematics = fields.get("kinematics", "omni")
     if kinematics not in ("omni", "diff"):
         raise ValueError(f"kinematics must be omni or diff, not {kinematics!r}")
-    return RobotSpec(name, url, fields.get("home"), kinematics, link)
+    trays = None
+    if "trays" in fields:
+        if not fields["trays"].isdigit() or not 1 <= int(fields["trays"]) <= 12:
+            raise ValueError(f"trays must be a whole number from 1 to 12, not {fields['trays']!r}")
+        trays = int(fields["trays"])
+    return RobotSpec(name, url, fields.get("home"), kinematics, link, trays)
 
 
 class App:
@@ -180,6 +188,8 @@ class App:
             )
         except Conflict:
             await self.store.update_robot(spec.name, url=spec.url, home=spec.home, link=spec.link)
+        if spec.trays is not None:
+            await self.store.set_trays(spec.name, spec.trays, now=now)
 
     @property
     def url(self) -> str:

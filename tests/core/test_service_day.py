@@ -37,6 +37,13 @@ async def staff(r: Restaurant) -> Client:
     return c
 
 
+async def owner_of(r: Restaurant) -> Client:
+    owner = Client(await connect(r.app.url))
+    r.clients.append(owner)
+    await owner.ok("login", username="owner", password=r.app.first_owner_password)
+    return owner
+
+
 async def loaded_trip(c: Client, *items: tuple[str, str]) -> dict[str, Any]:
     """A cart given to r1, loaded at the pass (Loading), not yet sent."""
     await activate(c, "r1")
@@ -230,10 +237,7 @@ async def test_the_menu_is_in_the_database_and_the_owner_edits_it(pass_site: Res
     menu = c.records["menu"]
     assert "Laksa" in menu and menu["Teh tarik"]["category"] == "Drinks"
     await c.error("create", "forbidden", type="dish", name="Mee goreng")  # staff may not
-    owner = Client(await connect(pass_site.app.url))
-    pass_site.clients.append(owner)
-    password = pass_site.app.first_owner_password
-    await owner.ok("login", username="owner", password=password)
+    owner = await owner_of(pass_site)
     dish = (
         await owner.ok(
             "create", type="dish", name="Mee goreng", category="Mains", price_cents=850, position=9
@@ -249,3 +253,22 @@ async def test_the_menu_is_in_the_database_and_the_owner_edits_it(pass_site: Res
     await c.until(lambda: "Mee goreng" in c.records["menu"], what="menu pushed")
     await owner.ok("create", type="dish", name="Cendol", category="Desserts", available=False)
     await c.until(lambda: c.records["menu"]["Cendol"]["available"] is False)
+
+
+async def test_a_trip_goes_to_a_robot_with_a_tray_for_each_of_its_tables(tmp_path: Path) -> None:
+    async with restaurant(tmp_path, robots=2, config=site()) as r:
+        c = await staff(r)
+        # r1 has one tray (registered again with trays=1); r2 the site's four.
+        spec = r.specs[0]
+        owner = await owner_of(r)
+        again = await owner.ok(
+            "create", type="robot", name=spec.name, url=spec.url, home=spec.home, trays=1
+        )
+        assert again["robot"]["trays"] == 1
+        await activate(c, "r1")
+        await activate(c, "r2")
+        ids = await new_orders(c, ("Laksa", "T1"), ("Satay", "T12"))
+        [task] = (await c.ok("create", type="task", orders=ids))["tasks"]
+        await c.status("r2", "Loading")
+        assert c.robot("r2")["current_task"] == task["id"]
+        assert c.robot("r1")["status"] == "Awaiting"  # waited longer, but has one tray

@@ -53,6 +53,9 @@ def test_robot_spec_takes_link_options() -> None:
     assert (spec.home, dict(spec.link)) == ("home1", {"ns": "/r1", "frame": "world"})
     with pytest.raises(ValueError, match="unknown robot option"):
         parse_robot_spec("r1=ws://h:9090,namespace=/r1")
+    assert parse_robot_spec("r1=ws://h:9090,trays=2").trays == 2
+    with pytest.raises(ValueError, match="trays"):
+        parse_robot_spec("r1=ws://h:9090,trays=0")
     with pytest.raises(ValueError, match="not a valid ROS name"):
         parse_robot_spec("r1=ws://h:9090,ns=/r 1")
     assert set(OPTION_KEYS) >= {"ns", "move_base", "cmd_vel", "pose", "frame"}
