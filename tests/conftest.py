@@ -113,7 +113,16 @@ class Client:
 
     def _apply(self, topic: str, data: Any) -> None:
         keys = {"robots": "name", "waypoints": "name", "menu": "dish", "blocks": "table"}
-        if topic in ("robots", "orders", "tasks", "waypoints", "events", "alerts", "menu", "blocks"):
+        if topic in (
+            "robots",
+            "orders",
+            "tasks",
+            "waypoints",
+            "events",
+            "alerts",
+            "menu",
+            "blocks",
+        ):
             self.records.setdefault(topic, {})[data[keys.get(topic, "id")]] = data
         else:
             self.streams[topic] = data

@@ -129,7 +129,10 @@ def check_robots(snap: Snapshot) -> None:
         if effective in ("Delivering", "Delivered"):
             assert task_id is not None, (name, r)
         if task_id is not None:
-            assert effective in ("Loading", "Delivering", "Delivered", "Stopped", "Error"), (name, r)
+            assert effective in ("Loading", "Delivering", "Delivered", "Stopped", "Error"), (
+                name,
+                r,
+            )
             task = snap.tasks[task_id]
             assert task["status"] == "active" and task["robot_name"] == name, (r, task)
             if effective == "Delivered":

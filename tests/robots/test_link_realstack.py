@@ -26,7 +26,8 @@ from tests.conftest import TIME_SCALE, Client, Restaurant, restaurant
 from tests.conftest import poll_until as until
 from tests.test_e2e import activate, new_orders, serve_current_stop, staff
 
-CONFIG = CoreConfig(ack_timeout=3.0, auto_depart=True)  # the defaults otherwise: the heartbeat a site gets
+# The defaults otherwise: the heartbeat a site gets.
+CONFIG = CoreConfig(ack_timeout=3.0, auto_depart=True)
 
 
 @contextlib.asynccontextmanager
