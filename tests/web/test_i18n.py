@@ -28,6 +28,7 @@ from serveur.web.static import StaticSite
 SITE = Path(__file__).resolve().parents[2] / "serveur" / "web" / "site"
 LANGS = ("en", "zh", "ms")
 
+
 def _load(folder: Path) -> dict[str, dict[str, Any]]:
     return {lang: json.loads((folder / f"{lang}.json").read_text("utf-8")) for lang in LANGS}
 
