@@ -102,7 +102,7 @@ def loading_time(opts: ReplayOptions, key: int, dishes: int) -> float:
         return 0.0
     factor = 1.0
     if opts.load_spread > 0.0:
-        rng = random.Random(f"load:{opts.seed}:{key}:{dishes}")
+        rng = random.Random(f"load:{opts.seed}:{key}")
         factor = min(3.0, max(0.5, rng.lognormvariate(0.0, opts.load_spread)))
     return round(base * factor, 1)
 

@@ -72,6 +72,11 @@ def test_a_bad_log_is_refused_before_anything_starts(tmp_path: Path) -> None:
     log.write_text("ready_at,table,dish\n5,T2,Laksa\n6,Nowhere,Satay\n")
     assert main(["replay", str(log), *ARGS, "--out", str(tmp_path / "out")]) == 2
     assert not (tmp_path / "out").exists()
+    log.write_text(LOG)
+    out = ["--out", str(tmp_path / "o")]
+    assert main(["replay", str(log), *ARGS, "--away", "1.5", *out]) == 2
+    assert main(["replay", str(log), *ARGS, "--load-fixed", "-1", *out]) == 2
+    assert not (tmp_path / "o").exists()
 
 
 def _trips(policy: dict[str, Any]) -> list[tuple[tuple[str, ...], int]]:
@@ -98,6 +103,12 @@ def test_short_replay_both_policies_and_again(tmp_path: Path) -> None:
         for r in pol["robots"]:  # the spans add up to the busy time
             assert sum(b - a for a, b in r["busy_spans"]) == pytest.approx(r["busy"], abs=0.5)
         assert 0 < s["peak_utilisation"] <= 1
+        # Every trip waited Loading at the pass for the staff's Go (the server runs as a site
+        # does); nobody was away in this service (seed 3: no table timed out).
+        assert s["loading_s"] > 0 and s["loading_per_trip"] >= 10.0, name
+        assert all(r["loading"] > 0 for r in pol["robots"])
+        assert pol["players"]["go_pressed"] >= s["trips"]
+        assert s["table_timeouts"] == s["returned"] == s["resent"] == 0
         assert all(o["wait"] >= o["lower_bound"] for o in pol["orders"])
         assert sorted(o["line"] for o in pol["orders"]) == list(range(2, 22))
         for plot in ("wait-hist", "waits", "paths"):
@@ -108,6 +119,11 @@ def test_short_replay_both_policies_and_again(tmp_path: Path) -> None:
     assert all(len(set(stops)) == len(stops) for stops, _ in _trips(serveur))
     summary = (out1 / "summary.txt").read_text()
     assert "baseline" in summary and "serveur" in summary and "undelivered" in summary
+    for row in ("loading at the pass", "table timeouts", "dishes returned / re-sent"):
+        assert row in summary
+    opts = report["options"]
+    assert opts["table_timeout"] == 180.0 and opts["away"] == 0.03
+    assert opts["load_fixed"] == 10.0 and opts["load_per_dish"] == 4.0
 
     # Again (serveur only): the very same service, to the last digit.
     assert main(["replay", str(log), *ARGS, "--policy", "serveur", "--out", str(out2)]) == 0
