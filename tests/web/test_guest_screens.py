@@ -226,6 +226,12 @@ async def test_a_stuck_robot_asks_for_staff_in_the_guests_words(
         assert err["last_error"], err
         await expect(robot.get_by_text(tr("ms", "guest.robot.needHelp"))).to_be_visible()
         await expect(robot.get_by_role("heading", level=1)).to_have_text(tr("ms", "robot.stuck"))
+        # No big button invites a guest: the ways out are staff's, small and set apart.
+        await expect(robot.locator("button.big")).to_have_count(0)
+        for_staff = robot.get_by_role("group", name=tr("ms", "guest.robot.forStaff"))
+        await expect(for_staff.get_by_role("button")).to_have_text(
+            [tr("ms", key) for key in ("robot.continue", "robot.cancel", "guest.robot.skip")]
+        )
         # The robot's own words never reach the guest.
         text = await robot.locator("body").inner_text()
         assert err["last_error"] not in text and "ABORTED" not in text.upper(), text
@@ -234,7 +240,7 @@ async def test_a_stuck_robot_asks_for_staff_in_the_guests_words(
 
         # Staff leave the table from the screen: Skip asks first, the dish goes back to the pass.
         r.sim.robots[0].block_path(False)
-        await robot.get_by_role("button", name=tr("ms", "guest.robot.skip")).click()
+        await for_staff.get_by_role("button", name=tr("ms", "guest.robot.skip")).click()
         dialog = robot.get_by_role("dialog", name=tr("ms", "guest.robot.skipQuestion", table="T12"))
         await dialog.get_by_role("button", name=tr("ms", "guest.robot.skipYes")).click()
         [oid] = task["stops"][0]["orders"]

@@ -93,11 +93,13 @@ function dishItems(labels) {
 
 /** The small controls only staff should press, set apart from the guest's big buttons. */
 function staffControls(...buttons) {
+  const shown = buttons.filter(Boolean);
+  if (!shown.length) return null;
   return el(
     "div",
-    { class: "staff-controls" },
-    el("span", { class: "staff-label" }, t("guest.robot.forStaff")),
-    ...buttons,
+    { class: "staff-controls", role: "group", "aria-label": t("guest.robot.forStaff") },
+    el("span", { class: "staff-label", "aria-hidden": "true" }, t("guest.robot.forStaff")),
+    ...shown,
   );
 }
 
@@ -110,12 +112,8 @@ async function skipTable(button, table) {
   if (yes) await send(button, "skip");
 }
 
-function skipButton(m) {
-  return el("button", {
-    class: "secondary small",
-    onclick: (e) => skipTable(e.currentTarget, m.dest),
-    text: t("guest.robot.skip"),
-  });
+function smallButton(label, onclick) {
+  return el("button", { class: "secondary small", onclick: (e) => onclick(e.currentTarget), text: label });
 }
 
 function view(m) {
@@ -179,13 +177,21 @@ function view(m) {
           { class: "sub" },
           m.resume === "Transit" ? t("robot.onWayHome") : dest ? t("robot.onWayTo", { table: dest }) : "",
         ),
-        el(
-          "div",
-          { class: "choices" },
-          bigButton(t("robot.continue"), (b) => send(b, "continue")),
-          bigButton(t("robot.cancel"), (b) => cancelTrip(b), "danger"),
+        // Stopped (anyone may have pressed Stop): Continue and Cancel are big. In Error the
+        // guest is asked to wait for staff, so every way out is a staff control.
+        m.status === "Stopped"
+          ? el(
+              "div",
+              { class: "choices" },
+              bigButton(t("robot.continue"), (b) => send(b, "continue")),
+              bigButton(t("robot.cancel"), (b) => cancelTrip(b), "danger"),
+            )
+          : null,
+        staffControls(
+          m.status === "Error" ? smallButton(t("robot.continue"), (b) => send(b, "continue")) : null,
+          m.status === "Error" ? smallButton(t("robot.cancel"), (b) => cancelTrip(b)) : null,
+          dest && m.resume !== "Transit" ? smallButton(t("guest.robot.skip"), (b) => skipTable(b, dest)) : null,
         ),
-        dest && m.resume !== "Transit" ? staffControls(skipButton(m)) : null,
       ];
     case "Delivered":
       return [
@@ -194,7 +200,7 @@ function view(m) {
         m.tray ? el("p", { class: "take-tray" }, t("guest.takeTray", { tray: m.tray })) : null,
         el("ul", { class: "cart-items", "aria-label": t("robot.yourDishes") }, dishItems(m.cart)),
         bigButton(t("robot.collected"), (b) => send(b, "next")),
-        staffControls(skipButton(m)),
+        staffControls(smallButton(t("guest.robot.skip"), (b) => skipTable(b, dest))),
       ];
     case "Manual":
       return [el("h1", {}, t("robot.manual")), el("p", { class: "sub" }, t("robot.keepClear"))];
