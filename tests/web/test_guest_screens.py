@@ -178,6 +178,7 @@ async def test_load_go_and_food_collected_at_the_table(tmp_path: Path, browser: 
             await intruder.error("next", "forbidden", robot="r1", task=task["id"], stop=n - 1)
             if n == 1:
                 await here.screenshot(path=str(tmp_path / "table-here.png"))
+                await robot.screenshot(path=str(tmp_path / "robot-at-table.png"))
 
             await panel.get_by_role("button", name=tr(code, "robot.collected")).click()
             await c.until(
