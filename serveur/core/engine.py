@@ -410,7 +410,16 @@ class Core:
         if topic == "robots":
             return [self._robot_view(n) for n in sorted(self._rt)]
         if topic == "orders":
-            return await self.store.list_orders(status=[OrderStatus.PENDING, OrderStatus.ASSIGNED])
+            # Every dish not finished: the kitchen's (ordered, cooking), the pass's (pending,
+            # returned) and those on a trip (assigned).
+            live = [
+                OrderStatus.ORDERED,
+                OrderStatus.COOKING,
+                OrderStatus.PENDING,
+                OrderStatus.ASSIGNED,
+                OrderStatus.RETURNED,
+            ]
+            return await self.store.list_orders(status=live)
         if topic == "tasks":
             return await self.store.list_tasks(status=[TaskStatus.QUEUED, TaskStatus.ACTIVE])
         if topic == "waypoints":
