@@ -37,6 +37,7 @@ from pydantic import TypeAdapter, ValidationError
 from websockets.asyncio.client import ClientConnection, connect
 
 from serveur import protocol as P
+from serveur.core.runtime import CoreConfig
 from serveur.domain import OrderStatus, TaskStatus
 from serveur.errors import Conflict
 from tests import invariants
@@ -61,11 +62,17 @@ PAYLOAD = {
     "create waypoint": "waypoint",
     "create robot": "robot",
     "order": "orders",
+    "create dish": "dish",
+    "dish": "order",
+    "ack": "alert",
+    "clear": "table",
 }
 REPLY_TIMEOUT = 30.0  # wall seconds; generous for a loaded 2-core box
 MAX_QUEUED = 6  # trips waiting for a robot kept by housekeeping
 MAX_PENDING = 40  # dishes waiting at the pass kept by housekeeping
 MAX_TEXT = 60_000  # stay under the 64 KiB frame limit (beyond it the server closes: 1009)
+#: The restaurant as shipped: a trip waits at the pass (Loading) for Go, a table times out.
+SITE = CoreConfig(heartbeat=2.0, ack_timeout=3.0, auto_depart=False)
 _WS_RANDOM_USERS = (websockets.asyncio.connection, websockets.client)
 _SERVER_MSG: TypeAdapter[Any] = TypeAdapter(P.ServerMessage)
 _MISSING = object()
@@ -350,7 +357,7 @@ class LiveRestaurant:
 
     async def _start(self) -> None:
         self.r = await self._stack.enter_async_context(
-            restaurant(self.tmp, robots=self.robots, time_scale=self.time_scale)
+            restaurant(self.tmp, robots=self.robots, time_scale=self.time_scale, config=SITE)
         )
         self.observer = _Observer(await open_connection(self.r), self.stats)
         await self.observer.ws.send(json.dumps({"clientmsg": "data", "topics": ["robots"]}))

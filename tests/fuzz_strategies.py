@@ -26,6 +26,7 @@ from typing import Any, TypeAlias, TypeVar
 from hypothesis import strategies as st
 
 from serveur import protocol as P
+from serveur.domain import OrderStatus
 from serveur.status import RobotStatus
 
 __all__ = [
@@ -336,13 +337,80 @@ def data_msgs() -> st.SearchStrategy[Obj]:
     )
 
 
+_quantity = st.one_of(st.integers(1, 99), st.sampled_from((1, 99)))
+_note = st.one_of(
+    st.sampled_from(("", "no chilli", "extra ice", " ")), st.text(max_size=200).map(str.strip)
+).filter(lambda s: len(s) <= 200)
+#: Dish names for the menu as the store takes them: 1-64 characters, no outer spaces.
+_menu_name = st.one_of(st.sampled_from(DISHES), _valid_text.map(str.strip)).filter(bool)
+
+
 @st.composite
 def create_order(draw: st.DrawFn) -> Obj:
     return _with(
         draw,
         {"clientmsg": "create", "type": "order", "dish": draw(_name), "table": draw(_table)},
-        {"key": _key},
+        {
+            "key": _key,
+            "quantity": _quantity,
+            "note": _note,
+            "status": st.sampled_from(("ordered", "pending")),
+        },
     )
+
+
+@st.composite
+def create_dish(draw: st.DrawFn) -> Obj:
+    """A menu entry (the owner's: the fuzz connections are staff's, so mostly forbidden)."""
+    return _with(
+        draw,
+        {"clientmsg": "create", "type": "dish", "name": draw(_menu_name)},
+        {
+            "category": st.sampled_from(("", "Mains", "Drinks", "Desserts")),
+            "price_cents": st.one_of(st.none(), st.integers(0, 10_000_000)),
+            "available": _bool,
+            "position": st.integers(0, 10_000),
+        },
+    )
+
+
+_ORDER_STATUSES = tuple(s.value for s in OrderStatus)
+
+
+@st.composite
+def dish_msgs(draw: st.DrawFn) -> Obj:
+    """A dish's step on a recent order (or one that does not exist), with what the client saw."""
+    action = _pick(draw, ("cooking", "ready", "void", "edit"))
+    fields: dict[str, Node] = {
+        "clientmsg": "dish",
+        "order": Ref("order", draw(st.integers(0, 12))),
+        "action": action,
+    }
+    if action == "edit":  # an edit without a change is refused (invalid_field): give one
+        if draw(_bool):
+            fields["quantity"] = draw(_quantity)
+        else:
+            fields["note"] = draw(_note)
+    return _with(
+        draw,
+        fields,
+        {"status": st.sampled_from(_ORDER_STATUSES), "table": _table}
+        | ({"note": _note} if action == "edit" and "note" not in fields else {}),
+    )
+
+
+def _target_verb(verb: str) -> st.SearchStrategy[Obj]:
+    """A command on a robot's trip, with or without the trip and stop the client saw."""
+
+    @st.composite
+    def build(draw: st.DrawFn) -> Obj:
+        return _with(
+            draw,
+            {"clientmsg": verb, "robot": draw(_any_robot)},
+            {"task": st.one_of(st.none(), st.integers(1, 40)), "stop": st.integers(0, 3)},
+        )
+
+    return build()
 
 
 @st.composite
@@ -383,7 +451,11 @@ def create_robot(draw: st.DrawFn) -> Obj:
     return _with(
         draw,
         {"clientmsg": "create", "type": "robot", "name": _pick(draw, NEW_ROBOTS), "url": DEAD_URL},
-        {"home": st.sampled_from(("home3", "home4")), "kinematics": st.just("diff")},
+        {
+            "home": st.sampled_from(("home3", "home4")),
+            "kinematics": st.just("diff"),
+            "trays": st.integers(1, 12),
+        },
     )
 
 
@@ -468,7 +540,13 @@ VERB_STRATEGIES: dict[str, st.SearchStrategy[Obj]] = {
     "stop": _robot_verb("stop"),
     "continue": _robot_verb("continue"),
     "cancel": _robot_verb("cancel"),
+    "go": _target_verb("go"),
+    "skip": _target_verb("skip"),
     "order": order_msgs(),
+    "create dish": create_dish(),
+    "dish": dish_msgs(),
+    "ack": st.builds(lambda a: obj(clientmsg="ack", id=IdSlot(), alert=a), st.integers(1, 30)),
+    "clear": st.builds(lambda t: obj(clientmsg="clear", id=IdSlot(), table=t), _table),
 }
 
 
@@ -567,6 +645,12 @@ _MODELS: dict[str, type[Any]] = {
     "continue": P.ContinueMsg,
     "cancel": P.CancelMsg,
     "order": P.OrderMsg,
+    "create dish": P.CreateDish,
+    "go": P.GoMsg,
+    "skip": P.SkipMsg,
+    "dish": P.DishMsg,
+    "ack": P.AckMsg,
+    "clear": P.ClearMsg,
 }
 
 
@@ -593,7 +677,19 @@ def _safe_robot_create(msg: Obj) -> Obj:
     return msg
 
 
-_TAGS = (*P.VERBS, "waypoint", "order", "task", "robot", "auto", "teleop", "goto", "login")
+_TAGS = (
+    *P.VERBS,
+    "waypoint",
+    "order",
+    "task",
+    "robot",
+    "dish",
+    "auto",
+    "teleop",
+    "goto",
+    "login",
+    "void",
+)
 _BORROWED: tuple[tuple[str, Node], ...] = (
     ("robot", "r1"),
     ("table", "T3"),
@@ -768,7 +864,9 @@ def deliver(draw: st.DrawFn, conns: int = 2) -> list[Step]:
     steps.append(
         _send("create task", obj(clientmsg="create", id=IdSlot(), type="task", orders=orders), conn)
     )
-    steps.append(Wait(draw(_robot), frozenset({"Delivering", "Delivered"}), draw(_timeout)))
+    # A robot takes it at the pass (Loading); staff load the trays and press Go.
+    steps.append(Wait(draw(_robot), frozenset({"Loading", "Delivering"}), draw(_timeout)))
+    steps += [_send("go", obj(clientmsg="go", id=IdSlot(), robot=r), conn) for r in ROBOTS]
     return steps
 
 
@@ -791,11 +889,12 @@ def activate(draw: st.DrawFn, conns: int = 2) -> list[Step]:
 
 @st.composite
 def serve(draw: st.DrawFn, conns: int = 2) -> list[Step]:
-    """Wait for a robot at a table, then "food collected"."""
+    """Wait for a robot at a table, then "food collected" (or the table skipped)."""
     conn, robot = draw(st.integers(0, conns - 1)), draw(_robot)
+    verb = _pick(draw, ("next", "next", "skip"))
     return [
         Wait(robot, frozenset({"Delivered"}), draw(_timeout)),
-        _send("next", obj(clientmsg="next", id=IdSlot(), robot=robot), conn),
+        _send(verb, obj(clientmsg=verb, id=IdSlot(), robot=robot), conn),
     ]
 
 
