@@ -3,7 +3,10 @@
 // Emits "change" {topic, record} after every change (record: the updated record, or null after a
 // snapshot), so views redraw only what they show.
 
-const KEYS = { robots: "name", waypoints: "name", orders: "id", tasks: "id", events: "id" };
+const KEYS = {
+  robots: "name", waypoints: "name", orders: "id", tasks: "id", events: "id",
+  alerts: "id", menu: "dish", blocks: "table",
+};
 const MAX_EVENTS = 200;
 
 export class Live extends EventTarget {
@@ -15,6 +18,9 @@ export class Live extends EventTarget {
     this.orders = new Map();
     this.tasks = new Map();
     this.events = new Map();
+    this.alerts = new Map(); // active alerts only: a cleared one is removed
+    this.menu = new Map(); // dish name -> menu item
+    this.blocks = new Map(); // table -> why no robot is sent there
     this.map = null;
     this.poses = new Map(); // robot -> {x, y, yaw, stamp}
     this.scans = new Map(); // robot -> scan
@@ -43,11 +49,14 @@ export class Live extends EventTarget {
   }
 
   _put(topic, rec) {
-    this[topic].set(rec[KEYS[topic]], rec);
+    // An alert whose cause ended, a block whose reason is gone: over, not shown any more.
+    const over = (topic === "alerts" && rec.cleared_at !== null && rec.cleared_at !== undefined) || (topic === "blocks" && !rec.reason);
+    if (over) this[topic].delete(rec[KEYS[topic]]);
+    else this[topic].set(rec[KEYS[topic]], rec);
     if (topic === "events" && this.events.size > MAX_EVENTS) {
       this.events.delete(this.events.keys().next().value);
     }
-    this.clock.saw(rec.updated_at ?? rec.ts ?? rec.ready_at);
+    this.clock.saw(rec.updated_at ?? rec.ts ?? rec.ready_at ?? rec.cleared_at ?? rec.raised_at);
   }
 
   _stream(topic, data) {
@@ -76,7 +85,6 @@ export class Live extends EventTarget {
     return r && r.x !== null && r.x !== undefined ? { x: r.x, y: r.y, yaw: r.yaw } : null;
   }
 
-  /** The table a robot is heading to or waiting at, from its current task, or null. */
   /**
    * The trip and stop this page shows robot `name` on, for a command to name (docs/protocol.md):
    * the server refuses it (`stale`) if the robot has moved on since, instead of acting on a
@@ -92,12 +100,29 @@ export class Live extends EventTarget {
     return target;
   }
 
+  /** The table a robot is heading to or waiting at, from its current task, or null. */
   destination(name) {
     const r = this.robots.get(name);
     if (!r || r.current_task === null) return null;
     const task = this.tasks.get(r.current_task);
     const stop = task && task.stops[task.current_stop];
     return stop ? stop.table : null;
+  }
+
+  /**
+   * What goes on which tray of a trip: tray k holds the dishes of stop seq k-1 (stops are in
+   * visiting order). [{tray, seq, table, status, orders: [order records]}].
+   */
+  trays(taskId) {
+    const task = taskId === null || taskId === undefined ? null : this.tasks.get(taskId);
+    if (!task) return [];
+    return task.stops.map((s) => ({
+      tray: s.seq + 1,
+      seq: s.seq,
+      table: s.table,
+      status: s.status,
+      orders: s.orders.map((id) => this.orders.get(id)).filter(Boolean),
+    }));
   }
 }
 

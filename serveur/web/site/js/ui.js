@@ -5,6 +5,38 @@
 
 import { onLangChange, t, translateNode } from "./i18n.js";
 
+// Whether the page is live. A control marked `data-needs-online` sends something to the server:
+// while the connection is lost it is shown disabled (aria-disabled, so the page's own reasons
+// to disable it are kept) and its clicks are refused here, and it comes back on reconnect.
+let online = false;
+const NEEDS_ONLINE = "[data-needs-online]";
+
+function markOffline(node) {
+  if (online) node.removeAttribute("aria-disabled");
+  else node.setAttribute("aria-disabled", "true");
+}
+
+/** The connection's state drives every `data-needs-online` control of the page. */
+export function guardOffline(conn) {
+  const apply = () => {
+    online = conn.state === "online";
+    document.querySelectorAll(NEEDS_ONLINE).forEach(markOffline);
+  };
+  conn.addEventListener("state", apply);
+  // Capture: the refusal comes before any handler of the button (mouse, touch or keyboard).
+  document.addEventListener(
+    "click",
+    (e) => {
+      if (online || !(e.target instanceof Element) || !e.target.closest(NEEDS_ONLINE)) return;
+      e.preventDefault();
+      e.stopImmediatePropagation();
+      toast(t("error.offline"), { kind: "error" });
+    },
+    true,
+  );
+  apply();
+}
+
 /** el("button", {class: "big", onclick: f, "aria-label": "Stop r1"}, "Stop") */
 export function el(tag, attrs = {}, ...children) {
   const node = document.createElement(tag);
@@ -24,6 +56,7 @@ export function el(tag, attrs = {}, ...children) {
     node.append(child instanceof Node ? child : document.createTextNode(String(child)));
   }
   if (Object.keys(attrs).some((k) => k.startsWith("data-i18n"))) translateNode(node);
+  if (attrs["data-needs-online"]) markOffline(node);
   return node;
 }
 
@@ -218,6 +251,19 @@ function loginForm(conn) {
   });
 }
 
+/** A stopwatch's reading: "2:10", "1:02:05". */
+export function formatClock(seconds) {
+  const s = Math.max(0, Math.floor(seconds));
+  const mm = String(Math.floor(s / 60) % 60);
+  const ss = String(s % 60).padStart(2, "0");
+  return s >= 3600 ? `${Math.floor(s / 3600)}:${mm.padStart(2, "0")}:${ss}` : `${mm}:${ss}`;
+}
+
+/** A time of day on the server's clock (epoch s), as the tablet's locale writes it. */
+export function formatTime(epoch) {
+  return new Date(epoch * 1000).toLocaleTimeString([], { hour: "2-digit", minute: "2-digit" });
+}
+
 export function formatDuration(seconds) {
   const s = Math.max(0, Math.floor(seconds));
   if (s < 60) return t("duration.s", { s });
@@ -235,4 +281,62 @@ export function newKey(prefix) {
 /** Natural order, so T2 comes before T10. */
 export function byName(a, b) {
   return a.localeCompare(b, undefined, { numeric: true });
+}
+
+/**
+ * A list drawn from records, keyed: a row is built again only when its signature changed, rows
+ * that are gone are removed, and the order follows the records. So a tick or an unrelated
+ * update does not replace a button under a finger.
+ */
+export class KeyedList {
+  constructor(container, { key, signature, build, empty = null }) {
+    this.container = container;
+    this.key = key;
+    this.signature = signature;
+    this.build = build;
+    this.empty = empty; // () => node shown when there is nothing
+    this.rows = new Map(); // key -> {node, sig}
+    this.emptyNode = null;
+  }
+
+  update(items) {
+    const keep = new Set();
+    if (items.length && this.emptyNode) {
+      this.emptyNode.remove();
+      this.emptyNode = null;
+    }
+    let prev = null;
+    for (const item of items) {
+      const k = this.key(item);
+      keep.add(k);
+      const sig = JSON.stringify(this.signature(item));
+      let row = this.rows.get(k);
+      if (!row || row.sig !== sig) {
+        const node = this.build(item);
+        if (row) row.node.replaceWith(node);
+        row = { node, sig };
+        this.rows.set(k, row);
+      }
+      const want = prev ? prev.nextSibling : this.container.firstChild;
+      if (want !== row.node) this.container.insertBefore(row.node, want);
+      prev = row.node;
+    }
+    for (const [k, row] of this.rows) {
+      if (!keep.has(k)) {
+        row.node.remove();
+        this.rows.delete(k);
+      }
+    }
+    if (!items.length && this.empty) {
+      const node = this.empty();
+      if (this.emptyNode) this.emptyNode.replaceWith(node);
+      else this.container.append(node);
+      this.emptyNode = node;
+    }
+  }
+
+  /** Same records, new words (a language change): every row is built again on the next update. */
+  invalidate() {
+    for (const row of this.rows.values()) row.sig = null;
+  }
 }
