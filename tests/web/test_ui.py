@@ -200,13 +200,16 @@ async def test_a_whole_delivery_by_clicking(tmp_path: Path, browser: Any) -> Non
             "Teh tarik"
         )
 
-        # New order: table T3, one Laksa, sent to the pass.
+        # New order: table T3, one Laksa from the menu, sent to the kitchen, which marks it
+        # ready: it waits at the pass.
         await staff.get_by_role("tab", name="New order").click()
         await staff.get_by_role("button", name="Table T3").click()
         await staff.get_by_role("button", name="Add Laksa").click()
-        await staff.get_by_role("button", name="Send to the pass").click()
-        await expect(staff.get_by_text("Sent to the pass: Laksa (T3)")).to_be_visible()
+        await staff.get_by_role("button", name="Send to the kitchen").click()
+        await expect(staff.get_by_text("Sent to the kitchen: Laksa (T3)")).to_be_visible()
         await dismiss_toasts(staff)
+        await staff.get_by_role("tab", name="Kitchen").click()
+        await staff.get_by_role("button", name="Ready: Laksa for T3").click()
         await expect(table.get_by_role("list", name="Ready in the kitchen")).to_contain_text(
             "Laksa"
         )
@@ -278,9 +281,11 @@ async def test_stop_then_cancel_with_confirmation(tmp_path: Path, browser: Any) 
         await expect(robot.get_by_role("heading", name="Stopped")).to_be_visible()
         await c.status("r1", "Stopped")
 
-        # The console offers only what Stopped allows.
+        # The console offers only what Stopped allows (skip: on a trip, leave this table).
         actions = staff.get_by_role("group", name="Actions for r1")
-        await expect(actions.get_by_role("button")).to_have_text(["Continue", "Cancel trip"])
+        await expect(actions.get_by_role("button")).to_have_text(
+            ["Continue", "Skip table", "Cancel trip"]
+        )
 
         # Cancel asks first; "No" keeps the trip.
         await staff.get_by_role("button", name="Cancel trip r1").click()

@@ -1,10 +1,13 @@
-// Issue task (the report's Figures A7-A8): the dishes waiting at the pass, a virtual cart,
-// and "Send" which makes ONE `create task`; the server groups the cart by table into trips.
+// Issue task (the report's Figures A7-A8), the pass as staff run it: robots loading at the pass
+// with their trays and Go, the dishes ready at the pass, a virtual cart and "Send" which makes
+// ONE `create task` (the server groups the cart by table into trips), the dishes that came back
+// (send again or void), and the tables no robot is sent to until someone clears them.
 // The cart's key is made on the client, so a resend after a dropped connection cannot
 // dispatch the same dishes twice.
 
-import { act, el, formatDuration, newKey, toast } from "../ui.js";
+import { act, byName, el, formatDuration, KeyedList, newKey, toast } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
+import { dishLabel, dishStep, editButtons, goButton, trayList, traySignature, voidDish } from "./dishes.js";
 
 function taskStatus(status) {
   return status === "queued" ? t("task.queued") : status === "active" ? t("task.active") : status;
@@ -19,31 +22,60 @@ export class IssuePanel {
     this.sending = new Set(); // ids of a cart being sent: their leaving "pending" is expected
     this.pendingBody = el("tbody");
     this.cartList = el("ul", { class: "cart-list", "data-i18n-aria-label": "issue.cart" });
-    this.sendBtn = el("button", { class: "primary big", onclick: () => this._send() });
+    this.sendBtn = el("button", { class: "primary big", "data-needs-online": true, onclick: () => this._send() });
     this.trips = el("ul", { class: "trips", "data-i18n-aria-label": "issue.trips" });
+    this.loadingList = el("ul", { class: "loading-list", "data-i18n-aria-label": "loading.atPass" });
+    this.returnedList = el("ul", { class: "dish-list", "data-i18n-aria-label": "returned.title" });
+    this.blockedList = el("ul", { class: "dish-list", "data-i18n-aria-label": "blocks.title" });
+    this.loadingCard = el(
+      "section",
+      { class: "card loading-card", "aria-labelledby": "loading-title" },
+      el("h2", { id: "loading-title", "data-i18n": "loading.atPass" }),
+      this.loadingList,
+    );
+    this.returnedCard = el(
+      "section",
+      { class: "card returned-card", "aria-labelledby": "returned-title" },
+      el("h2", { id: "returned-title", "data-i18n": "returned.title" }),
+      el("p", { class: "muted", "data-i18n": "returned.note" }),
+      this.returnedList,
+    );
+    this.blockedCard = el(
+      "section",
+      { class: "card blocked-card", "aria-labelledby": "blocked-title" },
+      el("h2", { id: "blocked-title", "data-i18n": "blocks.title" }),
+      this.blockedList,
+    );
     root.append(
       el(
         "div",
         { class: "issue-grid" },
         el(
-          "section",
-          { class: "card", "aria-labelledby": "pending-title" },
-          el("h2", { id: "pending-title", "data-i18n": "issue.pending" }),
+          "div",
+          { class: "issue-main" },
+          this.loadingCard,
           el(
-            "table",
-            { class: "pending", "aria-labelledby": "pending-title" },
+            "section",
+            { class: "card", "aria-labelledby": "pending-title" },
+            el("h2", { id: "pending-title", "data-i18n": "issue.pending" }),
             el(
-              "thead",
-              {},
+              "table",
+              { class: "pending", "aria-labelledby": "pending-title" },
               el(
-                "tr",
+                "thead",
                 {},
-                ["issue.col.dish", "issue.col.table", "issue.col.waiting"].map((k) => el("th", { scope: "col", "data-i18n": k })),
-                el("th", { scope: "col" }),
+                el(
+                  "tr",
+                  {},
+                  ["issue.col.dish", "issue.col.table", "issue.col.waiting"].map((k) => el("th", { scope: "col", "data-i18n": k })),
+                  el("th", { scope: "col" }),
+                ),
               ),
+              this.pendingBody,
             ),
-            this.pendingBody,
           ),
+          this.returnedCard,
+          this.blockedCard,
         ),
         el(
           "section",
@@ -56,12 +88,37 @@ export class IssuePanel {
         ),
       ),
     );
+    this.pendingRows = new KeyedList(this.pendingBody, {
+      key: (o) => o.id,
+      signature: (o) => [dishLabel(o), o.table, o.ready_at, o.status, this.live.blocks.get(o.table)?.reason ?? null],
+      build: (o) => this._pendingRow(o),
+      empty: () => el("tr", {}, el("td", { colspan: 4, class: "muted" }, this._pending().length ? t("issue.allInCart") : t("issue.noneWaiting"))),
+    });
+    this.loadingRows = new KeyedList(this.loadingList, {
+      key: (r) => r.name,
+      signature: (r) => [r.current_task, traySignature(this.live, r.current_task)],
+      build: (r) => this._loadingRow(r),
+      empty: () => el("li", { class: "muted" }, t("loading.none")),
+    });
+    this.returnedRows = new KeyedList(this.returnedList, {
+      key: (o) => o.id,
+      signature: (o) => [dishLabel(o), o.table, o.status],
+      build: (o) => this._returnedRow(o),
+    });
+    this.blockedRows = new KeyedList(this.blockedList, {
+      key: (b) => b.table,
+      signature: (b) => [b.reason, b.robot],
+      build: (b) => this._blockedRow(b),
+    });
     live.addEventListener("change", (e) => {
-      if (["orders", "tasks", "robots"].includes(e.detail.topic)) this.render();
+      if (["orders", "tasks", "robots", "blocks"].includes(e.detail.topic)) this.render();
     });
     // Waiting times tick; only their text changes.
     setInterval(() => this._tick(), 1000);
-    onLangChange(() => this.render());
+    onLangChange(() => {
+      for (const list of [this.pendingRows, this.loadingRows, this.returnedRows, this.blockedRows]) list.invalidate();
+      this.render();
+    });
     this.render();
   }
 
@@ -83,32 +140,90 @@ export class IssuePanel {
       if (surprising) toast(t("issue.leftCart", { count: surprising }));
     }
     const inCart = new Set(this.cart);
-    const rows = pending
-      .filter((o) => !inCart.has(o.id))
-      .map((o) =>
-        el(
-          "tr",
-          { "data-order": o.id },
-          el("td", {}, o.dish),
-          el("td", {}, o.table),
-          el("td", { class: "waiting", "data-ready-at": o.ready_at }, this._waiting(o.ready_at)),
-          el(
-            "td",
-            {},
-            el("button", {
-              "aria-label": t("issue.addFor", { dish: o.dish, table: o.table }),
-              onclick: () => this._setCart([...this.cart, o.id]),
-              text: t("issue.add"),
-            }),
-          ),
-        ),
-      );
-    if (!rows.length) {
-      rows.push(el("tr", {}, el("td", { colspan: 4, class: "muted" }, pending.length ? t("issue.allInCart") : t("issue.noneWaiting"))));
-    }
-    this.pendingBody.replaceChildren(...rows);
+    this.pendingRows.update(pending.filter((o) => !inCart.has(o.id)));
+    const loading = [...this.live.robots.values()].filter((r) => r.status === "Loading").sort((a, b) => byName(a.name, b.name));
+    this.loadingRows.update(loading);
+    const returned = [...this.live.orders.values()]
+      .filter((o) => o.status === "returned")
+      .sort((a, b) => (a.returned_at ?? 0) - (b.returned_at ?? 0) || a.id - b.id);
+    this.returnedRows.update(returned);
+    this.returnedCard.hidden = !returned.length;
+    const blocked = [...this.live.blocks.values()].sort((a, b) => byName(a.table, b.table));
+    this.blockedRows.update(blocked);
+    this.blockedCard.hidden = !blocked.length;
     this._renderCart();
     this._renderTrips();
+  }
+
+  _pendingRow(o) {
+    const block = this.live.blocks.get(o.table);
+    const label = dishLabel(o);
+    return el(
+      "tr",
+      { "data-order": o.id, class: block ? "blocked" : "" },
+      el("td", {}, label),
+      el("td", {}, o.table, block ? el("span", { class: "why-waiting" }, t("blocks.dishWaits", { reason: block.reason })) : null),
+      el("td", { class: "waiting", "data-ready-at": o.ready_at }, this._waiting(o.ready_at)),
+      el(
+        "td",
+        { class: "row-actions" },
+        el("button", {
+          "aria-label": t("issue.addFor", { dish: label, table: o.table }),
+          disabled: Boolean(block),
+          onclick: () => this._setCart([...this.cart, o.id]),
+          text: t("issue.add"),
+        }),
+        editButtons(this.conn, o),
+      ),
+    );
+  }
+
+  _loadingRow(robot) {
+    return el(
+      "li",
+      { class: "loading", "data-robot": robot.name },
+      el("span", { class: "loading-title" }, t("loading.robot", { name: robot.name })),
+      trayList(this.live, robot.current_task),
+      goButton(this.conn, this.live, robot.name),
+    );
+  }
+
+  _returnedRow(o) {
+    const label = dishLabel(o);
+    return el(
+      "li",
+      { "data-order": o.id },
+      el("span", { class: "dish" }, label),
+      el("span", { class: "table-tag" }, o.table),
+      el("button", {
+        "data-needs-online": true,
+        "aria-label": t("returned.againFor", { dish: label, table: o.table }),
+        text: t("returned.again"),
+        onclick: (e) => dishStep(this.conn, e.currentTarget, o, "ready"),
+      }),
+      el("button", {
+        class: "danger",
+        "data-needs-online": true,
+        "aria-label": t("dish.voidFor", { dish: label, table: o.table }),
+        text: t("dish.void"),
+        onclick: (e) => voidDish(this.conn, e.currentTarget, o),
+      }),
+    );
+  }
+
+  _blockedRow(b) {
+    return el(
+      "li",
+      { "data-table": b.table },
+      el("span", { class: "table-tag" }, b.table),
+      el("span", { class: "dish" }, b.reason),
+      el("button", {
+        "data-needs-online": true,
+        "aria-label": t("blocks.clearFor", { table: b.table }),
+        text: t("blocks.clear"),
+        onclick: (e) => act(e.currentTarget, () => this.conn.request({ clientmsg: "clear", table: b.table })),
+      }),
+    );
   }
 
   _renderCart() {
@@ -118,11 +233,11 @@ export class IssuePanel {
         el(
           "li",
           {},
-          el("span", { class: "dish" }, o.dish),
+          el("span", { class: "dish" }, dishLabel(o)),
           el("span", { class: "table-tag" }, o.table),
           el("button", {
             class: "secondary",
-            "aria-label": t("issue.removeFor", { dish: o.dish, table: o.table }),
+            "aria-label": t("issue.removeFor", { dish: dishLabel(o), table: o.table }),
             onclick: () => this._setCart(this.cart.filter((x) => x !== o.id)),
             text: t("issue.remove"),
           }),

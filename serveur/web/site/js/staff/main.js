@@ -2,7 +2,7 @@
 
 import { Connection } from "../ws.js";
 import { Live } from "../live.js";
-import { el, showError, watchConnection } from "../ui.js";
+import { el, guardOffline, showError, watchConnection } from "../ui.js";
 import { MapView } from "../map/view.js";
 import { RobotsPanel } from "./robots.js";
 import { MapTools } from "./maptools.js";
@@ -11,11 +11,15 @@ import { WaypointsPanel } from "./waypoints.js";
 import { IssuePanel } from "./issue.js";
 import { NewOrderPanel } from "./neworder.js";
 import { RegisterRobot } from "./register.js";
+import { KitchenPanel } from "./kitchen.js";
+import { MenuPanel } from "./menu.js";
+import { AlertsPanel } from "./alerts.js";
 import { onLangChange, roleName, t } from "../i18n.js";
 
 const conn = new Connection();
 const live = new Live(conn);
 watchConnection(conn);
+guardOffline(conn);
 
 // Who is logged in, and the way out (a shared tablet at the pass changes hands).
 const who = el("span", { class: "who muted", "data-testid": "who" });
@@ -25,6 +29,11 @@ const showWho = () => {
   const s = conn.session;
   if (!s) return;
   who.textContent = s.user ? t("staff.who", { user: s.user, role: roleName(s.role) }) : roleName(s.role);
+  // The menu is the owner's: its tab shows only in an owner's session.
+  const owner = s.role === "owner";
+  const menuTab = document.getElementById("tab-menu");
+  menuTab.hidden = !owner;
+  if (!owner && menuTab.getAttribute("aria-selected") === "true") document.getElementById("tab-map").click();
 };
 conn.addEventListener("session", showWho);
 onLangChange(showWho);
@@ -62,6 +71,17 @@ new Teleop(document.getElementById("teleop"), conn, live, selection);
 new WaypointsPanel(document.getElementById("waypoints"), conn, live, selection);
 new IssuePanel(document.getElementById("panel-issue"), conn, live);
 new NewOrderPanel(document.getElementById("panel-order"), conn, live);
+new KitchenPanel(document.getElementById("panel-kitchen"), conn, live);
+new MenuPanel(document.getElementById("panel-menu"), conn, live);
+new AlertsPanel(
+  {
+    banner: document.getElementById("alerts"),
+    badge: document.getElementById("alert-badge"),
+    mute: document.getElementById("alert-mute"),
+  },
+  conn,
+  live,
+);
 
 live.addEventListener("change", (e) => {
   const topic = e.detail.topic;
@@ -87,7 +107,7 @@ onLangChange(() => {
 });
 
 setupTabs();
-conn.subscribe(["robots", "orders", "tasks", "waypoints", "map"]);
+conn.subscribe(["robots", "orders", "tasks", "waypoints", "map", "alerts", "menu", "blocks"]);
 conn.start();
 
 function setupTabs() {
@@ -104,9 +124,10 @@ function setupTabs() {
   tabs.forEach((t) => t.addEventListener("click", () => show(t)));
   // Arrow keys move between tabs (the WAI-ARIA tabs pattern).
   document.querySelector('[role="tablist"]').addEventListener("keydown", (e) => {
-    const i = tabs.indexOf(document.activeElement);
+    const shown = tabs.filter((t) => !t.hidden);
+    const i = shown.indexOf(document.activeElement);
     if (i < 0 || (e.key !== "ArrowRight" && e.key !== "ArrowLeft")) return;
-    const next = tabs[(i + (e.key === "ArrowRight" ? 1 : tabs.length - 1)) % tabs.length];
+    const next = shown[(i + (e.key === "ArrowRight" ? 1 : shown.length - 1)) % shown.length];
     next.focus();
     show(next);
   });

@@ -1,26 +1,25 @@
-// New order: pick a table and dishes; "Send to the pass" makes one `create order` per dish
-// (each dish is an order, pending at the pass). Every line has its own client-made key, so
-// sending again after a dropped connection never makes a dish twice.
+// New order: pick a table and dishes from the menu (the `menu` topic: by category, dishes that
+// ran out hidden), each with a quantity and a note for the kitchen; "Send to the kitchen"
+// makes one `create order` per line, status "ordered" (the kitchen marks it ready). Every line
+// has its own client-made key, so sending again after a dropped connection never makes a dish
+// twice.
 
 import { act, byName, el, newKey, toast } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
-
-// A few quick picks; any dish can be typed. Dish names are the restaurant's data, not the
-// page's words: they are sent and shown as written, in every language.
-const MENU = ["Laksa", "Satay", "Nasi lemak", "Rendang", "Roti canai", "Char kway teow", "Teh tarik", "Cendol"];
 
 export class NewOrderPanel {
   constructor(root, conn, live) {
     this.conn = conn;
     this.live = live;
     this.table = null;
-    this.lines = []; // {dish, table, key}
+    this.lines = []; // {dish, table, quantity, note, key, node}
     this.tables = el("div", { class: "table-grid", role: "group", "data-i18n-aria-label": "order.table" });
+    this.menu = el("div", { class: "menu", role: "group", "data-i18n-aria-label": "order.menu" });
     this.dish = el("input", {
       id: "dish-name", type: "text", maxlength: 64, autocomplete: "off", "data-i18n-placeholder": "order.dishPlaceholder",
     });
     this.linesList = el("ul", { class: "order-lines", "data-i18n-aria-label": "order.order" });
-    this.sendBtn = el("button", { class: "primary big", onclick: () => this._send(), "data-i18n": "order.send" });
+    this.sendBtn = el("button", { class: "primary big", "data-needs-online": true, onclick: () => this._send(), "data-i18n": "order.send" });
     const form = el(
       "form",
       { class: "dish-form" },
@@ -42,19 +41,7 @@ export class NewOrderPanel {
           "section",
           { class: "card", "aria-labelledby": "dishes-title" },
           el("h2", { id: "dishes-title", "data-i18n": "order.step2" }),
-          el(
-            "div",
-            { class: "menu", role: "group", "data-i18n-aria-label": "order.menu" },
-            MENU.map((d) =>
-              el("button", {
-                class: "secondary",
-                "data-i18n-aria-label": "order.addNamed",
-                "data-i18n-args": { dish: d },
-                onclick: () => this._add(d),
-                text: d,
-              }),
-            ),
-          ),
+          this.menu,
           form,
         ),
         el(
@@ -66,14 +53,58 @@ export class NewOrderPanel {
         ),
       ),
     );
-    live.addEventListener("change", (e) => e.detail.topic === "waypoints" && this._renderTables());
+    live.addEventListener("change", (e) => {
+      if (e.detail.topic === "waypoints") this._renderTables();
+      if (e.detail.topic === "menu") this._renderMenu();
+    });
     onLangChange(() => {
       this._tablesShown = null; // same tables, new words
+      this._menuShown = null;
       this._renderTables();
+      this._renderMenu();
+      for (const line of this.lines) line.node = null;
       this._renderLines();
     });
     this._renderTables();
+    this._renderMenu();
     this._renderLines();
+  }
+
+  /** The menu by category (in menu order); dishes not available tonight are not offered. */
+  _renderMenu() {
+    const items = [...this.live.menu.values()]
+      .filter((m) => m.available)
+      .sort((a, b) => a.position - b.position || byName(a.dish, b.dish));
+    const shown = JSON.stringify(items.map((m) => [m.dish, m.category]));
+    if (shown === this._menuShown) return;
+    this._menuShown = shown;
+    const groups = new Map();
+    for (const m of items) {
+      if (!groups.has(m.category)) groups.set(m.category, []);
+      groups.get(m.category).push(m);
+    }
+    this.menu.replaceChildren(
+      ...[...groups].map(([category, dishes]) =>
+        el(
+          "div",
+          { class: "menu-group", role: "group", "aria-label": category || t("menu.noCategory") },
+          el("h3", {}, category || t("menu.noCategory")),
+          el(
+            "div",
+            { class: "menu-dishes" },
+            dishes.map((m) =>
+              el("button", {
+                class: "secondary",
+                "aria-label": t("order.addNamed", { dish: m.dish }),
+                onclick: () => this._add(m.dish),
+                text: m.dish,
+              }),
+            ),
+          ),
+        ),
+      ),
+    );
+    if (!items.length) this.menu.append(el("p", { class: "muted" }, t("order.noMenu")));
   }
 
   _renderTables() {
@@ -108,30 +139,68 @@ export class NewOrderPanel {
       toast(t("order.pickTable"), { kind: "error" });
       return;
     }
-    this.lines.push({ dish: d, table: this.table, key: newKey("dish") });
+    // The same dish again for the same table, no note yet: one more of it.
+    const same = this.lines.find((l) => l.dish === d && l.table === this.table && !l.note);
+    if (same && same.quantity < 99) {
+      same.quantity += 1;
+      this._showQuantity(same);
+      return;
+    }
+    this.lines.push({ dish: d, table: this.table, quantity: 1, note: "", key: newKey("dish"), node: null });
     this._renderLines();
   }
 
-  _renderLines() {
-    this.linesList.replaceChildren(
-      ...this.lines.map((line) =>
-        el(
-          "li",
-          {},
-          el("span", { class: "dish" }, line.dish),
-          el("span", { class: "table-tag" }, line.table),
-          el("button", {
-            class: "secondary",
-            "aria-label": t("order.removeFor", { dish: line.dish, table: line.table }),
-            onclick: () => {
-              this.lines = this.lines.filter((l) => l !== line);
-              this._renderLines();
-            },
-            text: t("order.remove"),
-          }),
-        ),
+  _showQuantity(line) {
+    if (line.qty) line.qty.textContent = t("order.quantity", { quantity: line.quantity });
+  }
+
+  _lineNode(line) {
+    const change = (by) => {
+      line.quantity = Math.min(99, Math.max(1, line.quantity + by));
+      this._showQuantity(line);
+    };
+    line.qty = el("span", { class: "qty", "aria-live": "polite" });
+    this._showQuantity(line);
+    const note = el("input", {
+      type: "text",
+      class: "note",
+      maxlength: 200,
+      autocomplete: "off",
+      value: line.note,
+      "aria-label": t("order.noteFor", { dish: line.dish, table: line.table }),
+      placeholder: t("order.notePlaceholder"),
+    });
+    note.addEventListener("input", () => {
+      line.note = note.value;
+    });
+    return el(
+      "li",
+      { class: "order-line" },
+      el("span", { class: "dish" }, line.dish),
+      el("span", { class: "table-tag" }, line.table),
+      el(
+        "span",
+        { class: "stepper", role: "group", "aria-label": t("order.quantityFor", { dish: line.dish, table: line.table }) },
+        el("button", { class: "secondary", type: "button", "aria-label": t("order.less", { dish: line.dish }), text: "−", onclick: () => change(-1) }),
+        line.qty,
+        el("button", { class: "secondary", type: "button", "aria-label": t("order.more", { dish: line.dish }), text: "+", onclick: () => change(1) }),
       ),
+      el("button", {
+        class: "secondary",
+        "aria-label": t("order.removeFor", { dish: line.dish, table: line.table }),
+        onclick: () => {
+          this.lines = this.lines.filter((l) => l !== line);
+          this._renderLines();
+        },
+        text: t("order.remove"),
+      }),
+      note,
     );
+  }
+
+  _renderLines() {
+    // Lines keep their nodes: a note being typed is not redrawn under the fingers.
+    this.linesList.replaceChildren(...this.lines.map((line) => line.node || (line.node = this._lineNode(line))));
     if (!this.lines.length) this.linesList.append(el("li", { class: "muted" }, t("order.empty")));
     this.sendBtn.disabled = !this.lines.length;
   }
@@ -140,11 +209,21 @@ export class NewOrderPanel {
     const sent = [];
     // One line at a time, so a refusal stops there and the unsent lines stay on screen.
     for (const line of [...this.lines]) {
-      const msg = { clientmsg: "create", type: "order", dish: line.dish, table: line.table, key: line.key };
+      const msg = {
+        clientmsg: "create",
+        type: "order",
+        dish: line.dish,
+        table: line.table,
+        quantity: line.quantity,
+        status: "ordered",
+        key: line.key,
+      };
+      const note = line.note.trim();
+      if (note) msg.note = note;
       const reply = await act(this.sendBtn, () => this.conn.request(msg, { resend: true }));
       if (!reply) break;
       this.lines = this.lines.filter((l) => l !== line);
-      sent.push(`${line.dish} (${line.table})`);
+      sent.push(line.quantity > 1 ? `${line.dish} ×${line.quantity} (${line.table})` : `${line.dish} (${line.table})`);
       this._renderLines();
     }
     if (sent.length) toast(t("order.sent", { dishes: sent.join(", ") }));

@@ -29,7 +29,7 @@ export class RegisterRobot {
       { id: "rr-kinematics" },
       KINEMATICS.map(([v, key]) => el("option", { value: v, "data-i18n": key })),
     );
-    this.submit = el("button", { type: "submit", "data-i18n": "register.submit" });
+    this.submit = el("button", { type: "submit", "data-needs-online": true, "data-i18n": "register.submit" });
     const form = el(
       "form",
       { class: "wp-form", "data-i18n-aria-label": "register.title" },

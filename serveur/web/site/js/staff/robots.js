@@ -1,9 +1,10 @@
 // The robots list: status, battery, current trip, and the instructions the robot's status
 // allows (status.js). A refusal from the server (the status changed meanwhile) is shown.
 
-import { act, confirmDialog, el } from "../ui.js";
+import { act, confirmDialog, el, formatClock } from "../ui.js";
 import { allowed, statusColour } from "../status.js";
 import { onLangChange, statusName, t } from "../i18n.js";
+import { goButton, trayList, traySignature } from "./dishes.js";
 
 // [action, label key, request]; `ready` reads "Release" (hand back from Manual or leave Auto).
 const ACTIONS = [
@@ -13,6 +14,7 @@ const ACTIONS = [
   ["stop", "robots.stop", (r, at) => ({ clientmsg: "stop", robot: r, ...at })],
   ["continue", "robots.continue", (r, at) => ({ clientmsg: "continue", robot: r, ...at })],
   ["next", "robots.collected", (r, at) => ({ clientmsg: "next", robot: r, ...at })],
+  ["skip", "robots.skip", (r, at) => ({ clientmsg: "skip", robot: r, ...at })],
   ["cancel", "robots.cancel", (r, at) => ({ clientmsg: "cancel", robot: r, ...at })],
 ];
 
@@ -24,8 +26,10 @@ export class RobotsPanel {
     this.selection = selection;
     this.rows = new Map(); // name -> {li, signature}
     live.addEventListener("change", (e) => {
-      if (["robots", "tasks", "waypoints"].includes(e.detail.topic)) this.render();
+      if (["robots", "tasks", "waypoints", "orders"].includes(e.detail.topic)) this.render();
     });
+    // Time at the table ticks: only that text changes, once a second.
+    setInterval(() => this._tick(), 1000);
     selection.onChange(() => this.render());
     onLangChange(() => {
       for (const row of this.rows.values()) row.signature = ""; // same data, new words
@@ -46,7 +50,10 @@ export class RobotsPanel {
       const trip = this._trip(robot);
       const selected = this.selection.name === name;
       // Rebuild a row only when what it shows changed, so a button is not replaced under a finger.
-      const signature = JSON.stringify([robot.status, robot.mode, battery(robot), trip, selected, robot.last_error]);
+      const loading = robot.status === "Loading" ? traySignature(this.live, robot.current_task) : "";
+      const signature = JSON.stringify([
+        robot.status, robot.mode, battery(robot), trip, selected, robot.last_error, loading, robot.status_since,
+      ]);
       let row = this.rows.get(name);
       if (!row) {
         row = { li: el("li", { class: "robot" }), signature: "" };
@@ -75,9 +82,13 @@ export class RobotsPanel {
 
   _content(robot, trip, selected) {
     const name = robot.name;
-    const buttons = ACTIONS.filter(([action]) => allowed(robot.status, action)).map(([action, key, make]) =>
+    const onTrip = robot.current_task !== null && robot.current_task !== undefined;
+    // Skip needs a table to leave: only on a trip.
+    const offered = ([action]) => allowed(robot.status, action) && (action !== "skip" || onTrip);
+    const buttons = ACTIONS.filter(offered).map(([action, key, make]) =>
       el("button", {
-        class: action === "stop" || action === "cancel" ? "danger" : "",
+        class: action === "stop" || action === "cancel" ? "danger" : action === "skip" ? "secondary" : "",
+        "data-needs-online": true,
         "aria-label": t("robots.actionFor", { action: t(key), name }),
         // The trip and stop shown now: the server refuses the command if the robot moved on.
         onclick: (e) => this._do(e.currentTarget, action, name, make(name, this.live.target(name))),
@@ -104,11 +115,58 @@ export class RobotsPanel {
       el("span", { class: "battery" }, t("robots.battery", { value: battery(robot) })),
       el("span", { class: "trip" }, trip),
       robot.last_error ? el("span", { class: "last-error" }, t("robots.lastError", { message: robot.last_error })) : null,
+      this._atTable(robot),
+      robot.status === "Loading" ? this._loading(robot) : null,
       el("div", { class: "actions", role: "group", "aria-label": t("robots.actions", { name }) }, buttons),
     ];
   }
 
+  /** A robot waiting at a table: where, and for how long (ticks each second). */
+  _atTable(robot) {
+    if (robot.status !== "Delivered") return null;
+    const table = this.live.destination(robot.name);
+    const span = el("span", {
+      class: "at-table",
+      "data-since": robot.status_since,
+      "data-table": table || "",
+    });
+    this._showAt(span);
+    return span;
+  }
+
+  _showAt(span) {
+    const since = Number(span.dataset.since);
+    const time = formatClock(since ? this.live.clock.now() - since : 0);
+    span.textContent = span.dataset.table
+      ? t("robots.atTable", { table: span.dataset.table, time })
+      : t("robots.atTableAny", { time });
+  }
+
+  _tick() {
+    for (const span of this.list.querySelectorAll(".at-table")) this._showAt(span);
+  }
+
+  /** Loading at the pass: what goes on which tray, and the big Go. */
+  _loading(robot) {
+    return el(
+      "div",
+      { class: "loading" },
+      el("span", { class: "loading-title" }, t("loading.title")),
+      trayList(this.live, robot.current_task),
+      goButton(this.conn, this.live, robot.name),
+    );
+  }
+
   async _do(button, action, name, msg) {
+    if (action === "skip") {
+      const table = this.live.destination(name);
+      const yes = await confirmDialog(t("robots.skipQuestion", { table: table || "?" }), {
+        yes: t("robots.skipYes"),
+        no: t("robots.skipNo"),
+        detail: t("robots.skipDetail"),
+      });
+      if (!yes) return;
+    }
     if (action === "cancel") {
       const yes = await confirmDialog(t("robots.cancelQuestion", { name }), {
         yes: t("robots.cancelYes"),

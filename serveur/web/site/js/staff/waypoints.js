@@ -14,7 +14,7 @@ export class WaypointsPanel {
     this.selection = selection;
     this.name = el("input", { id: "wp-name", type: "text", maxlength: 64, required: true, autocomplete: "off" });
     this.kind = el("select", { id: "wp-kind" }, KINDS.map((k) => el("option", { value: k, "data-i18n": `wp.kind.${k}` })));
-    this.saveBtn = el("button", { type: "submit", "data-i18n": "wp.save" });
+    this.saveBtn = el("button", { type: "submit", "data-needs-online": true, "data-i18n": "wp.save" });
     this.list = el("ul", { class: "goto-list", "data-i18n-aria-label": "wp.gotoList" });
     const form = el(
       "form",
@@ -66,6 +66,7 @@ export class WaypointsPanel {
           {},
           el("button", {
             disabled: !canGo,
+            "data-needs-online": true,
             "aria-label": t("wp.gotoNamed", { name: n }),
             title: canGo ? t("wp.send", { robot: this.selection.name, name: n }) : t("wp.needControl"),
             onclick: (e) => this._goto(e.currentTarget, n),

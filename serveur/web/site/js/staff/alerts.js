@@ -1,0 +1,194 @@
+// Alerts on every tab (the `alerts` topic): a badge in the header with the number nobody has
+// acknowledged yet, a banner listing the active ones with an Acknowledge button each ("seen by
+// Ana at 19:42" once someone has), and a chime for each new critical alert, made with WebAudio
+// (no audio file), that can be muted on this device. A cleared alert leaves the banner.
+
+import { act, el, formatTime } from "../ui.js";
+import { onLangChange, t } from "../i18n.js";
+
+const MUTE_KEY = "serveur.alertsMuted";
+
+// The headline of each kind, from its subject (a robot or a table): the server's own message is
+// English, so it is shown only as the detail of the kinds whose cause it names.
+const KINDS = {
+  robot_error: "alerts.kind.robotError",
+  robot_offline: "alerts.kind.robotOffline",
+  low_battery: "alerts.kind.lowBattery",
+  waiting_at_table: "alerts.kind.waitingAtTable",
+  dish_waiting: "alerts.kind.dishWaiting",
+  table_unreachable: "alerts.kind.tableUnreachable",
+};
+const DETAILED = new Set(["robot_error", "table_unreachable", "low_battery"]);
+
+function loadMuted() {
+  try {
+    return window.localStorage.getItem(MUTE_KEY) === "1";
+  } catch {
+    return false;
+  }
+}
+
+function saveMuted(muted) {
+  try {
+    window.localStorage.setItem(MUTE_KEY, muted ? "1" : "0");
+  } catch {
+    /* storage disabled: the choice lasts until the page is reloaded */
+  }
+}
+
+/** Who acknowledged: a person's name, or the device token's number. */
+function whoSaw(actor) {
+  if (!actor) return "?";
+  if (actor.startsWith("user:")) return actor.slice(5);
+  if (actor.startsWith("token:")) return t("alerts.device", { id: actor.slice(6) });
+  return actor;
+}
+
+/** Two short tones; browsers allow sound once the person has touched the page. */
+class Chime {
+  constructor() {
+    this.ctx = null;
+    const wake = () => {
+      try {
+        if (!this.ctx) this.ctx = new AudioContext();
+        if (this.ctx.state === "suspended") this.ctx.resume();
+      } catch {
+        /* no WebAudio: the banner still shows */
+      }
+    };
+    window.addEventListener("pointerdown", wake, { capture: true });
+    window.addEventListener("keydown", wake, { capture: true });
+  }
+
+  play() {
+    try {
+      if (!this.ctx) this.ctx = new AudioContext();
+      const ctx = this.ctx;
+      const start = ctx.currentTime + 0.01;
+      [880, 660].forEach((freq, i) => {
+        const osc = ctx.createOscillator();
+        const gain = ctx.createGain();
+        const at = start + i * 0.22;
+        osc.type = "sine";
+        osc.frequency.value = freq;
+        gain.gain.setValueAtTime(0.0001, at);
+        gain.gain.exponentialRampToValueAtTime(0.4, at + 0.02);
+        gain.gain.exponentialRampToValueAtTime(0.0001, at + 0.2);
+        osc.connect(gain).connect(ctx.destination);
+        osc.start(at);
+        osc.stop(at + 0.21);
+      });
+    } catch {
+      /* no WebAudio */
+    }
+  }
+}
+
+export class AlertsPanel {
+  constructor({ banner, badge, mute }, conn, live) {
+    this.banner = banner;
+    this.badge = badge;
+    this.mute = mute;
+    this.conn = conn;
+    this.live = live;
+    this.muted = loadMuted();
+    this.chime = new Chime();
+    this.chimes = 0; // how many were sounded (banner's data-chimes: what a test can read)
+    this.heard = new Set(); // alert ids already seen by this page: a chime once per alert
+    this.rows = new Map(); // id -> {li, signature}
+    this.list = el("ul", { class: "alert-list" });
+    this.banner.append(this.list);
+    this.mute.addEventListener("click", () => {
+      this.muted = !this.muted;
+      saveMuted(this.muted);
+      this._showMute();
+    });
+    live.addEventListener("change", (e) => {
+      if (e.detail.topic === "alerts") this.render();
+    });
+    onLangChange(() => {
+      for (const row of this.rows.values()) row.signature = "";
+      this._showMute();
+      this.render();
+    });
+    this._showMute();
+    this.render();
+  }
+
+  _showMute() {
+    this.mute.setAttribute("aria-pressed", String(this.muted));
+    this.mute.textContent = this.muted ? t("alerts.soundOff") : t("alerts.soundOn");
+    this.mute.title = this.muted ? t("alerts.unmuteHint") : t("alerts.muteHint");
+  }
+
+  render() {
+    const alerts = [...this.live.alerts.values()].sort(
+      (a, b) => (a.severity === b.severity ? 0 : a.severity === "critical" ? -1 : 1) || a.id - b.id,
+    );
+    const ids = new Set(alerts.map((a) => a.id));
+    for (const [id, row] of this.rows) {
+      if (!ids.has(id)) {
+        row.li.remove();
+        this.rows.delete(id);
+      }
+    }
+    let fresh = false;
+    for (const alert of alerts) {
+      if (!this.heard.has(alert.id)) {
+        this.heard.add(alert.id);
+        if (alert.severity === "critical" && !alert.acked_at) fresh = true;
+      }
+      const signature = JSON.stringify([alert.message, alert.acked_at, alert.acked_by]);
+      let row = this.rows.get(alert.id);
+      if (!row) {
+        row = { li: el("li", { "data-alert": alert.id }), signature: "" };
+        this.rows.set(alert.id, row);
+      }
+      if (row.signature !== signature) {
+        row.signature = signature;
+        row.li.className = `alert alert-${alert.severity === "critical" ? "critical" : "warning"}`;
+        row.li.classList.toggle("acked", Boolean(alert.acked_at));
+        row.li.replaceChildren(...this._content(alert));
+      }
+      this.list.append(row.li); // keeps the order; a no-op move when in place
+    }
+    if (fresh && !this.muted) {
+      this.chime.play();
+      this.chimes += 1;
+      this.banner.dataset.chimes = String(this.chimes);
+    }
+    const unseen = alerts.filter((a) => !a.acked_at).length;
+    this.banner.hidden = !alerts.length;
+    this.badge.hidden = !unseen;
+    this.badge.textContent = String(unseen);
+    this.badge.setAttribute("aria-label", t("alerts.badge", { count: unseen }));
+    this.badge.title = t("alerts.badge", { count: unseen });
+  }
+
+  _content(alert) {
+    const headline = t(KINDS[alert.kind] || "alerts.kind.other", { subject: alert.subject });
+    const since = t("alerts.since", { time: formatTime(alert.raised_at) });
+    const parts = [
+      el("span", { class: "alert-severity" }, alert.severity === "critical" ? t("alerts.critical") : t("alerts.warning")),
+      el("strong", { class: "alert-text" }, headline),
+      DETAILED.has(alert.kind) && alert.message ? el("span", { class: "alert-detail" }, alert.message) : null,
+      el("span", { class: "alert-since muted" }, since),
+    ];
+    if (alert.acked_at) {
+      parts.push(
+        el("span", { class: "alert-seen" }, t("alerts.seenBy", { who: whoSaw(alert.acked_by), time: formatTime(alert.acked_at) })),
+      );
+    } else {
+      parts.push(
+        el("button", {
+          class: "ack",
+          "data-needs-online": true,
+          "aria-label": t("alerts.ackFor", { what: headline }),
+          text: t("alerts.ack"),
+          onclick: (e) => act(e.currentTarget, () => this.conn.request({ clientmsg: "ack", alert: alert.id })),
+        }),
+      );
+    }
+    return parts.filter(Boolean);
+  }
+}

@@ -1,0 +1,100 @@
+// Kitchen: the dishes ordered and not ready yet, oldest first. "Start cooking" and "Ready" are
+// the kitchen's steps (a ready dish waits at the pass, in Issue task); a dish can be edited
+// (quantity, note) or voided until it leaves the pass.
+
+import { byName, el, formatDuration, KeyedList } from "../ui.js";
+import { onLangChange, t } from "../i18n.js";
+import { dishLabel, dishStep, editButtons } from "./dishes.js";
+
+export class KitchenPanel {
+  constructor(root, conn, live) {
+    this.conn = conn;
+    this.live = live;
+    this.ordered = el("ul", { class: "dish-list kitchen-list", "data-i18n-aria-label": "kitchen.ordered" });
+    this.cooking = el("ul", { class: "dish-list kitchen-list", "data-i18n-aria-label": "kitchen.cooking" });
+    root.append(
+      el(
+        "div",
+        { class: "kitchen-grid" },
+        el(
+          "section",
+          { class: "card", "aria-labelledby": "kitchen-ordered-title" },
+          el("h2", { id: "kitchen-ordered-title", "data-i18n": "kitchen.ordered" }),
+          this.ordered,
+        ),
+        el(
+          "section",
+          { class: "card", "aria-labelledby": "kitchen-cooking-title" },
+          el("h2", { id: "kitchen-cooking-title", "data-i18n": "kitchen.cooking" }),
+          this.cooking,
+        ),
+      ),
+    );
+    const rows = (emptyKey) => ({
+      key: (o) => o.id,
+      signature: (o) => [dishLabel(o), o.table, o.status],
+      build: (o) => this._row(o),
+      empty: () => el("li", { class: "muted" }, t(emptyKey)),
+    });
+    this.orderedRows = new KeyedList(this.ordered, rows("kitchen.orderedEmpty"));
+    this.cookingRows = new KeyedList(this.cooking, rows("kitchen.cookingEmpty"));
+    live.addEventListener("change", (e) => e.detail.topic === "orders" && this.render());
+    setInterval(() => this._tick(), 1000);
+    onLangChange(() => {
+      this.orderedRows.invalidate();
+      this.cookingRows.invalidate();
+      this.render();
+    });
+    this.render();
+  }
+
+  render() {
+    const all = [...this.live.orders.values()];
+    const byAge = (a, b) => (a.ordered_at ?? 0) - (b.ordered_at ?? 0) || byName(a.table, b.table) || a.id - b.id;
+    this.orderedRows.update(all.filter((o) => o.status === "ordered").sort(byAge));
+    this.cookingRows.update(all.filter((o) => o.status === "cooking").sort(byAge));
+  }
+
+  _row(o) {
+    const label = dishLabel(o);
+    const step =
+      o.status === "ordered"
+        ? el("button", {
+            class: "secondary",
+            "data-needs-online": true,
+            "aria-label": t("kitchen.startFor", { dish: label, table: o.table }),
+            text: t("kitchen.start"),
+            onclick: (e) => dishStep(this.conn, e.currentTarget, o, "cooking"),
+          })
+        : null;
+    return el(
+      "li",
+      { "data-order": o.id },
+      el("span", { class: "dish" }, label),
+      el("span", { class: "table-tag" }, o.table),
+      el("span", { class: "waiting muted", "data-ordered-at": o.ordered_at ?? "" }, this._age(o.ordered_at)),
+      el(
+        "span",
+        { class: "row-actions" },
+        step,
+        el("button", {
+          "data-needs-online": true,
+          "aria-label": t("kitchen.readyFor", { dish: label, table: o.table }),
+          text: t("kitchen.ready"),
+          onclick: (e) => dishStep(this.conn, e.currentTarget, o, "ready"),
+        }),
+        editButtons(this.conn, o),
+      ),
+    );
+  }
+
+  _age(at) {
+    return at ? formatDuration(this.live.clock.now() - Number(at)) : "";
+  }
+
+  _tick() {
+    for (const span of document.querySelectorAll(".kitchen-list .waiting")) {
+      span.textContent = this._age(span.dataset.orderedAt);
+    }
+  }
+}
