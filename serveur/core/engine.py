@@ -72,8 +72,8 @@ from serveur.errors import (
     Unreachable,
 )
 from serveur.robots import rosbridge as rb
+from serveur.robots.factory import make_driver
 from serveur.robots.names import RosNames
-from serveur.robots.ros1.link import RobotLink
 from serveur.scheduler import Candidate, Dispatcher
 from serveur.status import Action, Event, RobotState, RobotStatus, apply, check_allowed
 from serveur.store.base import Store
@@ -261,7 +261,7 @@ class Core:
 
     def _start_link(self, rt: Runtime) -> None:
         robot = self._robots[rt.name]
-        rt.link = RobotLink(
+        rt.link = make_driver(
             rt.name,
             robot.url,
             self.reports,

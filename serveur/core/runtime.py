@@ -11,7 +11,7 @@ import asyncio
 from dataclasses import dataclass, field
 from typing import Any
 
-from serveur.robots.ros1.link import RobotLink
+from serveur.robots.driver import RobotDriver
 from serveur.status import RobotState
 
 __all__ = ["CoreConfig", "Destination", "Runtime", "pose_dict"]
@@ -78,7 +78,7 @@ class Runtime:
 
     name: str
     state: RobotState
-    link: RobotLink | None = None
+    link: RobotDriver | None = None
     lock: asyncio.Lock = field(default_factory=asyncio.Lock)
     events: asyncio.Queue[tuple[str, tuple[Any, ...]]] = field(default_factory=asyncio.Queue)
     worker: asyncio.Task[None] | None = None

@@ -2,10 +2,12 @@
 
 Owns :mod:`~serveur.robots.rosbridge` (rosbridge ops and ROS message JSON, pure; shared with
 the simulator so both ends build the same frames), :mod:`~serveur.robots.names` (a robot's
-topic names, move_base action and map frame, from its registration options) and
-:mod:`serveur.robots.ros1` (the link to a ROS1 robot running move_base and AMCL). Nothing here
-knows about trips, orders or clients: the core listens to a link's reports and tells it where
-to go.
+topic names, move_base action and map frame, from its registration options),
+:mod:`~serveur.robots.driver` (the robot-driver interface the core talks to), its two
+implementations :mod:`serveur.robots.ros1` (move_base and AMCL) and :mod:`serveur.robots.ros2`
+(Nav2 over rosbridge 2.x), and :mod:`~serveur.robots.factory` (which one a robot gets).
+Nothing here knows about trips, orders or clients: the core listens to a link's reports and
+tells it where to go.
 
 May import: serveur.clock.
 """

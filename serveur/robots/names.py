@@ -18,13 +18,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 
-__all__ = ["OPTION_KEYS", "RosNames"]
+__all__ = ["OPTION_KEYS", "ROS_VERSIONS", "RosNames"]
 
 #: Option key -> the default name, in the order docs/robots.md lists them: the move_base
 #: action (goal, cancel, status, result, feedback), joystick velocities, the localised pose,
 #: calibration, the battery, the laser, the map (when the server has none).
 _DEFAULTS: dict[str, str] = {
     "move_base": "move_base",
+    "navigate": "navigate_to_pose",  # ROS 2: Nav2's NavigateToPose action
     "cmd_vel": "cmd_vel",
     "pose": "amcl_pose",
     "initialpose": "initialpose",
@@ -33,7 +34,9 @@ _DEFAULTS: dict[str, str] = {
     "map": "map",
 }
 #: Every option a robot's ``link`` may carry.
-OPTION_KEYS = ("ns", *_DEFAULTS, "frame")
+OPTION_KEYS = ("ros", "ns", *_DEFAULTS, "frame")
+#: The ROS versions a robot may run: "1" (move_base) or "2" (Nav2).
+ROS_VERSIONS = ("1", "2")
 _NAME = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
 _FRAME = re.compile(r"^[A-Za-z][A-Za-z0-9_/]*$")
 
@@ -48,8 +51,10 @@ def _resolve(ns: str, name: str) -> str:
 class RosNames:
     """The resolved names of one robot (absolute ROS graph names) and its map frame."""
 
+    ros: int = 1
     ns: str = ""
     move_base: str = "/move_base"
+    navigate: str = "/navigate_to_pose"
     cmd_vel: str = "/cmd_vel"
     pose: str = "/amcl_pose"
     initialpose: str = "/initialpose"
@@ -69,6 +74,10 @@ class RosNames:
         for key, value in options.items():
             if not isinstance(value, str):
                 raise ValueError(f"robot link option {key!r} must be a string")
+            if key == "ros":
+                if value not in ROS_VERSIONS:
+                    raise ValueError(f"robot link option ros={value!r}: the robot runs ROS 1 or 2")
+                continue
             pattern = _FRAME if key == "frame" else _NAME
             if not pattern.match(value) or len(value) > 128:
                 raise ValueError(f"robot link option {key}={value!r} is not a valid ROS name")
@@ -77,7 +86,8 @@ class RosNames:
             ns = "/" + ns
         ns = ns.rstrip("/")
         names = {key: _resolve(ns, options.get(key, default)) for key, default in _DEFAULTS.items()}
-        return cls(ns=ns, frame=options.get("frame", "map"), **names)
+        ros = int(options.get("ros", "1"))
+        return cls(ros=ros, ns=ns, frame=options.get("frame", "map"), **names)
 
     def topic(self, default: str) -> str:
         """This robot's name for one of the default topic names (``/move_base/goal``...)."""
@@ -96,6 +106,7 @@ class RosNames:
             "/move_base/status": f"{mb}/status",
             "/move_base/result": f"{mb}/result",
             "/move_base/feedback": f"{mb}/feedback",
+            "/navigate_to_pose": self.navigate,
             "/cmd_vel": self.cmd_vel,
             "/amcl_pose": self.pose,
             "/initialpose": self.initialpose,

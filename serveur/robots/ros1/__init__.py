@@ -3,7 +3,8 @@
 Owns :mod:`~serveur.robots.ros1.link` (:class:`~serveur.robots.ros1.link.RobotLink`: one
 websocket client per robot, goals with acknowledgement, heartbeat, reconnect).
 
-May import: serveur.clock, serveur.robots.rosbridge, serveur.robots.names.
+May import: serveur.clock, serveur.robots.rosbridge, serveur.robots.names,
+serveur.robots.driver.
 """
 
 __all__: list[str] = []

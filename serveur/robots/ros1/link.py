@@ -51,7 +51,7 @@ import secrets
 import ssl as ssl_module
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import websockets
 from websockets.asyncio.client import ClientConnection, connect
@@ -59,6 +59,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from serveur.clock import Clock
 from serveur.errors import LinkError, RosbridgeError
 from serveur.robots import rosbridge as rb
+from serveur.robots.driver import LinkListener
 from serveur.robots.names import RosNames
 
 __all__ = ["LinkListener", "RobotLink"]
@@ -93,28 +94,6 @@ _CANCEL_ALL: Mapping[str, Any] = {"stamp": rb.ros_time(0.0), "id": ""}
 _PUBLICATIONS = ("/move_base/goal", "/move_base/cancel", "/cmd_vel", "/initialpose")
 
 
-class LinkListener(Protocol):
-    """What a link reports. Called on the event loop; must not block."""
-
-    def link_up(self, robot: str) -> None: ...
-
-    def link_down(self, robot: str, reason: str) -> None: ...
-
-    def pose(self, robot: str, x: float, y: float, yaw: float, stamp: float) -> None: ...
-
-    def battery(self, robot: str, fraction: float) -> None: ...
-
-    def goal_done(self, robot: str, goal_id: str, status: rb.GoalStatus, text: str) -> None:
-        """The goal reached a terminal state (SUCCEEDED, ABORTED, PREEMPTED, REJECTED...)."""
-
-    def goal_lost(self, robot: str, goal_id: str, reason: str) -> None:
-        """The goal was never acknowledged after every re-send."""
-
-    def scan(self, robot: str, msg: Mapping[str, Any]) -> None: ...
-
-    def map(self, robot: str, msg: Mapping[str, Any]) -> None: ...
-
-
 @dataclass(slots=True)
 class _Goal:
     handle: str  # the first id: what callers hold, stable across re-sends
@@ -128,7 +107,9 @@ class _Goal:
 
 
 class RobotLink:
-    """One robot's rosbridge connection, kept up for the life of the server."""
+    """One ROS1 robot's rosbridge connection, kept up for the life of the server."""
+
+    kind = "ROS1 move_base"
 
     def __init__(
         self,

@@ -1,0 +1,115 @@
+"""The robot-driver interface: what the core asks of a robot, and what a robot reports back.
+
+The core (:mod:`serveur.core`) drives every robot through :class:`RobotDriver` and hears from
+it through :class:`LinkListener`; nothing above this interface knows which ROS a robot runs.
+Two drivers implement it: :class:`serveur.robots.ros1.link.RobotLink` (ROS1, move_base over
+rosbridge) and :class:`serveur.robots.ros2.link.Nav2Link` (ROS 2, Nav2's navigate_to_pose over
+rosbridge 2.x). :func:`serveur.robots.factory.make_driver` picks one from the robot's ``ros``
+option; this module never imports them (an interface does not know its implementations).
+
+The interface is small on purpose, like Equinor ISAR's robot interface: go to a pose, cancel,
+stop for good, steer, set the pose; reports of pose, battery, goal outcomes and liveness.
+Goal outcomes use one vocabulary, :class:`~serveur.robots.rosbridge.GoalStatus` (actionlib's,
+the richer of the two): a driver for another stack maps its own outcomes onto it (Nav2's
+CANCELED is PREEMPTED, a goal that never got an answer is LOST).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Protocol
+
+from serveur.robots import rosbridge as rb
+
+__all__ = ["LinkListener", "RobotDriver"]
+
+
+class LinkListener(Protocol):
+    """What a driver reports. Called on the event loop; must not block."""
+
+    def link_up(self, robot: str) -> None: ...
+
+    def link_down(self, robot: str, reason: str) -> None: ...
+
+    def pose(self, robot: str, x: float, y: float, yaw: float, stamp: float) -> None: ...
+
+    def battery(self, robot: str, fraction: float) -> None: ...
+
+    def goal_done(self, robot: str, goal_id: str, status: rb.GoalStatus, text: str) -> None:
+        """The goal reached a terminal state (SUCCEEDED, ABORTED, PREEMPTED, REJECTED...);
+        ``text`` says it in the robot's own terms ("move_base ABORTED: ...")."""
+
+    def goal_lost(self, robot: str, goal_id: str, reason: str) -> None:
+        """The goal was never acknowledged after every re-send, or its end never came."""
+
+    def scan(self, robot: str, msg: Mapping[str, Any]) -> None: ...
+
+    def map(self, robot: str, msg: Mapping[str, Any]) -> None: ...
+
+
+class RobotDriver(Protocol):
+    """One robot's connection, kept up for the life of the server.
+
+    Commands raise :class:`~serveur.errors.LinkError` when the robot cannot be reached (or the
+    server is shutting down after :meth:`halt`); reports go to the listener given at creation.
+    """
+
+    name: str
+    url: str
+    #: The last pose (map frame) and battery fraction reported, None until one came.
+    pose: tuple[float, float, float] | None
+    battery: float | None
+    #: Why the last connection attempt failed ("" once connected), for the console.
+    last_failure: str
+    #: "ROS1 move_base" or "ROS 2 Nav2": shown to staff and in logs.
+    kind: str
+
+    @property
+    def up(self) -> bool:
+        """Connected, alive and localised: the server may act on this robot."""
+        ...
+
+    @property
+    def goal_id(self) -> str | None:
+        """The handle of the goal under way, if any."""
+        ...
+
+    def start(self) -> None: ...
+
+    async def close(self) -> None: ...
+
+    async def drop(self) -> None:
+        """Close the connection as if the network failed (it reconnects by itself)."""
+        ...
+
+    async def halt(self) -> None:
+        """Stop the robot for good (shutdown): cancel its goal, zero velocity, refuse more."""
+        ...
+
+    async def send_goal(self, x: float, y: float, yaw: float) -> str:
+        """Send the robot to a map pose; the handle its outcome will be reported under."""
+        ...
+
+    async def cancel_goal(self) -> None:
+        """Cancel the goal under way (the robot stops where it is)."""
+        ...
+
+    async def teleop(self, vx: float, vy: float, wz: float) -> None:
+        """One joystick velocity; the driver stops the robot if none follows soon."""
+        ...
+
+    async def initial_pose(self, x: float, y: float, yaw: float) -> None:
+        """Tell the robot's localisation where it is."""
+        ...
+
+    async def want_pose(self, on: bool) -> None:
+        """Someone watches the pose live (full rate) or nobody does any more."""
+        ...
+
+    async def want_scan(self, on: bool) -> None:
+        """Stream the laser scan while someone looks at it."""
+        ...
+
+    def heartbeat_timeout(self) -> float:
+        """Clock seconds of silence after which the robot is declared down."""
+        ...

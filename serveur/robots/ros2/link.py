@@ -1,0 +1,516 @@
+"""The server's link to a ROS 2 robot: Nav2's navigate_to_pose over rosbridge 2.x.
+
+It implements :class:`~serveur.robots.driver.RobotDriver`, so the core drives a ROS 2 robot
+exactly as a ROS1 one. What the real stack does, and what this driver does about it (facts
+from rosbridge_suite 2.x, Nav2 and a Jazzy stack measured in ../shared/notes/ros2.md):
+
+* **Two connections.** With ``send_action_goals_in_new_thread`` false (Humble's default) a
+  navigate goal holds its connection's queue until the robot arrives: a cancel or a joystick
+  command sent behind it waits too (rosbridge_suite #909). Goals therefore go on a connection
+  of their own; cancels, teleop, the pose and the heartbeat use the other, so Stop works at
+  once whatever the robot's bridge is set to. (With the parameter true one connection would
+  do; docs/robots.md says to set it anyway.)
+* **No acknowledgement frame.** rosbridge answers neither ``send_action_goal`` nor
+  ``cancel_action_goal``, and a goal the robot rejects or nobody serves gets no frame at all.
+  The goal asks for feedback, which Nav2 sends while it executes: feedback within
+  ``ack_timeout`` means accepted; none and the goal is re-sent under a new id, and reported lost
+  after ``ack_retries`` re-sends.
+* **A result that never comes** (about one in 200 on the measured stack): feedback stopped for
+  ``ack_timeout`` with no result. The robot standing at the goal counts as arrived (the core
+  checks the distance again); elsewhere the goal is reported lost.
+* **Outcomes.** ``action_result`` has ``result: true`` for every normal end; the outcome is
+  ``status`` (4 succeeded, 5 canceled, 6 aborted), see :func:`messages.outcome`. Nav2 aborts
+  the active goal when a new one arrives: a result for a goal we replaced is ignored, never a
+  failure.
+* **Ids.** The goal table is shared by every client of the bridge: ids are UUIDs.
+* **Closing the socket does not cancel the robot's goal**: :meth:`halt` cancels explicitly.
+* **Release differences** found at run time: ``/cmd_vel`` is Twist or TwistStamped (Jazzy's
+  diff_drive_controller, Kilted's Nav2), asked from rosapi's ``topic_type`` at each connection.
+* **Liveness.** ROS 2 has no move_base status stream to serve as a heartbeat: rosapi's
+  ``get_time`` is called every :data:`PING_PERIOD`; any frame proves the robot alive, and
+  silence beyond :meth:`heartbeat_timeout` takes it down (socket aborted, reconnect).
+* Goals, cancels and initial poses carry zero stamps in frame ``map`` (AMCL ignores an
+  ``/initialpose`` in another frame), as on ROS1.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import ssl as ssl_module
+import uuid
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import websockets
+from websockets.asyncio.client import ClientConnection, connect
+
+from serveur.clock import Clock
+from serveur.errors import LinkError, RosbridgeError
+from serveur.robots import rosbridge as rb
+from serveur.robots.driver import LinkListener
+from serveur.robots.names import RosNames
+from serveur.robots.ros2 import messages as m2
+
+__all__ = ["PING_PERIOD", "Nav2Link"]
+
+log = logging.getLogger(__name__)
+
+#: Clock seconds between two liveness calls (rosapi get_time) on the control connection.
+PING_PERIOD = 0.5
+#: Wall seconds of Wi-Fi silence allowed before the robot is down (as for ROS1 robots).
+STALL_ALLOWANCE = 2.0
+TELEOP_TIMEOUT = 0.5
+BATTERY_MS = 5000
+#: A robot this close to its goal when the result never came has arrived (metres).
+ARRIVED_WITHOUT_RESULT = 0.5
+#: Goal ids remembered for cancelling: a goal of an earlier connection may still run.
+_RECENT_GOALS = 4
+
+
+@dataclass(slots=True)
+class _Goal:
+    handle: str
+    id: str
+    x: float
+    y: float
+    yaw: float
+    sent_at: float
+    attempts: int = 1
+    feedback_at: float | None = None  # last feedback (clock); None: not accepted yet
+
+
+class Nav2Link:
+    """One ROS 2 robot's rosbridge 2.x connections, kept up for the life of the server."""
+
+    kind = "ROS 2 Nav2"
+
+    def __init__(
+        self,
+        name: str,
+        url: str,
+        listener: LinkListener,
+        clock: Clock,
+        *,
+        heartbeat: float = 1.0,
+        ack_timeout: float = 2.0,
+        ack_retries: int = 2,
+        want_map: bool = False,
+        backoff_min: float = 0.2,
+        backoff_max: float = 5.0,
+        open_timeout: float = 5.0,
+        ssl: ssl_module.SSLContext | None = None,
+        stall: float = STALL_ALLOWANCE,
+        teleop_timeout: float = TELEOP_TIMEOUT,
+        names: RosNames | None = None,
+        **_rates: Any,  # the ROS1 link's throttles: AMCL is sparse on ROS 2 already
+    ) -> None:
+        self.name = name
+        self.url = url
+        self._listener = listener
+        self._clock = clock
+        self._heartbeat = heartbeat
+        self._ack_timeout = ack_timeout
+        self._ack_retries = ack_retries
+        self._want_map = want_map
+        self._backoff = (backoff_min, backoff_max)
+        self._open_timeout = open_timeout
+        self._ssl = ssl if url[:6].lower() == "wss://" else None
+        self._stall = stall
+        self._teleop_timeout = teleop_timeout
+        self._names = names or RosNames(ros=2)
+        self._ctl: ClientConnection | None = None  # subscriptions, cancels, teleop, pings
+        self._nav: ClientConnection | None = None  # goals only (the Humble queue)
+        self._task: asyncio.Task[None] | None = None
+        self._goal: _Goal | None = None
+        self._recent: deque[str] = deque(maxlen=_RECENT_GOALS)
+        self._alive_at = 0.0
+        self._have_pose = False
+        self._have_ping = False
+        self._up = False
+        self._halted = False
+        self._stamped_cmd_vel = False
+        self._teleop = False
+        self._teleop_sent = 0.0
+        self._failsafe: asyncio.Task[None] | None = None
+        self._scan_wanted = False
+        self._pings = 0
+        self.pose: tuple[float, float, float] | None = None
+        self.battery: float | None = None
+        self.connects = 0
+        self.last_failure = ""
+
+    # -- lifecycle -----------------------------------------------------------------------
+
+    @property
+    def up(self) -> bool:
+        return self._up
+
+    @property
+    def goal_id(self) -> str | None:
+        return self._goal.handle if self._goal else None
+
+    def start(self) -> None:
+        if self._task is None:
+            self._task = asyncio.create_task(self._run(), name=f"link-{self.name}")
+
+    async def close(self) -> None:
+        self._stop_failsafe()
+        task, self._task = self._task, None
+        if task is not None:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+
+    async def drop(self) -> None:
+        for ws in (self._ctl, self._nav):
+            if ws is not None:
+                await ws.close(code=1001, reason="dropped")
+
+    def _connect(self) -> Any:
+        tls: dict[str, Any] = {"ssl": self._ssl} if self._ssl is not None else {}
+        return connect(
+            self.url,
+            open_timeout=self._open_timeout,
+            close_timeout=1.0,
+            max_size=16 * 2**20,
+            ping_interval=None,  # the rosapi calls are the heartbeat
+            compression=None,
+            **tls,
+        )
+
+    async def _run(self) -> None:
+        delay = self._backoff[0]
+        while True:
+            try:
+                async with self._connect() as ctl, self._connect() as nav:
+                    self._ctl, self._nav = ctl, nav
+                    self.connects += 1
+                    delay = self._backoff[0]
+                    self.last_failure = ""
+                    await self._session(ctl, nav)
+                    reason = "connection closed"
+            except asyncio.CancelledError:
+                self._set_down("server shutting down")
+                raise
+            except ssl_module.SSLError as exc:
+                reason = self._connect_failed(f"TLS: {exc}")
+            except (OSError, TimeoutError, websockets.exceptions.WebSocketException) as exc:
+                reason = self._connect_failed(f"{type(exc).__name__}: {exc}")
+            finally:
+                self._ctl = self._nav = None
+            self._set_down(reason)
+            await asyncio.sleep(delay)
+            delay = min(delay * 2, self._backoff[1])
+
+    def _connect_failed(self, reason: str) -> str:
+        if reason != self.last_failure:
+            self.last_failure = reason
+            log.warning("%s: cannot connect to %s: %s", self.name, self.url, reason)
+        return reason
+
+    async def _session(self, ctl: ClientConnection, nav: ClientConnection) -> None:
+        self._have_pose = self._have_ping = False
+        self._alive_at = self._clock.now()
+        for topic in ("/cmd_vel", "/initialpose"):
+            await ctl.send(rb.encode(rb.op_advertise(self._t(topic), m2.TOPIC_TYPES[topic])))
+        await ctl.send(rb.encode(self._sub("/amcl_pose")))
+        await ctl.send(rb.encode(self._sub("/battery_state", throttle_rate=BATTERY_MS)))
+        if self._want_map:
+            await ctl.send(rb.encode(self._sub("/map")))
+        if self._scan_wanted:
+            await ctl.send(rb.encode(self._sub("/scan", throttle_rate=200)))
+        # Twist or TwistStamped: the release decides (Jazzy's controllers, Kilted's Nav2).
+        args = {"topic": self._t("/cmd_vel")}
+        await ctl.send(rb.encode(rb.op_call_service("/rosapi/topic_type", args, id="cmd_vel")))
+        await self._ping(ctl)
+        tasks = [
+            asyncio.create_task(self._read(ctl), name=f"ctl-{self.name}"),
+            asyncio.create_task(self._read(nav), name=f"nav-{self.name}"),
+            asyncio.create_task(self._watchdog(ctl, nav), name=f"watchdog-{self.name}"),
+        ]
+        try:
+            await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            for t in tasks:
+                t.cancel()
+            await asyncio.gather(*tasks, return_exceptions=True)
+
+    async def _read(self, ws: ClientConnection) -> None:
+        with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+            async for frame in ws:
+                if ws is self._ctl:
+                    self._alive_at = self._clock.now()
+                self._handle(frame)
+
+    async def _ping(self, ctl: ClientConnection) -> None:
+        self._pings += 1
+        await ctl.send(rb.encode(rb.op_call_service("/rosapi/get_time", {}, id="ping")))
+
+    async def _watchdog(self, ctl: ClientConnection, nav: ClientConnection) -> None:
+        while True:
+            await self._clock.sleep(PING_PERIOD)
+            now = self._clock.now()
+            if now - self._alive_at > self.heartbeat_timeout():
+                self._set_down(f"no answer from rosbridge for {now - self._alive_at:.1f}s")
+                for ws in (ctl, nav):
+                    ws.transport.abort()
+                return
+            with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+                await self._ping(ctl)
+            await self._check_goal(now)
+
+    def heartbeat_timeout(self) -> float:
+        """Two ping periods plus the Wi-Fi stall allowance (wall, scaled to the clock)."""
+        return max(self._heartbeat, 2.0 * PING_PERIOD + self._stall * self._clock.time_scale)
+
+    def _set_down(self, reason: str) -> None:
+        was_up, self._up = self._up, False
+        if was_up:
+            log.warning("%s: link down (%s)", self.name, reason)
+            self._listener.link_down(self.name, reason)
+
+    def _maybe_up(self) -> None:
+        if self._have_ping and self._have_pose and not self._up:
+            self._up = True
+            log.info("%s: link up (%s, %s)", self.name, self.url, self.kind)
+            self._listener.link_up(self.name)
+
+    # -- incoming ------------------------------------------------------------------------
+
+    def _handle(self, frame: str | bytes) -> None:
+        try:
+            op = rb.decode(frame)
+            kind = op["op"]
+            if kind == "publish":
+                topic = str(op.get("topic"))
+                self._on_publish(self._names.default_of(topic) or topic, op.get("msg"))
+            elif kind == "service_response":
+                self._on_service(op)
+            elif kind == "action_feedback":
+                self._on_feedback(op)
+            elif kind == "action_result":
+                self._on_result(op)
+            elif kind == "status":
+                log.info("%s: rosbridge says %s: %s", self.name, op.get("level"), op.get("msg"))
+        except (
+            RosbridgeError,
+            KeyError,
+            TypeError,
+            ValueError,
+            AttributeError,
+            ArithmeticError,
+            RecursionError,
+        ) as exc:
+            log.warning("%s: dropped malformed frame from robot: %s", self.name, exc)
+        except Exception:
+            log.exception("%s: error handling a frame from the robot (dropped)", self.name)
+
+    def _on_service(self, op: Mapping[str, Any]) -> None:
+        if op.get("id") == "ping":
+            if not self._have_ping:
+                self._have_ping = True
+                self._maybe_up()
+        elif op.get("id") == "cmd_vel":
+            values = op.get("values")
+            kind = values.get("type", "") if isinstance(values, Mapping) else ""
+            self._stamped_cmd_vel = str(kind).endswith("TwistStamped")
+            if self._stamped_cmd_vel:
+                log.info("%s: /cmd_vel is TwistStamped", self.name)
+
+    def _on_publish(self, topic: str, msg: Any) -> None:
+        if not isinstance(msg, dict):
+            raise RosbridgeError(f"{topic}: msg is not an object")
+        if topic == "/amcl_pose":
+            x, y, yaw = rb.pose_from_msg(msg["pose"]["pose"])
+            if not all(math.isfinite(v) for v in (x, y, yaw)):
+                raise RosbridgeError("non-finite pose")
+            self.pose = (x, y, yaw)
+            self._listener.pose(self.name, x, y, yaw, rb.from_ros_time(msg["header"]["stamp"]))
+            if not self._have_pose:
+                self._have_pose = True
+                self._maybe_up()
+        elif topic == "/battery_state":
+            pct = msg.get("percentage")
+            if isinstance(pct, int | float) and math.isfinite(pct):
+                self.battery = max(0.0, min(1.0, float(pct)))
+                self._listener.battery(self.name, self.battery)
+        elif topic == "/scan":
+            self._listener.scan(self.name, msg)
+        elif topic == "/map":
+            self._listener.map(self.name, msg)
+
+    def _on_feedback(self, op: Mapping[str, Any]) -> None:
+        goal = self._goal
+        if goal is not None and op.get("id") == goal.id:
+            goal.feedback_at = self._clock.now()
+
+    def _on_result(self, op: Mapping[str, Any]) -> None:
+        goal = self._goal
+        if goal is None or op.get("id") != goal.id:
+            return  # a goal we replaced (Nav2 aborted it for the new one) or cancelled
+        status, text = m2.outcome(op)
+        self._goal = None
+        self._listener.goal_done(self.name, goal.handle, status, text)
+
+    async def _check_goal(self, now: float) -> None:
+        goal = self._goal
+        if goal is None:
+            return
+        if goal.feedback_at is None:
+            if now - goal.sent_at > self._ack_timeout:
+                await self._resend(goal)
+            return
+        if now - goal.feedback_at > self._ack_timeout:
+            # Feedback stopped and no result came: the robot's position says what happened.
+            self._goal = None
+            pose = self.pose
+            if pose is not None and math.hypot(pose[0] - goal.x, pose[1] - goal.y) <= (
+                ARRIVED_WITHOUT_RESULT
+            ):
+                log.warning("%s: no result for goal %s; at the goal", self.name, goal.id)
+                text = "navigate_to_pose SUCCEEDED (no result came; the robot is at the goal)"
+                self._listener.goal_done(self.name, goal.handle, rb.GoalStatus.SUCCEEDED, text)
+            else:
+                self._listener.goal_lost(
+                    self.name, goal.handle, "Nav2 stopped sending feedback and no result came"
+                )
+
+    # -- outgoing ------------------------------------------------------------------------
+
+    def _t(self, default: str) -> str:
+        return self._names.topic(default)
+
+    def _sub(self, default: str, *, throttle_rate: int = 0) -> dict[str, Any]:
+        return rb.op_subscribe(
+            self._t(default), m2.TOPIC_TYPES[default], throttle_rate=throttle_rate
+        )
+
+    async def _send(
+        self, op: Mapping[str, Any], *, nav: bool = False, halting: bool = False
+    ) -> None:
+        if self._halted and not halting:
+            raise LinkError(f"robot {self.name} is stopped: the server is shutting down")
+        ws = self._nav if nav else self._ctl
+        if ws is None or not self._up:
+            raise LinkError(f"robot {self.name} is not connected")
+        try:
+            await ws.send(rb.encode(op))
+        except websockets.exceptions.ConnectionClosed as exc:
+            raise LinkError(f"robot {self.name}: connection lost while sending") from exc
+
+    async def send_goal(self, x: float, y: float, yaw: float) -> str:
+        if self._goal is not None:
+            # Free a Humble bridge's goal queue first; Nav2 would abort it for the new one
+            # anyway, but the new goal would wait behind it on a blocked connection.
+            with contextlib.suppress(LinkError):
+                await self._cancel(self._goal.id)
+        gid = str(uuid.uuid4())
+        goal = _Goal(gid, gid, x, y, yaw, self._clock.now())
+        self._goal = goal
+        await self._send_goal_op(goal)
+        return goal.handle
+
+    async def _send_goal_op(self, goal: _Goal) -> None:
+        self._recent.append(goal.id)
+        op = m2.op_send_action_goal(
+            self._t("/navigate_to_pose"),
+            goal.id,
+            goal.x,
+            goal.y,
+            goal.yaw,
+            frame_id=self._names.frame,
+        )
+        await self._send(op, nav=True)
+
+    async def _resend(self, goal: _Goal) -> None:
+        if goal.attempts > self._ack_retries:
+            self._goal = None
+            reason = f"goal not accepted by Nav2 after {goal.attempts} attempts (no feedback)"
+            self._listener.goal_lost(self.name, goal.handle, reason)
+            return
+        old = goal.id
+        goal.id = str(uuid.uuid4())
+        goal.attempts += 1
+        goal.sent_at = self._clock.now()
+        log.warning("%s: goal %s not accepted, re-sending as %s", self.name, old, goal.id)
+        with contextlib.suppress(LinkError):
+            await self._cancel(old)
+            await self._send_goal_op(goal)
+
+    async def _cancel(self, goal_id: str, *, halting: bool = False) -> None:
+        op = m2.op_cancel_action_goal(self._t("/navigate_to_pose"), goal_id)
+        await self._send(op, halting=halting)
+
+    async def cancel_goal(self) -> None:
+        """Cancel our goals on the robot (on the control connection: never queued behind
+        the goal itself). An unknown id is ignored by the bridge."""
+        self._goal = None
+        for gid in list(self._recent):
+            await self._cancel(gid)
+
+    async def halt(self) -> None:
+        self._halted = True
+        self._goal = None
+        self._teleop = False
+        self._stop_failsafe()
+        with contextlib.suppress(LinkError):
+            for gid in list(self._recent):
+                await self._cancel(gid, halting=True)
+            await self._send(self._twist_op(0.0, 0.0, 0.0), halting=True)
+
+    def _twist_op(self, vx: float, vy: float, wz: float) -> dict[str, Any]:
+        msg = m2.twist_stamped(vx, vy, wz) if self._stamped_cmd_vel else rb.twist(vx, vy, wz)
+        return rb.op_publish(self._t("/cmd_vel"), msg)
+
+    async def teleop(self, vx: float, vy: float, wz: float) -> None:
+        self._teleop = (vx, vy, wz) != (0.0, 0.0, 0.0)
+        await self._send(self._twist_op(vx, vy, wz))
+        if self._teleop:
+            self._teleop_sent = self._clock.now()
+            if self._failsafe is None or self._failsafe.done():
+                self._failsafe = asyncio.create_task(
+                    self._teleop_failsafe(), name=f"teleop-failsafe-{self.name}"
+                )
+        else:
+            self._stop_failsafe()
+
+    async def _teleop_failsafe(self) -> None:
+        timeout = self._teleop_timeout * self._clock.time_scale
+        while self._teleop:
+            left = self._teleop_sent + timeout - self._clock.now()
+            if left > 0:
+                await self._clock.sleep(left)
+                continue
+            self._teleop = False
+            log.warning("%s: no joystick command for %.1fs, stopping", self.name, timeout)
+            with contextlib.suppress(LinkError):
+                await self._send(self._twist_op(0.0, 0.0, 0.0))
+
+    def _stop_failsafe(self) -> None:
+        task, self._failsafe = self._failsafe, None
+        if task is not None and task is not asyncio.current_task():
+            task.cancel()
+
+    async def initial_pose(self, x: float, y: float, yaw: float) -> None:
+        msg = m2.pose_with_covariance_stamped(x, y, yaw, stamp=0.0, frame_id=self._names.frame)
+        await self._send(rb.op_publish(self._t("/initialpose"), msg))
+
+    async def want_pose(self, on: bool) -> None:
+        """AMCL on ROS 2 publishes only after 0.25 m / 0.2 rad of motion: nothing to throttle."""
+
+    async def want_scan(self, on: bool) -> None:
+        if on == self._scan_wanted:
+            return
+        self._scan_wanted = on
+        ctl = self._ctl
+        if ctl is not None:
+            op = (
+                self._sub("/scan", throttle_rate=200) if on else rb.op_unsubscribe(self._t("/scan"))
+            )
+            with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+                await ctl.send(rb.encode(op))
