@@ -228,11 +228,15 @@ def _event_of(cell: str) -> Event:
         "`manual`": Event.MANUAL,
         "`ready`": Event.RELEASE,
         "dispatch": Event.DISPATCH,
+        "assign": Event.ASSIGN,
+        "`go`": Event.GO,
         "go home": Event.GO_HOME,
         "arrived": Event.ARRIVED,
         "navigation failed": Event.NAV_FAILED,
-        "`next` (more tables)": Event.NEXT_TABLE,
-        "`next` (last table)": Event.NEXT_HOME,
+        "`next` or `skip` (more tables)": Event.NEXT_TABLE,
+        "`next` or `skip` (last table)": Event.NEXT_HOME,
+        "`skip` (more tables)": Event.NEXT_TABLE,
+        "`skip` (last table)": Event.NEXT_HOME,
         "`stop`": Event.STOP,
         "`continue`": Event.CONTINUE,
         "`cancel`": Event.CANCEL,
@@ -398,15 +402,24 @@ def test_action_of_and_robot_of() -> None:
         "create order": (None, None),
         "create task": (None, None),
         "create robot": (None, None),
+        "create dish": (None, None),
         "order table": (None, None),
         "order robot": (None, "r1"),
         **{f"control {a}": (Action(a), "r1") for a in P._SUBTAGS["control"][1]},
-        **{v: (Action(v), "r1") for v in ("ready", "next", "stop", "continue", "cancel")},
+        **{
+            v: (Action(v), "r1")
+            for v in ("ready", "next", "stop", "continue", "cancel", "go", "skip")
+        },
+        # not bound to a robot's status: a dish's step, an alert seen, a table cleared
+        "dish": (None, None),
+        "ack": (None, None),
+        "clear": (None, None),
     }
     seen = {}
     for ex in _client_examples():
         msg = P.parse_client(json.dumps(ex))
-        name = " ".join(str(ex[k]) for k in ("clientmsg", "type", "action") if k in ex) + (
+        keys = ("clientmsg", "type", "action") if ex["clientmsg"] != "dish" else ("clientmsg",)
+        name = " ".join(str(ex[k]) for k in keys if k in ex) + (
             " robot" if ex.get("type") == "waypoint" and "robot" in ex else ""
         )
         if ex["clientmsg"] == "order":

@@ -28,11 +28,18 @@ to that block. Its space-separated words:
 
 * ``state=S``: before the request, the test drives ``r1`` into status ``S`` through a helper
   connection (serving, stopping or cancelling trips, creating a one-dish trip to T3 when one is
-  needed); ``S`` is a robot status, or ``Away`` (Ready, parked away from its home).
+  needed, pressing Go once it is loaded); ``S`` is a robot status, or ``Away`` (Ready, parked
+  away from its home). ``Error`` is reached as in a restaurant: a one-dish trip to T12 with the
+  simulated robot's way blocked, so T12 is blocked afterwards (until a ``clear``).
 * ``orders=T3,T5``: before the request, create one pending order for each table named.
 * ``failed-logins=N``: before the request, N logins with a wrong password on the login
   connection.
-* ``as=owner``: send the request on the owner's connection (``create robot``).
+* ``as=owner``: send the request on the owner's connection (``create robot``, ``create dish``).
+  ``as=table-screen:T3``: on a connection logged in with a table-screen token for T3.
+* ``fill=a,b``: the request's ids that only the run knows, filled in before it is sent:
+  ``order`` (the newest order; ``order:S``: the newest in status ``S``), ``orders`` (the
+  orders the ``orders=`` hint just created), ``task`` and ``stop`` (``r1``'s current trip and
+  stop), ``alert`` (the active alert of the documented reply's kind and subject).
 * ``token=ROLE:ROBOT``: replace the request's ``token`` by a fresh token of that role.
 * ``loose=a,b``: more volatile keys for this block. ``sample=k``: under key ``k`` the example
   lists some of the records (each must match one record the server sent; the real list may be
@@ -40,6 +47,9 @@ to that block. Its space-separated words:
 * ``snapshot``: an ``update`` block compared with the topic's snapshot instead of a pushed update
   (the map is pushed only when it changes, which a server started with its map never sees).
 * ``skip=reason``: not replayed (none today).
+
+The restaurant runs as shipped (``CoreConfig.auto_depart`` False): a trip given to ``r1`` waits
+at the pass, Loading, until a ``go``.
 
 Error codes: ``test_every_error_code_is_produced`` lists, per code of the doc's error table,
 the test that makes the server send it.
@@ -59,6 +69,7 @@ import pytest
 from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed
 
+from serveur.core.runtime import CoreConfig
 from serveur.security import auth
 from tests.conftest import Client, Restaurant, restaurant
 
@@ -88,6 +99,13 @@ VOLATILE = frozenset(
         "done_at",
         "updated_at",
         "status_since",
+        "ordered_at",
+        "returned_at",
+        "voided_at",
+        "raised_at",
+        "acked_at",
+        "cleared_at",
+        "since",
         "retry_after",
         "x",
         "y",
@@ -105,7 +123,22 @@ VOLATILE = frozenset(
 ORDER_ID_LISTS = frozenset({"orders", "orders_returned"})
 UPDATE_WAIT = 10.0
 REPLY_WAIT = 15.0
-ALL_TOPICS = ["robots", "orders", "tasks", "waypoints", "map", "events", f"pose:{ROBOT}"]
+ALL_TOPICS = [
+    "robots",
+    "orders",
+    "tasks",
+    "waypoints",
+    "map",
+    "events",
+    "alerts",
+    "menu",
+    "blocks",
+    f"pose:{ROBOT}",
+]
+#: The site of the doc's restaurant: as shipped (trips wait at the pass for Go).
+SITE = CoreConfig(heartbeat=2.0, ack_timeout=3.0, auto_depart=False)
+#: The table ``state=Error`` cannot reach.
+BLOCKED_TABLE = "T12"
 
 # --------------------------------------------------------------------------- the document
 
@@ -297,6 +330,9 @@ class World:
     login: Raw
     owner_raw: Raw  # sends the owner's requests
     codes: set[str] = field(default_factory=set)  # error codes the replay was answered with
+    made: list[int] = field(default_factory=list)  # orders the latest ``orders=`` hint created
+    screens: dict[str, Raw] = field(default_factory=dict)  # table screens (``as=``)
+    alert: int | None = None  # the alert the latest ``fill=alert`` named
 
     def watched(self) -> list[dict[str, Any]]:
         return [
@@ -306,7 +342,7 @@ class World:
 
 @pytest.fixture
 async def world(tmp_path: Path) -> AsyncIterator[World]:
-    async with restaurant(tmp_path, robots=1) as r:
+    async with restaurant(tmp_path, robots=1, config=SITE) as r:
         assert r.app.sessions is not None
         store = r.app.store
         await store.add_user(
@@ -326,19 +362,22 @@ async def world(tmp_path: Path) -> AsyncIterator[World]:
         owner_raw = Raw(await connect(r.app.url))
         await owner_raw.request({"clientmsg": "login", "username": "olga", "password": "olga's pw"})
         try:
-            yield World(r, helper, owner, staff, login, owner_raw)
+            world = World(r, helper, owner, staff, login, owner_raw)
+            yield world
         finally:
             for raw in (staff, login, owner_raw):
+                await raw.ws.close()
+            for raw in world.screens.values():
                 await raw.ws.close()
 
 
 # --------------------------------------------------------------------------- robot states
 
 
-async def _trip(w: World) -> None:
-    """A one-dish trip to T3 (the dish is Laksa), queued for the robot."""
+async def _trip(w: World, table: str = "T3") -> None:
+    """A one-dish trip to ``table`` (the dish is Laksa), queued for the robot."""
     c = w.helper
-    order = (await c.ok("create", type="order", dish="Laksa", table="T3"))["order"]
+    order = (await c.ok("create", type="order", dish="Laksa", table=table))["order"]
     await c.ok("create", type="task", orders=[order["id"]])
 
 
@@ -358,6 +397,7 @@ async def to_ready(w: World) -> None:
         if st == "Ready":
             return
         verb = {
+            "Loading": "cancel",
             "Delivering": "stop",
             "Transit": "stop",
             "Stopped": "cancel",
@@ -373,7 +413,7 @@ async def to_ready(w: World) -> None:
             assert reply["servermsg"] == "ok" or reply["code"] == "not_allowed_in_status", reply
             if verb == "cancel" and reply["servermsg"] == "ok":
                 await c.until(
-                    lambda: _status(w) not in ("Stopped", "Error", "Transit"),
+                    lambda: _status(w) not in ("Loading", "Stopped", "Error", "Transit"),
                     what=f"{ROBOT} home after a cancel",
                 )
                 continue
@@ -381,13 +421,23 @@ async def to_ready(w: World) -> None:
     raise AssertionError(f"{ROBOT} did not get Ready (is {_status(w)})")
 
 
+async def _loaded(w: World) -> None:
+    """Staff have loaded the trays: Go, and the robot leaves (Delivering)."""
+    await w.helper.ok("go", robot=ROBOT)
+    await w.helper.status(ROBOT, "Delivering")
+
+
 async def to_state(w: World, target: str) -> None:
     """Drive the robot into ``target`` (a status, or Away: Ready, parked away from home)."""
     c = w.helper
-    if target == _status(w) and target not in ("Delivering", "Delivered", "Stopped"):
+    on_trip = ("Delivering", "Delivered", "Stopped")
+    if target == _status(w) and target not in on_trip:
         return
-    if target in ("Delivering", "Delivered", "Stopped") and _has_trip(w):
+    if target in on_trip and _has_trip(w):
         st = _status(w)
+        if st == "Loading":
+            await _loaded(w)
+            st = "Delivering"
         if target == "Delivered" and st == "Delivering":
             await c.status(ROBOT, "Delivered")
             return
@@ -415,11 +465,25 @@ async def to_state(w: World, target: str) -> None:
             await c.ok("ready", robot=ROBOT)
             await c.status(ROBOT, "Ready")
         return
-    if target in ("Delivering", "Delivered", "Stopped"):
+    sim = w.r.sim.robots[0]
+    if target == "Error":
+        sim.block_path(True)
+        await _trip(w, BLOCKED_TABLE)
+    elif target in (*on_trip, "Loading"):
         await _trip(w)
     await c.ok("control", robot=ROBOT, action="auto")
-    await c.status(ROBOT, "Delivering" if target != "Awaiting" else "Awaiting")
-    if target == "Delivered":
+    if target == "Awaiting":
+        await c.status(ROBOT, "Awaiting")
+        return
+    await c.status(ROBOT, "Loading")
+    if target == "Loading":
+        return
+    await _loaded(w)
+    if target == "Error":
+        await c.status(ROBOT, "Error")
+        sim.block_path(False)
+        await c.until(lambda: BLOCKED_TABLE in c.records.get("blocks", {}), what="blocked")
+    elif target == "Delivered":
         await c.status(ROBOT, "Delivered")
     elif target == "Stopped":
         await c.ok("stop", robot=ROBOT)
@@ -438,8 +502,10 @@ def _fail(step: Step, what: str, problems: list[str]) -> None:
 async def _prepare(w: World, b: Block) -> None:
     h = b.hints
     if "orders" in h:
+        w.made = []
         for table in h["orders"].split(","):
-            await w.helper.ok("create", type="order", dish="Satay", table=table)
+            made = await w.helper.ok("create", type="order", dish="Satay", table=table)
+            w.made.append(made["order"]["id"])
     if "failed-logins" in h:
         for _ in range(int(h["failed-logins"])):
             got = await w.login.request(
@@ -449,6 +515,65 @@ async def _prepare(w: World, b: Block) -> None:
             w.codes.add("unauthorized")
     if "state" in h:
         await to_state(w, h["state"])
+
+
+async def _table_screen(w: World, table: str) -> Raw:
+    """A connection logged in as table ``table``'s screen (opened once)."""
+    if table not in w.screens:
+        token = await w.r.app.issue_token("table-screen", table=table)
+        raw = Raw(await connect(w.r.app.url, max_size=2**24))
+        got = await raw.request({"clientmsg": "login", "token": token})
+        assert got["servermsg"] == "ok", got
+        w.screens[table] = raw
+    return w.screens[table]
+
+
+async def _fill(w: World, msg: dict[str, Any], fill: str, reply: Block | None) -> None:
+    """Put into ``msg`` the ids only the run knows (the ``fill=`` hint)."""
+    c = w.helper
+    for word in fill.split(","):
+        name, _, status = word.partition(":")
+        if name == "order":
+
+            def newest(status: str = status) -> int | None:
+                ids = [
+                    o["id"]
+                    for o in c.records.get("orders", {}).values()
+                    if not status or o["status"] == status
+                ]
+                return max(ids, default=None)
+
+            await c.until(lambda: newest() is not None, what=f"an order {status}")
+            msg["order"] = newest()
+        elif name == "orders":
+            msg["orders"] = list(w.made)
+        elif name in ("task", "stop"):
+            task = c.robot(ROBOT)["current_task"]
+            msg["task"] = task
+            if name == "stop":
+                assert task is not None, "no trip to name a stop of"
+                t = c.task(task)
+                msg["stop"] = t["stops"][t["current_stop"]]["seq"]
+        elif name == "alert" and (reply is None or "alert" not in reply.msg):
+            assert w.alert is not None, "fill=alert: no alert yet, and no reply to find one"
+            msg["alert"] = w.alert
+        elif name == "alert":
+            want = reply.msg["alert"]
+
+            def active(want: dict[str, Any] = want) -> int | None:
+                ids = [
+                    a["id"]
+                    for a in c.records.get("alerts", {}).values()
+                    if a["kind"] == want["kind"]
+                    and a["subject"] == want["subject"]
+                    and a["cleared_at"] is None
+                ]
+                return max(ids, default=None)
+
+            await c.until(lambda: active() is not None, what=f"alert {want['kind']}")
+            msg["alert"] = w.alert = active()
+        else:
+            raise AssertionError(f"fill: unknown {name!r}")
 
 
 async def _send(w: World, step: Step) -> None:
@@ -463,7 +588,12 @@ async def _send(w: World, step: Step) -> None:
     if "token" in req.hints:
         role, _, robot = req.hints["token"].partition(":")
         msg["token"] = await w.r.app.issue_token(role, robot=robot or None)
-    if req.hints.get("as") == "owner":
+    if "fill" in req.hints:
+        await _fill(w, msg, req.hints["fill"], reply)
+    who = req.hints.get("as", "")
+    if who.startswith("table-screen:"):
+        got = await (await _table_screen(w, who.partition(":")[2])).request(msg)
+    elif who == "owner":
         got = await w.owner_raw.request(msg)
     elif msg["clientmsg"] in ("login", "logout"):
         got = await w.login.request(msg)
@@ -526,7 +656,17 @@ def test_skips_are_rare_and_say_why() -> None:
     skipped = [b for b in blocks if "skip" in b.hints]
     assert len(skipped) <= 2
     assert all(len(b.hints["skip"]) > 10 for b in skipped)
-    known = {"state", "orders", "failed-logins", "as", "token", "loose", "sample", "snapshot"}
+    known = {
+        "state",
+        "orders",
+        "failed-logins",
+        "as",
+        "token",
+        "fill",
+        "loose",
+        "sample",
+        "snapshot",
+    }
     for b in blocks:
         assert set(b.hints) - {"skip"} <= known, (b.line, b.hints)
 
@@ -563,16 +703,20 @@ def _event_rows() -> dict[str, set[str]]:
 
 
 #: Event kinds the store can write that no request or robot report leads to (no verb deletes a
-#: waypoint or withdraws an order): not in the doc's table.
-UNREACHED_KINDS = frozenset({"waypoint.deleted", "order.cancelled"})
+#: waypoint): not in the doc's table.
+UNREACHED_KINDS = frozenset({"waypoint.deleted"})
+_KIND = re.compile(r'"((?:robot|waypoint|order|task|stop|table|alert|menu)\.[a-z_]+)"')
 
 
 def test_the_event_table_lists_every_kind_the_server_records() -> None:
+    from serveur.store.service import _EVENT
+
     root = Path(__file__).resolve().parent.parent / "serveur"
     kinds = set()
     for path in root.rglob("*.py"):
-        code = path.read_text(encoding="utf-8")
-        kinds |= set(re.findall(r'"((?:robot|waypoint|order|task|stop)\.[a-z_]+)"', code))
+        kinds |= set(_KIND.findall(path.read_text(encoding="utf-8")))
+    # A dish's steps are named from the action (f"order.{...}"): not literals in the code.
+    kinds |= {f"order.{name}" for name in _EVENT.values()}
     assert kinds >= UNREACHED_KINDS
     assert set(_event_rows()) == kinds - UNREACHED_KINDS
 
@@ -678,7 +822,7 @@ async def test_refusals_the_examples_do_not_show(
         E.RosbridgeError("bad frame"),
     ):
 
-        async def fail(msg: Any, exc: Exception = exc) -> dict[str, Any]:
+        async def fail(msg: Any, exc: Exception = exc, **_: Any) -> dict[str, Any]:
             raise exc
 
         with monkeypatch.context() as m:
