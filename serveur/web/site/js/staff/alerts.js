@@ -8,8 +8,8 @@ import { onLangChange, t } from "../i18n.js";
 
 const MUTE_KEY = "serveur.alertsMuted";
 
-// The headline of each kind, from its subject (a robot or a table): the server's own message is
-// English, so it is shown only as the detail of the kinds whose cause it names.
+// The headline of each kind, from its subject (a robot or a table), in the page's language; the
+// detail is the cause as the live records tell it (the robot's error, why the table is blocked).
 const KINDS = {
   robot_error: "alerts.kind.robotError",
   robot_offline: "alerts.kind.robotOffline",
@@ -18,7 +18,6 @@ const KINDS = {
   dish_waiting: "alerts.kind.dishWaiting",
   table_unreachable: "alerts.kind.tableUnreachable",
 };
-const DETAILED = new Set(["robot_error", "table_unreachable", "low_battery"]);
 
 function loadMuted() {
   try {
@@ -104,7 +103,7 @@ export class AlertsPanel {
       this._showMute();
     });
     live.addEventListener("change", (e) => {
-      if (e.detail.topic === "alerts") this.render();
+      if (["alerts", "robots", "blocks"].includes(e.detail.topic)) this.render();
     });
     onLangChange(() => {
       for (const row of this.rows.values()) row.signature = "";
@@ -116,7 +115,8 @@ export class AlertsPanel {
   }
 
   _showMute() {
-    this.mute.setAttribute("aria-pressed", String(this.muted));
+    // The words say the state ("Sound off"); the hint says what a press does.
+    this.mute.dataset.muted = String(this.muted);
     this.mute.textContent = this.muted ? t("alerts.soundOff") : t("alerts.soundOn");
     this.mute.title = this.muted ? t("alerts.unmuteHint") : t("alerts.muteHint");
   }
@@ -138,7 +138,7 @@ export class AlertsPanel {
         this.heard.add(alert.id);
         if (alert.severity === "critical" && !alert.acked_at) fresh = true;
       }
-      const signature = JSON.stringify([alert.message, alert.acked_at, alert.acked_by]);
+      const signature = JSON.stringify([alert.message, alert.acked_at, alert.acked_by, this._detail(alert)]);
       let row = this.rows.get(alert.id);
       if (!row) {
         row = { li: el("li", { "data-alert": alert.id }), signature: "" };
@@ -165,13 +165,27 @@ export class AlertsPanel {
     this.badge.title = t("alerts.badge", { count: unseen });
   }
 
+  /** The cause, from the live records: the robot's last error, its battery, the block's reason. */
+  _detail(alert) {
+    if (alert.kind === "table_unreachable") return this.live.blocks.get(alert.subject)?.reason || null;
+    const robot = this.live.robots.get(alert.subject);
+    if (!robot) return null;
+    if (alert.kind === "robot_error") return robot.last_error || null;
+    if (alert.kind === "low_battery" && typeof robot.battery === "number") {
+      return t("robots.battery", { value: t("robots.batteryPercent", { percent: Math.round(robot.battery * 100) }) });
+    }
+    if (alert.kind === "waiting_at_table") return this.live.destination(alert.subject);
+    return null;
+  }
+
   _content(alert) {
+    const detail = this._detail(alert);
     const headline = t(KINDS[alert.kind] || "alerts.kind.other", { subject: alert.subject });
     const since = t("alerts.since", { time: formatTime(alert.raised_at) });
     const parts = [
       el("span", { class: "alert-severity" }, alert.severity === "critical" ? t("alerts.critical") : t("alerts.warning")),
       el("strong", { class: "alert-text" }, headline),
-      DETAILED.has(alert.kind) && alert.message ? el("span", { class: "alert-detail" }, alert.message) : null,
+      detail ? el("span", { class: "alert-detail" }, detail) : null,
       el("span", { class: "alert-since muted" }, since),
     ];
     if (alert.acked_at) {
