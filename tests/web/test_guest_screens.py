@@ -238,6 +238,12 @@ async def test_a_stuck_robot_asks_for_staff_in_the_guests_words(
         assert err["last_error"] not in text and "ABORTED" not in text.upper(), text
         assert not re.search(r"move_base|no path", text, re.I), text
         await robot.screenshot(path=str(tmp_path / "robot-error.png"))
+        # Staff logged in on a robot screen do read the cause, below the guests' words.
+        staffed = await screens.open("/robot/r1?lang=en", token=r.token)
+        await expect(
+            staffed.get_by_text("I need help from the staff — please wait")
+        ).to_be_visible()
+        await expect(staffed.locator(".detail")).to_have_text(f"Error: {err['last_error']}")
 
         # Staff leave the table from the screen: Skip asks first, the dish goes back to the pass.
         r.sim.robots[0].block_path(False)
