@@ -57,6 +57,7 @@ from serveur.maps.navigation import (
     load_waypoints,
 )
 from serveur.robots import rosbridge as rb
+from serveur.sim import ros2
 from serveur.sim.bridge import Endpoint
 from serveur.sim.kinematics import KINDS
 from serveur.sim.robot import AMCL_MODES, AMCL_TICKS, MAX_CATCH_UP, TICK, SimRobot
@@ -279,6 +280,10 @@ async def start_simulation(
     clock_offset: float = 0.0,
     amcl: str = "continuous",
     namespaced: bool = False,
+    ros: int | Sequence[int] = 1,
+    release: str = "jazzy",
+    twist_stamped: bool | None = None,
+    humble_queue: bool | None = None,
 ) -> Simulation:
     """Start ``n`` robots listening on ports ``port``..``port+n-1`` (0: free ports).
 
@@ -290,6 +295,14 @@ async def start_simulation(
     ``clock_offset`` (seconds) sets every robot's clock that far from ``clock``: all they stamp
     is ``clock.epoch() + clock_offset``. ``amcl`` is ``"continuous"`` (10 Hz poses) or
     ``"real"`` (latched, only after motion, like the amcl node): see :mod:`serveur.sim.robot`.
+
+    ``ros`` is the dialect every robot speaks, 1 (rosbridge 0.11, move_base, amcl) or 2
+    (rosbridge 2.x, Nav2's ``navigate_to_pose``: :mod:`serveur.sim.bridge`,
+    :mod:`serveur.sim.ros2`), or one entry per robot for a mixed fleet (``[1, 2]``). For ROS 2
+    robots: ``release`` (``humble``, ``jazzy``, ``kilted``) sets the NavigateToPose result's
+    shape and the defaults of ``twist_stamped`` (``/cmd_vel`` is TwistStamped; Kilted) and
+    ``humble_queue`` (rosbridge's ``send_action_goals_in_new_thread`` false, Humble's default: a
+    goal holds its connection's later ops until it ends); None takes the release's default.
     """
     if n < 1:
         raise ValueError("at least one robot")
@@ -301,6 +314,11 @@ async def start_simulation(
         raise ValueError("clock_offset must be a finite number of seconds")
     if names is not None and len(names) < n:
         raise ValueError("fewer names than robots")
+    dialects = [ros] * n if isinstance(ros, int) else list(ros)
+    if len(dialects) != n or any(d not in (1, 2) for d in dialects):
+        raise ValueError(f"ros must be 1, 2 or one of those per robot ({n}), not {ros!r}")
+    if release not in ros2.RELEASES:
+        raise ValueError(f"release must be one of {ros2.RELEASES}, not {release!r}")
     clock = clock or ScaledClock(time_scale)
     if map_path is None:
         grid, waypoints = load_demo()
@@ -317,7 +335,8 @@ async def start_simulation(
     # The latched /map, built once: every robot shares the one frame (namespaced robots each
     # get their own topic name on the same message).
     map_msg = rb.occupancy_grid(grid, stamp=clock.epoch() + clock_offset, seq=0)
-    map_frame = Frame(rb.op_publish("/map", map_msg))
+    map_msgs = {1: map_msg, 2: ros2.to_ros2(map_msg)}
+    map_frames = {d: Frame(rb.op_publish("/map", m)) for d, m in map_msgs.items()}
     robots: list[SimRobot] = []
     endpoints: list[Endpoint] = []
     for i in range(n):
@@ -332,13 +351,17 @@ async def start_simulation(
             kinematics=kinematics,
             clock=clock,
             seed=seed + i,
-            map_frame=Frame(rb.op_publish(f"{namespace}/map", map_msg))
+            map_frame=Frame(rb.op_publish(f"{namespace}/map", map_msgs[dialects[i]]))
             if namespaced
-            else map_frame,
+            else map_frames[dialects[i]],
             plan_lock=plan_lock,
             clock_offset=clock_offset,
             amcl=amcl,
             namespace=namespace,
+            ros=dialects[i],
+            release=release,
+            twist_stamped=twist_stamped,
+            humble_queue=humble_queue,
         )
         robots.append(robot)
         endpoints.append(Endpoint(robot, host, port + i if port else 0, ssl))
@@ -397,6 +420,33 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
         "master are; register them with --robot rN=URL,ns=/rN",
     )
     parser.add_argument(
+        "--ros",
+        default="1",
+        metavar="1|2|LIST",
+        help="the robots' dialect: 1 (default; rosbridge 0.11, move_base) or 2 (rosbridge 2.x, "
+        "Nav2 navigate_to_pose); a comma list gives one per robot (--ros 1,2)",
+    )
+    parser.add_argument(
+        "--release",
+        choices=ros2.RELEASES,
+        default="jazzy",
+        help="ROS 2 robots' release (default jazzy): the result's shape (humble: empty), and "
+        "the defaults of --twist-stamped (kilted) and --humble-queue (humble)",
+    )
+    parser.add_argument(
+        "--twist-stamped",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="ROS 2: /cmd_vel is geometry_msgs/msg/TwistStamped (default: the release's)",
+    )
+    parser.add_argument(
+        "--humble-queue",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="ROS 2: rosbridge with send_action_goals_in_new_thread false: a goal holds its "
+        "connection's later ops (cancel, cmd_vel) until it ends (default: the release's)",
+    )
+    parser.add_argument(
         "--amcl",
         choices=AMCL_MODES,
         default="continuous",
@@ -422,6 +472,10 @@ async def run_sim(
     clock_offset: float = 0.0,
     amcl: str = "continuous",
     namespaced: bool = False,
+    ros: int | Sequence[int] = 1,
+    release: str = "jazzy",
+    twist_stamped: bool | None = None,
+    humble_queue: bool | None = None,
 ) -> int:
     """Run a simulation until ``stop`` is set or SIGINT/SIGTERM; print the URLs first.
 
@@ -451,6 +505,10 @@ async def run_sim(
                 clock_offset=clock_offset,
                 amcl=amcl,
                 namespaced=namespaced,
+                ros=ros,
+                release=release,
+                twist_stamped=twist_stamped,
+                humble_queue=humble_queue,
             )
         except (OSError, ServeurError, ValueError) as exc:
             print(f"serveur sim: cannot start: {exc}", file=sys.stderr, flush=True)
@@ -484,6 +542,19 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
         except ServeurError as exc:
             print(f"serveur sim: cannot start: {exc}", file=sys.stderr, flush=True)
             return 1
+    ros: int | list[int]
+    try:
+        parts = [int(p) for p in str(getattr(ns, "ros", "1")).split(",")]
+    except ValueError:
+        print("serveur sim: --ros takes 1, 2 or a comma list of them", file=sys.stderr)
+        return 2
+    if len(parts) == 1:
+        ros = parts[0]
+    elif len(parts) == ns.robots:
+        ros = parts
+    else:
+        print(f"serveur sim: --ros lists {len(parts)} robots, not {ns.robots}", file=sys.stderr)
+        return 2
     return await run_sim(
         ns.robots,
         port=ns.port,
@@ -498,4 +569,8 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
         clock_offset=getattr(ns, "clock_offset", 0.0),
         amcl=getattr(ns, "amcl", "continuous"),
         namespaced=getattr(ns, "namespaced", False),
+        ros=ros,
+        release=getattr(ns, "release", "jazzy"),
+        twist_stamped=getattr(ns, "twist_stamped", None),
+        humble_queue=getattr(ns, "humble_queue", None),
     )

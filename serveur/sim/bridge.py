@@ -41,6 +41,8 @@ from websockets.exceptions import ConnectionClosed
 
 from serveur.errors import RosbridgeError, ServeurError
 from serveur.robots import rosbridge as rb
+from serveur.sim import ros2
+from serveur.sim.robot import ROS1_SUBSCRIBES
 from serveur.sim.topics import (
     Frame,
     Sub,
@@ -53,6 +55,7 @@ if TYPE_CHECKING:
     from serveur.sim.robot import SimRobot
 
 __all__ = [
+    "BACKLOG",
     "CONTROL_QUEUE",
     "MAX_CALLS",
     "MAX_FRAGMENTED",
@@ -61,6 +64,7 @@ __all__ = [
     "MAX_SUB_IDS",
     "ROBOT_SUBSCRIBES",
     "SEND_BUFFER",
+    "ActionGoal",
     "BridgeClient",
     "Endpoint",
 ]
@@ -74,11 +78,11 @@ SEND_BUFFER: Final = 64 * 1024  # SO_SNDBUF of client sockets (the kernel double
 MAX_FRAGMENTED: Final = 8  # messages being reassembled from fragments at once, per client
 MAX_CALLS: Final = 64  # service calls in progress at once, per client
 MAX_SUB_IDS: Final = 64  # subscribe ids merged into one subscription
+#: Ops a connection held by a goal (the queue trap) keeps waiting; beyond, the oldest are lost.
+BACKLOG: Final = 4096
 
-#: Topics the robot subscribes to (clients may publish here; anything else is refused).
-ROBOT_SUBSCRIBES: Final = frozenset(
-    {"/move_base/goal", "/move_base_simple/goal", "/move_base/cancel", "/cmd_vel", "/initialpose"}
-)
+#: Topics a ROS1 robot subscribes to (clients may publish here; anything else is refused).
+ROBOT_SUBSCRIBES: Final = ROS1_SUBSCRIBES
 _LEVELS: Final = rb.STATUS_LEVELS
 #: Every op this server handles; ``fragment_size`` is only taken from these (protocol.py drops
 #: an unknown op before it looks at the op's fields).
@@ -95,8 +99,12 @@ _OPS: Final = frozenset(
         "unadvertise_service",
         "fragment",
         "set_level",
+        "send_action_goal",
+        "cancel_action_goal",
     }
 )
+#: rosbridge 2.x's action ops: unknown to a ROS1 robot's rosbridge 0.11.
+_ACTION_OPS: Final = frozenset({"send_action_goal", "cancel_action_goal"})
 
 # ---------------------------------------------------------------------------------------------
 # One client connection
@@ -124,6 +132,56 @@ def _opt_int(msg: Mapping[str, Any], key: str) -> int:
     return int(v)
 
 
+class ActionGoal:
+    """One ``send_action_goal`` of a ROS 2 robot's client, as rosbridge 2.x's handler for it.
+
+    Its feedback and result go to the connection that sent it, even after a cancel from
+    another connection; with the queue trap it holds that connection until it ends.
+    """
+
+    __slots__ = ("action", "client", "done", "feedback", "id")
+
+    def __init__(
+        self, client: BridgeClient, action: str, gid: str | int | None, feedback: bool
+    ) -> None:
+        self.client = client
+        self.action = action
+        self.id = gid
+        self.feedback = feedback
+        self.done = False
+
+    def _op(self, op: str, **fields: Any) -> dict[str, Any]:
+        out: dict[str, Any] = {"op": op, "action": self.action}
+        if self.id is not None:
+            out["id"] = self.id
+        out.update(fields)
+        return out
+
+    def send_feedback(self, values: Mapping[str, Any]) -> None:
+        if self.feedback and not self.done:
+            self.client.reply(self._op("action_feedback", values=values))
+
+    def end(self, status: int, values: Mapping[str, Any], *, send: bool = True) -> None:
+        """The goal ended: the result (unless dropped), then the connection is free again.
+
+        rosbridge's goal table is keyed by id and the handler deletes its id when it ends,
+        whichever goal holds that id by then (send_action_goal.py): so it is done here too.
+        """
+        if self.done:
+            return
+        self.done = True
+        self.client.endpoint.actions.pop(self.id, None)
+        if send:
+            self.client.reply(self._op("action_result", values=values, status=status, result=True))
+        self.client.release(self)
+
+    def fail(self, text: str) -> None:
+        """What rosbridge sends when building or sending the goal raised: ``result`` false."""
+        self.done = True
+        self.client.endpoint.actions.pop(self.id, None)
+        self.client.reply(self._op("action_result", values=text, status=0, result=False))
+
+
 class BridgeClient:
     """One websocket client of a robot: its subscriptions, its send queues, its op handlers."""
 
@@ -144,6 +202,11 @@ class BridgeClient:
         self.fragments: dict[str | int, dict[int, str]] = {}
         self.calls: dict[str, asyncio.Future[tuple[Any, bool]]] = {}  # calls we forwarded to it
         self.tasks: set[asyncio.Task[None]] = set()
+        #: ROS 2 with the queue trap: the goal this connection's op thread is inside, and the
+        #: frames that arrived meanwhile (handled in order once it ends).
+        self.blocker: ActionGoal | None = None
+        self.backlog: deque[str | bytes] = deque()
+        self.closed = False
 
     # -- sending -----------------------------------------------------------------------------
 
@@ -225,6 +288,27 @@ class BridgeClient:
 
     # -- receiving ---------------------------------------------------------------------------
 
+    def feed(self, frame: str | bytes) -> None:
+        """One frame off the socket: handled now, or queued behind a goal holding the
+        connection (the queue trap, :meth:`_send_action_goal`)."""
+        if self.blocker is not None or self.backlog:
+            if len(self.backlog) >= BACKLOG:
+                self.backlog.popleft()
+            self.backlog.append(frame)
+            return
+        self.handle_frame(frame)
+
+    def release(self, goal: ActionGoal) -> None:
+        """``goal`` ended: if it held this connection, handle what waited behind it (soon,
+        not inside the robot's step that ended the goal)."""
+        if self.blocker is goal:
+            self.blocker = None
+            asyncio.get_running_loop().call_soon(self._drain)
+
+    def _drain(self) -> None:
+        while self.blocker is None and self.backlog and not self.closed:
+            self.handle_frame(self.backlog.popleft())
+
     def handle_frame(self, frame: str | bytes, depth: int = 0) -> None:
         """Decode and run one frame; every problem becomes a status reply, never an exception."""
         msg: dict[str, Any] | None = None
@@ -254,6 +338,8 @@ class BridgeClient:
     def handle_op(self, msg: dict[str, Any], depth: int = 0) -> None:
         op = msg["op"]
         oid = _op_id(msg)
+        if op in _ACTION_OPS and self.robot.ros == 1:
+            raise RosbridgeError(f"unknown op {op!r}")  # rosbridge 0.11 has no action ops
         if op in _OPS and "fragment_size" in msg:
             # Any op may carry it and it holds for the client from then on (protocol.py).
             size = _opt_int(msg, "fragment_size")
@@ -290,6 +376,10 @@ class BridgeClient:
                 del self.endpoint.services[service]
         elif op == "fragment":
             self._fragment(msg, depth)
+        elif op == "send_action_goal":
+            self._send_action_goal(msg, oid)
+        elif op == "cancel_action_goal":
+            self._cancel_action_goal(msg, oid)
         elif op == "set_level":
             # ROSBRIDGE_PROTOCOL.md (ROS1): status ops at this level and more severe ones.
             level = msg.get("level")
@@ -298,6 +388,56 @@ class BridgeClient:
             self.level = _LEVELS[level]
         else:
             raise RosbridgeError(f"unknown op {op!r}")
+
+    # -- ROS 2 actions (rosbridge 2.x) ------------------------------------------------------
+
+    def _send_action_goal(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
+        """rosbridge 2.x's ``send_action_goal`` (capabilities/send_action_goal.py and
+        internal/actions.py, before the 2026 fix; shared/notes/ros2.md):
+
+        * no acknowledgement frame; ``action_feedback`` only if ``feedback`` is true;
+        * a goal the action server rejects, or for an action nobody serves, gets no frame at
+          all (the handler waits for ever), an unknown action type or a goal rosbridge cannot
+          populate gets ``action_result`` with ``result`` false, status 0 and the error text;
+        * ids live in one table for the whole bridge (``cancel_action_goal`` by any connection);
+        * with the queue trap (``send_action_goals_in_new_thread`` false, Humble's default) the
+          connection's op thread runs the goal itself: every later op of this connection waits
+          until the goal ends; for a goal that never ends, for ever.
+        """
+        action = _req_str(msg, "action")
+        action_type = _req_str(msg, "action_type")
+        feedback = msg.get("feedback", False) is True
+        name = action.split("#", 1)[0]
+        if oid is None and "#" in action:  # the deprecated "action#id" form
+            oid = action.split("#", 1)[1]
+        goal = ActionGoal(self, action, oid, feedback)
+        self.endpoint.actions[oid] = goal
+        if self.robot.humble_queue:
+            self.blocker = goal
+        if action_type.strip("/") not in ros2.ACTION_TYPES:
+            goal.fail(f"Unable to import action type {action_type!r}")
+            self.release(goal)
+            return
+        if self.robot.local(name) != ros2.NAVIGATE_TO_POSE:
+            return  # no action server: rosbridge waits for one for ever, and sends nothing
+        try:
+            frame, x, y, q = ros2.goal_from_args(msg.get("args"))
+        except ServeurError as exc:
+            goal.fail(exc.message)
+            self.release(goal)
+            return
+        self.robot.nav2_goal(goal, frame, x, y, q)  # rejected: no frame, the handler waits
+
+    def _cancel_action_goal(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
+        """``cancel_action_goal``: the goal with this id in the bridge's table, whichever
+        connection sent it; an unknown id is silently ignored."""
+        _req_str(msg, "action")
+        action = cast(str, msg["action"])
+        if oid is None and "#" in action:
+            oid = action.split("#", 1)[1]
+        goal = self.endpoint.actions.get(oid)
+        if goal is not None and not goal.done:
+            goal.client.robot.nav2_cancel(goal)
 
     def _topic(self, msg: Mapping[str, Any]) -> str:
         """The op's topic as the robot names it inside (its namespace taken off).
@@ -316,8 +456,8 @@ class BridgeClient:
         body = msg["msg"]
         if not isinstance(body, Mapping):
             raise RosbridgeError("'msg' must be an object")
-        if topic not in ROBOT_SUBSCRIBES:
-            if topic in rb.TOPIC_TYPES:
+        if topic not in self.robot.subscribes:
+            if topic in self.robot.topic_types:
                 raise RosbridgeError(
                     f"{topic} is published by the robot; it does not subscribe to it"
                 )
@@ -328,11 +468,11 @@ class BridgeClient:
 
     def _subscribe(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
         topic = self._topic(msg)
-        known = rb.TOPIC_TYPES.get(topic)
+        known = self.robot.topic_types.get(topic)
         if known is None:
             raise RosbridgeError(f"unknown topic {topic}")
         typ = msg.get("type")
-        if typ not in (None, "") and (not isinstance(typ, str) or rb.normalize_type(typ) != known):
+        if typ not in (None, "") and (not isinstance(typ, str) or not _same_type(typ, known)):
             raise RosbridgeError(f"{topic} is of type {known}, not {typ!r}")
         throttle = _opt_int(msg, "throttle_rate") / 1000.0
         qlen = min(_opt_int(msg, "queue_length"), MAX_QUEUE)
@@ -346,7 +486,7 @@ class BridgeClient:
         sub = self.subs.get(topic)
         new = sub is None
         if sub is None:
-            sub = self.subs[topic] = Sub(self, topic)
+            sub = self.subs[topic] = Sub(self, topic, ros=self.robot.ros)
         if oid not in sub.params and len(sub.params) >= MAX_SUB_IDS:
             raise RosbridgeError(f"more than {MAX_SUB_IDS} subscriptions to {topic}")
         sub.params.pop(oid, None)  # re-subscribing with an id makes it the latest
@@ -378,10 +518,10 @@ class BridgeClient:
     def _advertise(self, msg: Mapping[str, Any]) -> None:
         topic = self._topic(msg)
         typ = _req_str(msg, "type")
-        known = rb.TOPIC_TYPES.get(topic)
-        if known is None or topic not in ROBOT_SUBSCRIBES:
+        known = self.robot.topic_types.get(topic)
+        if known is None or topic not in self.robot.subscribes:
             raise RosbridgeError(f"cannot advertise {topic}: the robot does not subscribe to it")
-        if rb.normalize_type(typ) != known:
+        if not _same_type(typ, known):
             raise RosbridgeError(f"{topic} is of type {known}, not {typ!r}")
         self.advertised.add(topic)
 
@@ -393,7 +533,7 @@ class BridgeClient:
         try:
             if args is not None and not isinstance(args, Mapping | list):
                 raise RosbridgeError("'args' must be an object or a list")
-            builtin = _ROSAPI.get(service)
+            builtin = _rosapi(self).get(service)
             if builtin is not None:
                 values, ok = builtin(self, args), True
             elif service in self.endpoint.services:
@@ -432,7 +572,7 @@ class BridgeClient:
     def _advertise_service(self, msg: Mapping[str, Any]) -> None:
         service = _req_str(msg, "service")
         _req_str(msg, "type")
-        if service in _ROSAPI:
+        if service in _rosapi(self):
             raise RosbridgeError(f"{service} is provided by rosapi")
         self.endpoint.services[service] = self
 
@@ -461,6 +601,9 @@ class BridgeClient:
             self.handle_frame("".join(parts[i] for i in range(total)), depth + 1)
 
     def close(self) -> None:
+        # The robot's goals go on: closing a websocket does not cancel them (ROS 2 measured).
+        self.closed = True
+        self.backlog.clear()
         for sub in list(self.subs.values()):
             self._drop_sub(sub)
         for name, provider in list(self.endpoint.services.items()):
@@ -473,26 +616,36 @@ class BridgeClient:
             task.cancel()
 
 
+def _same_type(a: str, b: str) -> bool:
+    """``pkg/Type`` and ``pkg/msg/Type`` are one type (rosbridge's loaders take both)."""
+    return rb.normalize_type(a.strip("/")) == rb.normalize_type(b.strip("/"))
+
+
 def _rosapi_topics(client: BridgeClient, args: Any) -> dict[str, Any]:
-    topics = sorted(rb.TOPIC_TYPES)
-    return {
-        "topics": [client.robot.wire(t) for t in topics],
-        "types": [rb.TOPIC_TYPES[t] for t in topics],
-    }
+    types = client.robot.topic_types
+    topics = sorted(types)
+    return {"topics": [client.robot.wire(t) for t in topics], "types": [types[t] for t in topics]}
 
 
 def _rosapi_get_time(client: BridgeClient, args: Any) -> dict[str, Any]:
-    return {"time": rb.ros_time(client.robot.epoch())}  # the robot's clock, offset included
+    t = client.robot.epoch()  # the robot's clock, offset included
+    return {"time": ros2.time(t) if client.robot.ros == 2 else rb.ros_time(t)}
 
 
 def _rosapi_topic_type(client: BridgeClient, args: Any) -> dict[str, Any]:
+    """The type of a topic (ROS 2: ``pkg/msg/Type``, e.g. whether /cmd_vel is stamped)."""
     topic = args.get("topic") if isinstance(args, Mapping) else (args[0] if args else None)
     local = client.robot.local(topic) if isinstance(topic, str) else None
-    return {"type": rb.TOPIC_TYPES.get(local, "") if local is not None else ""}
+    return {"type": client.robot.topic_types.get(local, "") if local is not None else ""}
 
 
 def _rosapi_services(client: BridgeClient, args: Any) -> dict[str, Any]:
-    return {"services": sorted([*_ROSAPI, *client.endpoint.services])}
+    return {"services": sorted([*_rosapi(client), *client.endpoint.services])}
+
+
+def _rosapi_action_servers(client: BridgeClient, args: Any) -> dict[str, Any]:
+    """rosapi 2.x's ``/rosapi/action_servers``: the robot's navigator."""
+    return {"action_servers": [client.robot.wire(ros2.NAVIGATE_TO_POSE)]}
 
 
 _ROSAPI: Final[dict[str, Callable[[BridgeClient, Any], dict[str, Any]]]] = {
@@ -501,6 +654,14 @@ _ROSAPI: Final[dict[str, Callable[[BridgeClient, Any], dict[str, Any]]]] = {
     "/rosapi/topic_type": _rosapi_topic_type,
     "/rosapi/services": _rosapi_services,
 }
+_ROSAPI2: Final[dict[str, Callable[[BridgeClient, Any], dict[str, Any]]]] = {
+    **_ROSAPI,
+    "/rosapi/action_servers": _rosapi_action_servers,
+}
+
+
+def _rosapi(client: BridgeClient) -> dict[str, Callable[[BridgeClient, Any], dict[str, Any]]]:
+    return _ROSAPI2 if client.robot.ros == 2 else _ROSAPI
 
 
 # ---------------------------------------------------------------------------------------------
@@ -525,6 +686,8 @@ class Endpoint:
         self.server: Server | None = None
         self.clients: set[BridgeClient] = set()
         self.services: dict[str, BridgeClient] = {}
+        #: ROS 2: the bridge's goal table, one for all its connections (send_action_goal.py).
+        self.actions: dict[str | int | None, ActionGoal] = {}
 
     @property
     def url(self) -> str:
@@ -582,7 +745,7 @@ class Endpoint:
         writer = asyncio.ensure_future(client.writer())
         try:
             async for frame in ws:
-                client.handle_frame(frame)
+                client.feed(frame)
         except ConnectionClosed:
             pass
         finally:

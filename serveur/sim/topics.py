@@ -21,6 +21,7 @@ from serveur.robots import rosbridge as rb
 
 __all__ = [
     "DEFAULT_QUEUE",
+    "ActionSink",
     "Frame",
     "Sub",
     "SubParams",
@@ -44,6 +45,20 @@ class Subscriber(Protocol):
     """What a subscription needs of its client: an event to wake the client's sender task."""
 
     wake: asyncio.Event
+
+
+class ActionSink(Protocol):
+    """A ROS 2 action goal as the robot sees it: where its feedback and its result go.
+
+    The bridge's goal object (:class:`serveur.sim.bridge.ActionGoal`) is one: it sends
+    ``action_feedback`` and ``action_result`` ops to the connection that sent the goal.
+    """
+
+    feedback: bool
+
+    def send_feedback(self, values: Mapping[str, Any]) -> None: ...
+
+    def end(self, status: int, values: Mapping[str, Any], *, send: bool = True) -> None: ...
 
 
 def consume_exception(fut: asyncio.Future[Any]) -> None:
@@ -97,11 +112,12 @@ class Sub:
         "topic",
     )
 
-    def __init__(self, client: Subscriber, topic: str) -> None:
+    def __init__(self, client: Subscriber, topic: str, *, ros: int = 1) -> None:
         self.client = client
         self.topic = topic
-        #: The topic's type holds a fixed-size array, which rosbridge 0.11 cannot CBOR-encode.
-        self.fixed_arrays = rb.TOPIC_TYPES.get(topic) in rb.FIXED_ARRAY_TYPES
+        #: The topic's type holds a fixed-size array, which rosbridge 0.11 cannot CBOR-encode
+        #: (a ROS1 robot's quirk only).
+        self.fixed_arrays = ros == 1 and rb.TOPIC_TYPES.get(topic) in rb.FIXED_ARRAY_TYPES
         self.logged = False
         self.params: dict[str | int | None, SubParams] = {}
         self.throttle = 0.0

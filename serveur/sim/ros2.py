@@ -1,0 +1,181 @@
+"""The ROS 2 dialect of a simulated robot: Nav2's ``navigate_to_pose`` and ROS 2 message shapes.
+
+Split from :mod:`serveur.sim.robot` (the robot's graph, which uses these when it runs ``ros=2``)
+and :mod:`serveur.sim.bridge` (rosbridge 2.x's action ops) because both need the same names,
+types and shapes, and because a ROS 2 robot differs from a ROS1 one mostly in its wire forms.
+Sources (shared/notes/ros2.md, researched from rosbridge_suite's ROSBRIDGE_PROTOCOL.md and its
+``send_action_goal`` capability, nav2_msgs, ros2/common_interfaces and Nav2's amcl_node):
+
+* Time is ``builtin_interfaces/Time {sec, nanosec}``; ``std_msgs/Header`` has no ``seq``;
+  type names are spelled ``pkg/msg/Type`` (rosapi answers them that way).
+* ``nav2_msgs/action/NavigateToPose``: goal ``{pose: PoseStamped, behavior_tree}``; feedback
+  ``{current_pose, navigation_time, estimated_time_remaining, number_of_recoveries,
+  distance_remaining}``; result Humble ``{result: std_msgs/Empty}``, Jazzy and later
+  ``{error_code, error_msg}`` with the failing BT node's code (ComputePathToPose's 2xx,
+  FollowPath's 1xx).
+* action_msgs/GoalStatus codes on ``action_result``: 4 SUCCEEDED, 5 CANCELED, 6 ABORTED.
+* Nav2's AMCL publishes ``/amcl_pose`` after ``update_min_d`` 0.25 m / ``update_min_a`` 0.2 rad
+  of motion (ROS1 amcl: 0.2 m / 30 degrees).
+* Nav2 Jazzy's and Kilted's ``/cmd_vel`` may be ``TwistStamped`` (Kilted's default; Jazzy's
+  diff_drive_controller requires it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any, Final
+
+from serveur.errors import RosbridgeError
+from serveur.robots import rosbridge as rb
+
+__all__ = [
+    "ABORTED",
+    "ACTION_TYPES",
+    "CANCELED",
+    "FAILED_TO_MAKE_PROGRESS",
+    "NAVIGATE_TO_POSE",
+    "NAVIGATE_TO_POSE_TYPE",
+    "NO_VALID_PATH",
+    "RELEASES",
+    "SUCCEEDED",
+    "UNKNOWN",
+    "duration",
+    "goal_from_args",
+    "nav2_feedback",
+    "nav2_result",
+    "time",
+    "to_ros2",
+    "topic_types",
+]
+
+#: ROS 2 releases whose Nav2 / rosbridge differences the simulator models.
+RELEASES: Final = ("humble", "jazzy", "kilted")
+#: The navigator's action name (under the robot's namespace) and its type.
+NAVIGATE_TO_POSE: Final = "/navigate_to_pose"
+NAVIGATE_TO_POSE_TYPE: Final = "nav2_msgs/action/NavigateToPose"
+#: Spellings rosbridge's ros_loader resolves to the navigator's action type.
+ACTION_TYPES: Final = frozenset({NAVIGATE_TO_POSE_TYPE, "nav2_msgs/NavigateToPose"})
+
+#: action_msgs/msg/GoalStatus codes an ``action_result`` carries.
+SUCCEEDED: Final = 4
+CANCELED: Final = 5
+ABORTED: Final = 6
+
+#: Error codes (Jazzy+): ComputePathToPose NO_VALID_PATH, FollowPath FAILED_TO_MAKE_PROGRESS,
+#: NavigateToPose UNKNOWN.
+NO_VALID_PATH: Final = 208
+FAILED_TO_MAKE_PROGRESS: Final = 105
+UNKNOWN: Final = 9000
+
+
+def topic_types(twist_stamped: bool) -> dict[str, str]:
+    """A ROS 2 waiter robot's topics and their types (``pkg/msg/Type``, as rosapi says them)."""
+    return {
+        "/amcl_pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
+        "/odom": "nav_msgs/msg/Odometry",
+        "/map": "nav_msgs/msg/OccupancyGrid",
+        "/scan": "sensor_msgs/msg/LaserScan",
+        "/cmd_vel": "geometry_msgs/msg/TwistStamped"
+        if twist_stamped
+        else "geometry_msgs/msg/Twist",
+        "/initialpose": "geometry_msgs/msg/PoseWithCovarianceStamped",
+        "/goal_pose": "geometry_msgs/msg/PoseStamped",  # RViz2's "Nav2 Goal"
+        "/battery_state": "sensor_msgs/msg/BatteryState",
+    }
+
+
+def time(t: float) -> dict[str, int]:
+    """Seconds -> builtin_interfaces/Time ``{sec, nanosec}``."""
+    r = rb.ros_time(t)
+    return {"sec": r["secs"], "nanosec": r["nsecs"]}
+
+
+def duration(s: float) -> dict[str, int]:
+    """Seconds (>= 0) -> builtin_interfaces/Duration ``{sec, nanosec}``."""
+    return time(max(0.0, s))
+
+
+def to_ros2(msg: Any) -> Any:
+    """A message built by :mod:`serveur.robots.rosbridge` (ROS1 shapes) in its ROS 2 shape.
+
+    Every ``{secs, nsecs}`` becomes ``{sec, nanosec}`` and every ``header`` loses ``seq``;
+    arrays (lists, numpy) are left alone: no ROS message here holds times inside an array.
+    """
+    if not isinstance(msg, dict):
+        return msg
+    if len(msg) == 2 and "secs" in msg and "nsecs" in msg:
+        return {"sec": msg["secs"], "nanosec": msg["nsecs"]}
+    out: dict[str, Any] = {}
+    for k, v in msg.items():
+        if isinstance(v, dict):
+            v = to_ros2(v)
+            if k == "header":
+                v.pop("seq", None)
+        out[k] = v
+    return out
+
+
+def _mapping(v: object, what: str) -> Mapping[str, Any]:
+    """A nested message field; missing takes ROS 2 defaults (as rosbridge's populate_instance)."""
+    if v is None:
+        return {}
+    if not isinstance(v, Mapping):
+        raise RosbridgeError(f"{what} must be an object, not {type(v).__name__}")
+    return v
+
+
+def goal_from_args(args: object) -> tuple[str, float, float, tuple[float, float, float, float]]:
+    """(frame_id, x, y, quaternion) of a NavigateToPose goal's ``args``; RosbridgeError when
+    rosbridge could not populate the goal message (wrong field types).
+
+    Missing fields take ROS 2 defaults, including the quaternion's ``w = 1``.
+    """
+    if isinstance(args, list):  # rosbridge zips a list with the goal's fields in order
+        args = dict(zip(("pose", "behavior_tree"), args, strict=False))
+    a = _mapping(args, "args")
+    bt = a.get("behavior_tree", "")
+    if not isinstance(bt, str):
+        raise RosbridgeError("args.behavior_tree must be a string")
+    ps = _mapping(a.get("pose"), "args.pose")
+    frame = _mapping(ps.get("header"), "args.pose.header").get("frame_id", "")
+    if not isinstance(frame, str):
+        raise RosbridgeError("args.pose.header.frame_id must be a string")
+    pose = _mapping(ps.get("pose"), "args.pose.pose")
+    x, y, _ = rb.point_from_msg(_mapping(pose.get("position"), "position"))
+    o = dict(_mapping(pose.get("orientation"), "orientation"))
+    o.setdefault("w", 1.0)
+    return frame, x, y, rb.quaternion_from_msg(o)
+
+
+def nav2_feedback(
+    x: float,
+    y: float,
+    yaw: float,
+    *,
+    stamp: float,
+    navigation_time: float,
+    distance_remaining: float,
+    speed: float,
+    recoveries: int = 0,
+) -> dict[str, Any]:
+    """NavigateToPose feedback; the time left is distance / current speed (0 when stopped),
+    as Nav2's navigator estimates it."""
+    eta = distance_remaining / speed if speed > 0.01 else 0.0
+    return {
+        "current_pose": {
+            "header": {"stamp": time(stamp), "frame_id": "map"},
+            "pose": rb.pose_msg(x, y, yaw),
+        },
+        "navigation_time": duration(navigation_time),
+        "estimated_time_remaining": duration(eta if math.isfinite(eta) else 0.0),
+        "number_of_recoveries": recoveries,
+        "distance_remaining": distance_remaining,
+    }
+
+
+def nav2_result(release: str, error_code: int = 0, error_msg: str = "") -> dict[str, Any]:
+    """NavigateToPose result: Humble's holds an empty ``result``; Jazzy's an error code."""
+    if release == "humble":
+        return {"result": {}}
+    return {"error_code": error_code, "error_msg": error_msg}
