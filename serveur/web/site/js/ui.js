@@ -259,9 +259,10 @@ export function formatClock(seconds) {
   return s >= 3600 ? `${Math.floor(s / 3600)}:${mm.padStart(2, "0")}:${ss}` : `${mm}:${ss}`;
 }
 
-/** A time of day on the server's clock (epoch s), as the tablet's locale writes it. */
+/** A time of day on the server's clock (epoch s), written the page language's way. */
 export function formatTime(epoch) {
-  return new Date(epoch * 1000).toLocaleTimeString([], { hour: "2-digit", minute: "2-digit" });
+  const locale = document.documentElement.lang || undefined;
+  return new Date(epoch * 1000).toLocaleTimeString(locale, { hour: "2-digit", minute: "2-digit" });
 }
 
 export function formatDuration(seconds) {

@@ -120,6 +120,7 @@ function setupTabs() {
       document.getElementById(t.getAttribute("aria-controls")).hidden = !on;
     }
     if (tab.id === "tab-map") view.requestDraw();
+    tab.scrollIntoView({ block: "nearest", inline: "nearest" }); // a phone's tab row scrolls
   };
   tabs.forEach((t) => t.addEventListener("click", () => show(t)));
   // Arrow keys move between tabs (the WAI-ARIA tabs pattern).
