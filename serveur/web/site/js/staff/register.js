@@ -29,6 +29,13 @@ export class RegisterRobot {
       { id: "rr-kinematics" },
       KINEMATICS.map(([v, key]) => el("option", { value: v, "data-i18n": key })),
     );
+    // ROS1 robots run move_base; ROS 2 robots Nav2 over rosbridge 2.x (docs/robots.md).
+    this.ros = el(
+      "select",
+      { id: "rr-ros" },
+      el("option", { value: "1", "data-i18n": "register.ros1" }),
+      el("option", { value: "2", "data-i18n": "register.ros2" }),
+    );
     this.submit = el("button", { type: "submit", "data-needs-online": true, "data-i18n": "register.submit" });
     const form = el(
       "form",
@@ -41,6 +48,8 @@ export class RegisterRobot {
       this.home,
       el("label", { for: "rr-kinematics", "data-i18n": "register.drive" }),
       this.kinematics,
+      el("label", { for: "rr-ros", "data-i18n": "register.ros" }),
+      this.ros,
       this.submit,
     );
     form.addEventListener("submit", (e) => {
@@ -86,6 +95,7 @@ export class RegisterRobot {
     const url = this.url.value.trim();
     const msg = { clientmsg: "create", type: "robot", name, url, kinematics: this.kinematics.value };
     if (this.home.value) msg.home = this.home.value;
+    if (this.ros.value === "2") msg.link = { ros: "2" };
     const reply = await act(this.submit, () => this.conn.request(msg));
     if (!reply) return;
     toast(t("register.done", { name: reply.robot.name }));

@@ -53,6 +53,7 @@ export class RobotsPanel {
       const loading = robot.status === "Loading" ? traySignature(this.live, robot.current_task) : "";
       const signature = JSON.stringify([
         robot.status, robot.mode, battery(robot), trip, selected, robot.last_error, loading, robot.status_since,
+        rosVersion(robot),
       ]);
       let row = this.rows.get(name);
       if (!row) {
@@ -113,6 +114,7 @@ export class RobotsPanel {
         statusName(robot.status),
       ),
       el("span", { class: "battery" }, t("robots.battery", { value: battery(robot) })),
+      el("span", { class: "ros" }, t("robots.ros", { version: rosVersion(robot) })),
       el("span", { class: "trip" }, trip),
       robot.last_error ? el("span", { class: "last-error" }, t("robots.lastError", { message: robot.last_error })) : null,
       this._atTable(robot),
@@ -183,4 +185,9 @@ function battery(robot) {
   return robot.battery === null || robot.battery === undefined
     ? t("robots.batteryUnknown")
     : t("robots.batteryPercent", { percent: Math.round(robot.battery * 100) });
+}
+
+/** Which ROS the robot runs ("1": move_base, "2": Nav2), from its registration options. */
+function rosVersion(robot) {
+  return (robot.link && robot.link.ros) || "1";
 }
