@@ -289,7 +289,7 @@ class CreateDish(_ClientMsg):
 
     clientmsg: Literal["create"]
     type: Literal["dish"]
-    name: Annotated[str, Field(min_length=1, max_length=64)]
+    name: Name  # a name like every other: trimmed, no control characters
     category: Annotated[str, Field(max_length=64)] = ""
     price_cents: Annotated[int, Field(ge=0, le=10_000_000)] | None = None
     available: bool = True

@@ -337,6 +337,8 @@ def test_names_are_trimmed() -> None:
     assert isinstance(msg, P.CreateOrder)
     assert (msg.dish, msg.table) == ("Laksa", "T3")
     assert P.parse_client(json.dumps({"clientmsg": "next", "robot": "r" * 64}))
+    dish = P.parse_client('{"clientmsg":"create","type":"dish","name":" Mee goreng "}')
+    assert isinstance(dish, P.CreateDish) and dish.name == "Mee goreng"  # the menu's name too
 
 
 def test_defaults() -> None:
@@ -553,6 +555,15 @@ DATA = {"clientmsg": "data", "topics": ["robots"]}
         ({"clientmsg": "next", "robot": "r1\n"}, None),  # trimmed: valid, see below
         ({"clientmsg": "next", "robot": "r\x001"}, ["robot"]),
         ({"clientmsg": "create", "type": "order", "dish": "La\x07ksa", "table": "T3"}, ["dish"]),
+        ({"clientmsg": "create", "type": "dish", "name": "La\x07ksa"}, ["name"]),
+        ({"clientmsg": "create", "type": "dish", "name": "  "}, ["name"]),
+        ({"clientmsg": "dish", "order": 1, "action": "serve"}, ["action"]),
+        ({"clientmsg": "dish", "order": 1, "action": "edit", "quantity": 0}, ["quantity"]),
+        ({"clientmsg": "dish", "order": 1, "action": "edit", "note": "n" * 201}, ["note"]),
+        (
+            {"clientmsg": "create", "type": "robot", "name": "r", "url": "ws://h", "trays": 13},
+            ["trays"],
+        ),
         (TASK | {"key": "k" * 65}, ["key"]),
         # topics
         (DATA | {"topics": []}, ["topics"]),
