@@ -2,9 +2,10 @@
 
 Owns :mod:`~serveur.replay.service` (the run: server, simulated fleet, staff and guests),
 :mod:`~serveur.replay.vtime` (the virtual-time event loop), :mod:`~serveur.replay.orders`
-(order logs, read or generated), :mod:`~serveur.replay.model` (options, guests' dwell,
-statistics; pure), :mod:`~serveur.replay.world` (map and server settings),
-:mod:`~serveur.replay.client` (the protocol client and its console), the players
+(order logs, read or generated; parties), :mod:`~serveur.replay.model` (options, guests'
+dwell and absences, loading at the pass, statistics; pure), :mod:`~serveur.replay.world`
+(map and server settings), :mod:`~serveur.replay.client` (the protocol client and its
+console), the players
 :mod:`~serveur.replay.staff` and :mod:`~serveur.replay.guests`, :mod:`~serveur.replay.report`
 (summary and plots) and :mod:`~serveur.replay.cli` (the subcommand). It drives the server
 only as a client does, over ``/ws``.

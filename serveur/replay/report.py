@@ -261,7 +261,7 @@ def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOpti
         f"seed {opts.seed}, capacity {opts.capacity} tables",
         "wait = dish first ready at the pass -> guest pressed Food collected (server's records;",
         "a dish returned from a table and re-sent counts from its first ready time);",
-        "lower bound = path home->table at max speed + the dish's own guest dwell.",
+        "lower bound = path home->table at max speed + the dish's own guest dwell (no loading).",
         f"Loading: {opts.load_fixed:g} s + {opts.load_per_dish:g} s a plate (spread "
         f"{opts.load_spread:g}); parties away: {100 * opts.away:g} %; table timeout: "
         + ("off" if opts.table_timeout is None else f"{opts.table_timeout:g} s")

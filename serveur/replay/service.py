@@ -38,7 +38,9 @@ and paths, and reads the results back (:class:`PolicyResult`, :mod:`serveur.repl
 The public names of all of them are importable from here.
 
 Determinism. The simulated world is seeded (robots: ``seed + i``; dwell per dish from
-``(seed, line)``, independent of which trip the dish rides), staff act on protocol updates,
+``(seed, line)``, independent of which trip the dish rides; loading per trip from the seed and
+the trip's first line; which parties are away from the seed and each party's first line),
+staff act on protocol updates,
 never on wall-clock polling, and physics steps are fixed 50 ms of simulated time. In virtual
 time nothing depends on the host's speed or load either: the same log, seed and options give
 the same report, to the last digit. With ``time_scale`` set, scheduling jitter remains: a goal
@@ -72,6 +74,7 @@ from serveur.replay.model import (
     ReplayOptions,
     absences,
     dish_dwell,
+    loading_time,
     peak_utilisation,
     percentile,
     service_events,
@@ -87,12 +90,15 @@ __all__ = [
     "PolicyResult",
     "ReplayError",
     "ReplayOptions",
+    "absences",
     "dish_dwell",
+    "loading_time",
     "peak_utilisation",
     "percentile",
     "replay",
     "replay_policy",
     "run_replay",
+    "service_events",
     "stop_dwell",
 ]
 

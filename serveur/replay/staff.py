@@ -110,13 +110,16 @@ class Staff:
         """The robot is back at the pass: nobody expects it anymore, and the dishes it
         brought back from a table that timed out are sent again."""
         self.eta.pop(name, None)
+        self._unload(name)
+
+    def _unload(self, name: str) -> None:
         back = self.returned.pop(name, [])
         if back:
             self.spawn(self._send_again(back))
 
     def robot_loading(self, name: str, robot: dict[str, Any]) -> None:
         """A trip waits at the pass on ``name``: staff load its trays, then press Go."""
-        self.robot_home(name)  # at the pass: what it brought back is unloaded first
+        self._unload(name)  # at the pass: what it brought back is taken off first
         task = robot.get("current_task")
         if task is not None and task not in self.loading:
             self.loading.add(task)
