@@ -9,6 +9,7 @@ counts come from the server's event log; the players' own counts must agree with
 
 from __future__ import annotations
 
+import asyncio
 import itertools
 from dataclasses import replace
 
@@ -169,3 +170,30 @@ def test_robots_wait_loading_at_the_pass_and_the_counts_match_the_event_log(
     assert p["guests_missed"] == s["table_timeouts"]
     assert p["resent"] == s["resent"]
     assert p["parties_away"] == 1
+
+
+async def test_staff_expect_a_loading_robot_back_after_its_loading_and_trip() -> None:
+    from serveur.replay.client import Console
+    from serveur.replay.staff import Staff
+
+    class Clock:
+        def now(self) -> float:
+            return 100.0
+
+    c = Console(Clock())
+    c.distance = lambda a, b: 7.0
+    c.tasks[5] = {"id": 5, "robot": "r1", "stops": [{"table": "T2", "orders": [1, 2, 3]}]}
+    jobs: list[object] = []
+    staff = Staff(c, [], ReplayOptions(), "serveur", asyncio.Event(), jobs.append)
+    robot = {"name": "r1", "status": "Loading", "current_task": 5, "home": "home1"}
+    c.robots["r1"] = robot
+    staff.robot_left("r1", robot)
+    # Loading: the model's mean for three plates (22 s) before the trip's own estimate.
+    eta = staff.eta["r1"]
+    assert eta > 100.0 + 22.0
+    staff.robot_loading("r1", robot)  # staff go and load it: still expected back at eta
+    assert staff.eta == {"r1": eta} and len(jobs) == 1
+    for job in jobs:
+        job.close()  # type: ignore[attr-defined]
+    staff.robot_home("r1")
+    assert staff.eta == {}
