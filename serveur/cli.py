@@ -322,7 +322,7 @@ def _add_tls_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-_SIM_HELP = "simulated robots speaking rosbridge v2"
+_SIM_HELP = "simulated robots speaking rosbridge v2 (ROS1 move_base, or ROS 2 Nav2: --ros 2)"
 _REPLAY_HELP = "replay an order log through the server and simulated robots"
 
 

@@ -1,4 +1,5 @@
-"""A fleet of simulated waiter robots, each speaking rosbridge v2 like a real ROS1 robot.
+"""A fleet of simulated waiter robots, each speaking rosbridge v2 like a real ROS1 robot, or like
+a ROS 2 robot with Nav2 behind rosbridge 2.x (``ros=2``; per robot in a mixed fleet).
 
 Why a simulator that imitates the wire instead of a fake robot-link object: the server's robot
 link, roslibpy and roslibjs must not be able to tell it from a robot running move_base, AMCL and

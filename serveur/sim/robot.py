@@ -1,4 +1,4 @@
-"""One simulated waiter robot's ROS graph: move_base, AMCL, odometry, laser, battery.
+"""One simulated waiter robot's ROS graph: move_base (or Nav2), AMCL, odometry, laser, battery.
 
 Split from :mod:`serveur.robot_sim` (the fleet, its physics loop and ``serveur sim``) because a
 robot is a subject of its own: what a ROS1 robot with move_base and AMCL does with the goals,
@@ -40,6 +40,29 @@ topic is latched (a new subscriber gets the last pose at once), and a pose is pu
 start, once after each ``/initialpose`` and otherwise only after the robot moved more than
 :data:`AMCL_UPDATE_MIN_D` or turned more than :data:`AMCL_UPDATE_MIN_A` since the last
 published pose (amcl's ``update_min_d``/``update_min_a``): a parked robot publishes nothing.
+
+A robot made with ``ros=2`` is a ROS 2 robot running Nav2 behind rosbridge 2.x
+(shared/notes/ros2.md; its wire forms in :mod:`serveur.sim.ros2`, the action ops in
+:mod:`serveur.sim.bridge`). The same body, planner and sensors, with these differences:
+
+* No ``/move_base/*`` topics: goals come as ``send_action_goal`` to ``navigate_to_pose``
+  (:meth:`SimRobot.nav2_goal`) or on ``/goal_pose`` (RViz2), and the robot answers the goal's
+  sender alone: feedback every physics tick (20 Hz, unthrottled, as the navigator's feedback
+  reached clients on a real stack) and one result, SUCCEEDED 4, CANCELED 5 (a cancel: CANCELING
+  until the navigator's next cycle) or ABORTED 6 (blocked, stuck, too slow, no path, or a newer
+  goal: Nav2's navigator aborts the goal it drives when another arrives). A goal it cannot take
+  (not in ``map``, NaN, not a rotation about z, off the map) is rejected, which rosbridge
+  before its 2026 fix never reports.
+* Every message has ROS 2 shapes: ``{sec, nanosec}`` stamps, headers without ``seq``;
+  ``/battery_state`` leaves the temperature it does not measure NaN (``null``).
+* AMCL's "real" mode uses Nav2 amcl's defaults, 0.25 m / 0.2 rad.
+* ``/initialpose`` in a frame other than ``map`` (an empty one too), with a NaN, or off the map
+  is ignored with a log line and no error to the client (Nav2 amcl ``initialPoseReceived``).
+* ``/cmd_vel`` is ``geometry_msgs/msg/Twist``, or ``TwistStamped`` with ``twist_stamped`` (a
+  message of the other type is refused, as rosbridge 2.x cannot fill it in); ignored while a
+  goal runs, with the same stale-command watchdog as a ROS1 robot.
+* ``release`` picks the result's shape (Humble ``{result: {}}``, Jazzy and Kilted
+  ``{error_code, error_msg}`` with Nav2's codes: 208 no valid path, 105 no progress, 9000).
 """
 
 from __future__ import annotations
@@ -176,8 +199,10 @@ class SimRobot:
     """One simulated robot: its body, its move_base, its sensors, and what it publishes.
 
     Public read-only state: ``name``, ``pose`` (true pose), ``kinematics``, ``battery``
-    (0..1), ``home``, ``velocity``, ``clock_offset``, ``amcl``. Fault hooks:
-    :meth:`block_path`, :meth:`ignore_goals`.
+    (0..1), ``home``, ``velocity``, ``clock_offset``, ``amcl``, ``ros`` (1 or 2), and for ROS 2
+    ``release``, ``twist_stamped``, ``humble_queue``; ``topic_types`` and ``subscribes`` (the
+    robot's graph in its dialect). Fault hooks: :meth:`block_path`, :meth:`ignore_goals`, and
+    for ROS 2 :meth:`drop_results`.
 
     ``clock_offset`` (seconds) is added to every stamp the robot makes (:meth:`epoch`);
     ``amcl`` is one of :data:`AMCL_MODES` (see the module's docstring).

@@ -279,6 +279,23 @@ async def test_queue_trap_holds_the_connection_until_arrival(humble: Simulation)
     assert max(i for i, g in enumerate(order) if g == "held") < order.index("behind")
 
 
+async def test_queue_trap_a_second_goal_waits_but_another_connection_preempts(
+    humble: Simulation,
+) -> None:
+    c, other = await open_raw(humble), await open_raw(humble)
+    await c.send(send_goal("a", FAR, feedback=True))
+    await feedback(c, "a")
+    now = goal_args(*T1)
+    now["pose"]["header"]["stamp"] = "now"  # rosbridge fills "now" (and {secs, nsecs}) in
+    await c.send(send_goal("b", T1, args=now))  # same connection: waits for "a" to end
+    old = goal_args(*T1)
+    old["pose"]["header"]["stamp"] = {"secs": 0, "nsecs": 0}
+    await other.send(send_goal("c", T1, args=old, feedback=True))  # preempts "a" at once
+    assert (await result(c, "a"))["status"] == ros2.ABORTED
+    assert (await result(other, "c"))["status"] == ros2.ABORTED  # then "b" came through
+    assert (await result(c, "b"))["status"] == ros2.SUCCEEDED
+
+
 async def test_queue_trap_cmd_vel_waits_but_a_cancel_from_elsewhere_works(
     humble: Simulation,
 ) -> None:
