@@ -252,6 +252,15 @@ def make_app(
     )
 
 
+def sim_link(robot: Any) -> dict[str, str]:
+    """The registration options of a simulated robot: its namespace, and ``ros=2`` for one
+    that speaks ROS 2 (Nav2 over rosbridge 2.x)."""
+    link = {"ns": robot.namespace} if robot.namespace else {}
+    if robot.ros == 2:
+        link["ros"] = "2"
+    return link
+
+
 @contextlib.asynccontextmanager
 async def restaurant(
     tmp_path: Path,
@@ -286,7 +295,7 @@ async def restaurant(
     proxies = [await LinkProxy.for_url(url).start() for url in sim.urls] if proxied else []
     urls = [p.url for p in proxies] if proxied else sim.urls
     specs = [
-        RobotSpec(r.name, url, f"home{i + 1}", link={"ns": r.namespace} if r.namespace else {})
+        RobotSpec(r.name, url, f"home{i + 1}", link=sim_link(r))
         for i, (r, url) in enumerate(zip(sim.robots, urls, strict=True))
     ]
     db = db_url or tmp_path / "serveur.db"

@@ -139,6 +139,8 @@ class Nav2Link:
         self._failsafe: asyncio.Task[None] | None = None
         self._scan_wanted = False
         self._pings = 0
+        self._cmd_vel_type: str | None = None  # /cmd_vel's type, once rosapi said it
+        self._jobs: set[asyncio.Task[None]] = set()
         self.pose: tuple[float, float, float] | None = None
         self.battery: float | None = None
         self.connects = 0
@@ -216,8 +218,11 @@ class Nav2Link:
     async def _session(self, ctl: ClientConnection, nav: ClientConnection) -> None:
         self._have_pose = self._have_ping = False
         self._alive_at = self._clock.now()
-        for topic in ("/cmd_vel", "/initialpose"):
-            await ctl.send(rb.encode(rb.op_advertise(self._t(topic), m2.TOPIC_TYPES[topic])))
+        # /cmd_vel is advertised once its type is known (rosbridge 2.x refuses a publisher of
+        # another type than the topic's): see _on_service.
+        self._cmd_vel_type = None
+        topic = "/initialpose"
+        await ctl.send(rb.encode(rb.op_advertise(self._t(topic), m2.TOPIC_TYPES[topic])))
         await ctl.send(rb.encode(self._sub("/amcl_pose")))
         await ctl.send(rb.encode(self._sub("/battery_state", throttle_rate=BATTERY_MS)))
         if self._want_map:
@@ -317,10 +322,18 @@ class Nav2Link:
                 self._maybe_up()
         elif op.get("id") == "cmd_vel":
             values = op.get("values")
-            kind = values.get("type", "") if isinstance(values, Mapping) else ""
-            self._stamped_cmd_vel = str(kind).endswith("TwistStamped")
+            kind = str(values.get("type", "")) if isinstance(values, Mapping) else ""
+            self._stamped_cmd_vel = kind.endswith("TwistStamped")
+            # Unknown (nobody subscribes yet): the plain Twist Nav2 Humble and Jazzy publish.
+            self._cmd_vel_type = kind or m2.TOPIC_TYPES["/cmd_vel"]
             if self._stamped_cmd_vel:
                 log.info("%s: /cmd_vel is TwistStamped", self.name)
+            ctl = self._ctl
+            if ctl is not None:
+                adv = rb.op_advertise(self._t("/cmd_vel"), self._cmd_vel_type)
+                task = asyncio.get_running_loop().create_task(ctl.send(rb.encode(adv)))
+                self._jobs.add(task)
+                task.add_done_callback(self._jobs.discard)
 
     def _on_publish(self, topic: str, msg: Any) -> None:
         if not isinstance(msg, dict):
