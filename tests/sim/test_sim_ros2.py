@@ -368,6 +368,15 @@ async def test_amcl_pose_is_latched_sparse_and_ros2_shaped(sim: Simulation) -> N
     assert xy(await late.topic("/amcl_pose")) == xy(poses[-1])
 
 
+async def test_goal_pose_topic_drives_the_robot_like_rviz2(sim: Simulation) -> None:
+    c = await open_raw(sim)
+    await c.send(rb.op_subscribe("/amcl_pose"))
+    await c.topic("/amcl_pose")
+    await c.send(rb.op_publish("/goal_pose", goal_args(*T1)["pose"]))
+    await c.topic("/amcl_pose", lambda m: math.dist(xy(m), T1[:2]) < 0.3)
+    assert not any(json.loads(f)["op"].startswith("action_") for f in c.frames)
+
+
 async def test_initialpose_outside_map_frame_is_ignored_without_error(sim: Simulation) -> None:
     c = await open_raw(sim, level="error")
     await c.send(rb.op_subscribe("/amcl_pose"))
