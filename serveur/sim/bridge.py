@@ -21,6 +21,16 @@ checked against a real stack, and rosbridge_library's protocol.py):
   ops without one (fragmentation.py's seed is reset per message).
 * ``compression: "cbor"`` on a type with a fixed-size array (``/amcl_pose``, ``/odom``) sends
   nothing (see :meth:`serveur.sim.topics.Sub.push`).
+
+A ROS 2 robot's server is rosbridge 2.x (shared/notes/ros2.md; ROSBRIDGE_PROTOCOL.md and
+rosbridge_library's capabilities/send_action_goal.py, internal/actions.py): the same ops plus
+``send_action_goal`` and ``cancel_action_goal`` (:meth:`BridgeClient._send_action_goal`), whose
+goals live in one table per robot (:attr:`Endpoint.actions`) and answer their sender with
+``action_feedback`` and ``action_result`` (:class:`ActionGoal`); rosapi answers in ROS 2 forms
+and adds ``/rosapi/action_servers``. With the robot's ``humble_queue`` (rosbridge's
+``send_action_goals_in_new_thread`` false), a goal holds its connection: the frames that arrive
+meanwhile wait in :attr:`BridgeClient.backlog` and are handled, in order, once it ends. A ROS1
+robot's rosbridge 0.11 knows no action op (``unknown op``).
 """
 
 from __future__ import annotations

@@ -352,7 +352,9 @@ class SimRobot:
 
     @property
     def goal_statuses(self) -> list[tuple[str, GoalStatus, str]]:
-        """What ``/move_base/status`` lists now: (goal id, status, text)."""
+        """What ``/move_base/status`` lists now: (goal id, status, text). A ROS 2 robot lists
+        its navigator's goals the same way (ids ``nav2-N``, actionlib statuses; a cancelled
+        goal PREEMPTED, one aborted by a newer goal ABORTED)."""
         return [(g.id, g.status, g.text) for g in self._goals]
 
     def block_path(self, on: bool) -> None:
@@ -364,7 +366,8 @@ class SimRobot:
 
     def ignore_goals(self, on: bool) -> None:
         """Fault hook: while on, goals are never acknowledged — status keeps publishing without
-        them, no result ever comes (a hung move_base)."""
+        them, no result ever comes (a hung move_base). A ROS 2 goal then gets no frame at all,
+        and with the queue trap its connection stays held."""
         self._ignore_goals = bool(on)
 
     def drop_results(self, n: int = 1) -> None:
