@@ -115,8 +115,9 @@ class Robot(_Record):
     kinematics: str = "omni"
     link: dict[str, str] = Field(
         default_factory=dict,
-        description="ROS names that differ from the defaults: ns, move_base, cmd_vel, pose, "
-        "initialpose, battery, scan, map, frame (docs/robots.md)",
+        description="Which ROS (ros: 1 or 2) and the ROS names that differ from the defaults: "
+        "ns, move_base, navigate, cmd_vel, pose, initialpose, battery, scan, map, frame "
+        "(docs/robots.md)",
     )
     mode: RobotMode = RobotMode.OFF
     status: RobotStatus = RobotStatus.OFFLINE

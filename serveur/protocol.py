@@ -323,8 +323,9 @@ class CreateRobot(_ClientMsg):
     link: dict[Name, Annotated[str, Field(max_length=128)]] | None = Field(
         default=None,
         max_length=16,
-        description="ROS names that differ from the defaults (docs/robots.md): ns, move_base,"
-        " cmd_vel, pose, initialpose, battery, scan, map, frame",
+        description="Which ROS (ros: 1 or 2) and the ROS names that differ from the defaults"
+        " (docs/robots.md): ns, move_base, navigate, cmd_vel, pose, initialpose, battery, scan,"
+        " map, frame",
     )
     trays: Annotated[int, Field(ge=1, le=12)] | None = Field(
         default=None, description="Tables one trip may serve (one tray each); null: the site's"

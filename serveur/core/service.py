@@ -32,7 +32,7 @@ from serveur.core.alerts import (
 from serveur.core.places import Places
 from serveur.core.publisher import Publisher
 from serveur.domain import DishAction, MenuItem, Order, OrderStatus, TableBlock
-from serveur.errors import ServeurError, Stale, Unreachable
+from serveur.errors import InvalidField, ServeurError, Stale, Unreachable
 from serveur.store.base import Store
 
 __all__ = ["Service", "ServiceHost"]
@@ -101,6 +101,10 @@ class Service:
         table: str | None = None,
     ) -> Order:
         """One step of a dish. ``seen``: the status the client showed (stale if it moved)."""
+        if action is not DishAction.EDIT and (quantity, note, table) != (None, None, None):
+            raise InvalidField(
+                f"{action.value} takes no quantity, note or table (edit does)", field="action"
+            )
         if seen is not None:
             now_is = (await self._store.get_order(order_id)).status
             if now_is is not seen:

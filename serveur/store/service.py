@@ -216,7 +216,6 @@ class ServiceMixin(AccountsMixin):
                     sets.append("res_table = ?")
                     params.append(table)
                     data["table"] = table
-                sql = f"UPDATE orders SET {', '.join(sets)} WHERE id = ? AND status IN ({ok})"
             else:
                 assert to is not None
                 sets.append("status = ?")
@@ -231,9 +230,11 @@ class ServiceMixin(AccountsMixin):
                     sets.append("voided_at = ?")
                     params.append(now)
                 data["to"] = to.value
-                sql = f"UPDATE orders SET {', '.join(sets)} WHERE id = ? AND status IN ({ok})"
-            if action is DishAction.EDIT and not sets:
-                raise InvalidField("edit needs a quantity, a note or a table", field="action")
+            if not sets:  # an edit
+                if quantity is None and not given_note and table is None:
+                    raise InvalidField("edit needs a quantity, a note or a table", field="action")
+                return  # what was asked is so already: nothing to change or record
+            sql = f"UPDATE orders SET {', '.join(sets)} WHERE id = ? AND status IN ({ok})"
             if await db.run(sql, (*params, order_id, *(s.value for s in allowed))) != 1:
                 raise Conflict(f"order {order_id} changed meanwhile", order=order_id)
             await _event(db, f"order.{_EVENT[action]}", now, order_id=order_id, data=data)

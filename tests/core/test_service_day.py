@@ -272,3 +272,22 @@ async def test_a_trip_goes_to_a_robot_with_a_tray_for_each_of_its_tables(tmp_pat
         await c.status("r2", "Loading")
         assert c.robot("r2")["current_task"] == task["id"]
         assert c.robot("r1")["status"] == "Awaiting"  # waited longer, but has one tray
+
+
+async def test_dish_edge_cases_answer_as_a_client_expects(pass_site: Restaurant) -> None:
+    c = await staff(pass_site)
+    o = (await c.ok("create", type="order", dish="Laksa", table="T1", key="k1"))["order"]
+    # The same key for another kind of dish is a different request: refused, not merged.
+    await c.error(
+        "create", "conflict", type="order", dish="Laksa", table="T1", key="k1", status="ordered"
+    )
+    again = (await c.ok("create", type="order", dish="Laksa", table="T1", key="k1"))["order"]
+    assert again["id"] == o["id"]
+    # An edit that asks for what is already so is done (nothing to change), not an error.
+    same = (await c.ok("dish", order=o["id"], action="edit", table="T1"))["order"]
+    assert same == o
+    await c.error("dish", "invalid_field", order=o["id"], action="edit")
+    # Only edit takes quantity, note or table.
+    err = await c.error("dish", "invalid_field", order=o["id"], action="void", table="T2")
+    assert err["details"]["field"] == "action"
+    assert (await c.ok("dish", order=o["id"], action="void"))["order"]["table"] == "T1"

@@ -363,9 +363,14 @@ class MariaDBStore(MariaDBTasks):
         ready_at = check_finite(ready_at, "ready_at") if status is OrderStatus.PENDING else None
         if key is not None:
             check_name(key, "key")
-        fingerprint = digest(
-            ["order", dish, table] + ([quantity, note] if quantity != 1 or note else [])
+        # The first fields alone for a plain dish ready at the pass: keys stored before
+        # quantity, note and status existed still match their resends.
+        extra = (
+            [quantity, note, status.value]
+            if (quantity, note, status) != (1, None, OrderStatus.PENDING)
+            else []
         )
+        fingerprint = digest(["order", dish, table, *extra])
 
         async def work(db: Tx) -> Order:
             if key is not None:
