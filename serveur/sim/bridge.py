@@ -436,7 +436,8 @@ class BridgeClient:
             goal.fail(exc.message)
             self.release(goal)
             return
-        self.robot.nav2_goal(goal, frame, x, y, q)  # rejected: no frame, the handler waits
+        # Rejected: no frame, the handler waits for ever.
+        self.robot.nav2_goal(goal, frame, x, y, q, None if oid is None else str(oid))
 
     def _cancel_action_goal(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
         """``cancel_action_goal``: the goal with this id in the bridge's table, whichever

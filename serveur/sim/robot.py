@@ -353,8 +353,9 @@ class SimRobot:
     @property
     def goal_statuses(self) -> list[tuple[str, GoalStatus, str]]:
         """What ``/move_base/status`` lists now: (goal id, status, text). A ROS 2 robot lists
-        its navigator's goals the same way (ids ``nav2-N``, actionlib statuses; a cancelled
-        goal PREEMPTED, one aborted by a newer goal ABORTED)."""
+        its navigator's goals the same way: under the client's goal id (``nav2-N`` without
+        one), with actionlib statuses (a cancelled goal PREEMPTED, one aborted by a newer goal
+        ABORTED; a goal taken while :meth:`ignore_goals` is on stays PENDING)."""
         return [(g.id, g.status, g.text) for g in self._goals]
 
     def block_path(self, on: bool) -> None:
@@ -508,19 +509,25 @@ class SimRobot:
         x: float,
         y: float,
         q: tuple[float, float, float, float],
+        gid: str | None = None,
     ) -> bool:
         """A NavigateToPose goal reaching the navigator; False if it is rejected.
+
+        ``gid`` is the id the client gave the goal (rosbridge's op id): :attr:`goal_statuses`
+        lists the goal under it, so a test sees which ids a driver sent (else ``nav2-N``).
 
         A goal the navigator cannot take (not in the map frame, NaN, not a rotation about z,
         off the map) is rejected: rosbridge before its 2026 fix then sends no frame at all
         (shared/notes/ros2.md), so the owner never hears of it. A taken goal aborts (status 6)
         the one the navigator was driving: a new goal to Nav2's navigator is not a cancel.
         """
-        if self._ignore_goals:  # a hung navigator: nothing ever comes back
+        gid = gid if gid is not None else f"nav2-{next(self._goal_counter)}"
+        if self._ignore_goals:  # a hung navigator: the goal is listed, never run nor answered
+            self._goals.append(_Goal(gid, self.epoch(), x, y, 0.0))
             return True
         if _goal_problem(frame, x, y, q) is not None or not self._on_map(x, y):
             return False
-        goal = _Goal(f"nav2-{next(self._goal_counter)}", self.epoch(), x, y, 0.0)
+        goal = _Goal(gid, self.epoch(), x, y, 0.0)
         goal.yaw = rb.yaw_from_quaternion({"x": q[0], "y": q[1], "z": q[2], "w": q[3]})
         goal.owner, goal.started = owner, self._t
         for g in self._goals:

@@ -165,6 +165,8 @@ async def test_goal_gets_feedback_then_succeeded_and_no_acknowledgement(sim: Sim
     assert set(ops) == {"action_feedback", "action_result"}
     x, y, _ = sim.robots[0].pose
     assert math.hypot(x - T1[0], y - T1[1]) <= 0.1
+    # The robot lists the goal under the id the client gave it.
+    assert sim.robots[0].goal_statuses[-1][:2] == ("g1", rb.GoalStatus.SUCCEEDED)
 
 
 async def test_no_feedback_unless_asked_and_humble_result_is_empty() -> None:
@@ -485,6 +487,7 @@ async def test_ignore_goals_and_drop_results(sim: Simulation) -> None:
     robot.ignore_goals(True)
     await c.send(send_goal("hung", T1))
     await ping2(c)
+    assert [(g, st) for g, st, _ in robot.goal_statuses] == [("hung", rb.GoalStatus.PENDING)]
     robot.ignore_goals(False)
     robot.drop_results(1)
     await c.send(send_goal("lost", FAR, feedback=True))
