@@ -7,7 +7,7 @@ guests (:func:`stop_dwell`), the tests check the statistics on hand-made numbers
 Everything here is also importable from :mod:`serveur.replay.service`.
 
 The models and where their numbers come from (none is a measurement of a real restaurant: each
-is an assumption, stated here, and each has an option so a site can put its own figures in):
+is an assumption, stated here; loading and absences have options for a site's own figures):
 
 * **dwell** (:func:`dish_dwell`, :func:`stop_dwell`): guests take 6-20 s to notice the robot
   and lift a dish, a long tail to 40 s, 2 s more per extra plate;
@@ -16,9 +16,9 @@ is an assumption, stated here, and each has an option so a site can put its own 
   Staff take a fixed part (walk to the robot, read the trip's trays on its screen, press Go:
   ``load_fixed``, 10 s) plus a part per plate (lift it off the pass onto its tray:
   ``load_per_dish``, 4 s), times a seeded spread (log-normal, ``load_spread`` 0.3: half the
-  trips within -18 %/+22 % of that, one in a hundred twice as long: a crowded pass). No
-  published timing of tray loading was found; these are an assumption sized on carrying
-  plates by hand (a plate every few seconds);
+  trips within -18 %/+22 % of that, one in a hundred twice as long: a crowded pass). Not
+  measured and no source: an assumption sized on carrying plates by hand (a plate every few
+  seconds);
 * **guests away** (:func:`absences`): with probability ``away`` (3 %) a party is away from its
   table (a smoke, a phone call, the washroom) from the moment its first dish is ready, for
   3-12 minutes (uniform). A robot that arrives meanwhile waits; if they are not back within
