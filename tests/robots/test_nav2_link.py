@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+import time
 import uuid
 from collections.abc import AsyncIterator
 from pathlib import Path
@@ -184,3 +185,24 @@ async def test_a_mixed_fleet_serves_a_dinner_service(tmp_path: Path) -> None:
         for name in ("r1", "r2"):
             await c.status(name, "Awaiting", timeout=60)
         assert all(c.order(o)["status"] == "delivered" for o in ids)
+
+
+@pytest.mark.cuts_links
+async def test_wifi_that_stops_forwarding_takes_a_ros2_robot_offline_in_time(
+    tmp_path: Path,
+) -> None:
+    # No frame, no close: only the rosapi heartbeat can tell. Offline within the heartbeat
+    # timeout (not websockets' 10 s closing handshake), back when the path returns.
+    async with restaurant(tmp_path, robots=1, config=CONFIG, ros=2, proxied=True) as r:
+        c = await staff(r)
+        await c.status("r1", "Ready")
+        link = r.app.core._rt["r1"].link
+        assert link is not None
+        limit = link.heartbeat_timeout() / r.clock.time_scale  # wall seconds
+        t0 = time.monotonic()
+        r.proxies[0].blackhole()
+        await c.status("r1", "Offline", timeout=limit + 5.0)
+        took = time.monotonic() - t0
+        assert took <= limit + 0.8, f"Offline after {took:.1f}s (heartbeat {limit:.1f}s)"
+        r.proxies[0].resume()
+        await c.status("r1", "Ready")
