@@ -70,6 +70,7 @@ class Staff:
         self.first_ready: dict[int, float] = {}  # server order id -> its first ready stamp
         self.task_of: dict[int, int] = {}  # server order id -> the trip it last rode
         self.returned: dict[str, list[int]] = {}  # robot -> dishes it brings back to the pass
+        self.coming_back: set[int] = set()  # returned dishes not yet sent again
         self.loading: set[int] = set()  # trips being loaded
         self.loaded: dict[int, float] = {}
         self.resent = 0
@@ -136,7 +137,8 @@ class Staff:
             self.carted.discard(oid)
             self.pending[oid] = Dish(oid, order["table"], self.ready_of[oid])
             self.wake.set()
-        elif status == "returned" and oid in self.line_of:
+        elif status == "returned" and oid in self.line_of and oid not in self.coming_back:
+            self.coming_back.add(oid)  # once per return, however often the server shows it
             task = self.console.tasks.get(self.task_of.get(oid, -1), {})
             robot = task.get("robot")
             r = self.console.robots.get(robot or "", {})
@@ -167,6 +169,7 @@ class Staff:
         """Returned dishes back on the pass: ready again (pending), for a new cart."""
         for oid in orders:
             await self.console.call("dish", order=oid, action="ready", status="returned")
+            self.coming_back.discard(oid)  # the server's updates up to here showed it returned
             self.resent += 1
 
     # the pass --------------------------------------------------------------------------
