@@ -7,7 +7,8 @@ it is natural; and three simple charts (histogram, scatter, paths) need no more 
 rectangles and text. Output is byte-identical for identical inputs (no timestamps embedded).
 
 Plots, one set per policy: ``<policy>-wait-hist.png`` (waits in 15 s bins),
-``<policy>-waits.png`` (each dish's wait against when it was ready, with a rolling mean) and
+``<policy>-waits.png`` (each dish's wait against when it was first ready, with a rolling mean;
+a ring for a dish returned from its table and sent again) and
 ``<policy>-paths.png`` (every robot's path on the map, one colour per robot).
 """
 
@@ -117,12 +118,15 @@ def _hist(result: PolicyResult, path: Path) -> None:
 
 
 def _over_time(result: PolicyResult, path: Path) -> None:
-    pts = sorted((o["ready_at"] / 60.0, o["wait"]) for o in result.orders if o["wait"] is not None)
+    done = [o for o in result.orders if o["wait"] is not None]
+    pts = sorted((o["ready_at"] / 60.0, o["wait"]) for o in done)
+    back = {(o["ready_at"] / 60.0, o["wait"]) for o in done if o.get("returned")}
     tmax = max((p[0] for p in pts), default=1.0)
     wmax = max((p[1] for p in pts), default=1.0)
     ax = _Axes(
-        f"{result.policy}: waits over the service (dot = dish, line = mean of the last 20)",
-        "dish ready at (minutes from opening)",
+        f"{result.policy}: waits (dot: a dish, ring: returned and sent again, "
+        "line: mean of the last 20)",
+        "dish first ready at (minutes from opening)",
         "wait (s)",
         tmax * 1.02,
         wmax * 1.1,
@@ -130,7 +134,10 @@ def _over_time(result: PolicyResult, path: Path) -> None:
     colour = _POLICY_COLOUR.get(result.policy, _COLOURS[0])
     for t, w in pts:
         x, y = ax.px(t, w)
-        ax.d.ellipse((x - 2, y - 2, x + 2, y + 2), fill=colour)
+        if (t, w) in back:
+            ax.d.ellipse((x - 4, y - 4, x + 4, y + 4), outline="black", width=2)
+        else:
+            ax.d.ellipse((x - 2, y - 2, x + 2, y + 2), fill=colour)
     line: list[tuple[float, float]] = []
     for i in range(len(pts)):
         window = pts[max(0, i - 19) : i + 1]
