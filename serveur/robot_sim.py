@@ -285,6 +285,7 @@ async def start_simulation(
     release: str = "jazzy",
     twist_stamped: bool | None = None,
     humble_queue: bool | None = None,
+    rosbridge_fix: bool = False,
 ) -> Simulation:
     """Start ``n`` robots listening on ports ``port``..``port+n-1`` (0: free ports).
 
@@ -304,6 +305,8 @@ async def start_simulation(
     shape and the defaults of ``twist_stamped`` (``/cmd_vel`` is TwistStamped; Kilted) and
     ``humble_queue`` (rosbridge's ``send_action_goals_in_new_thread`` false, Humble's default: a
     goal holds its connection's later ops until it ends); None takes the release's default.
+    ``rosbridge_fix``: rosbridge with its 2026 fix, which answers a rejected or unserved goal
+    with ``action_result`` ``result: false`` (without it: no frame at all).
     """
     if n < 1:
         raise ValueError("at least one robot")
@@ -363,6 +366,7 @@ async def start_simulation(
             release=release,
             twist_stamped=twist_stamped,
             humble_queue=humble_queue,
+            rosbridge_fix=rosbridge_fix,
         )
         robots.append(robot)
         endpoints.append(Endpoint(robot, host, port + i if port else 0, ssl))
@@ -448,6 +452,12 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
         "connection's later ops (cancel, cmd_vel) until it ends (default: the release's)",
     )
     parser.add_argument(
+        "--rosbridge-fix",
+        action="store_true",
+        help="ROS 2: rosbridge with its 2026 fix: a rejected goal, or one to an action nobody "
+        "serves, gets a failed action_result (default: no frame at all, as before the fix)",
+    )
+    parser.add_argument(
         "--amcl",
         choices=AMCL_MODES,
         default="continuous",
@@ -477,6 +487,7 @@ async def run_sim(
     release: str = "jazzy",
     twist_stamped: bool | None = None,
     humble_queue: bool | None = None,
+    rosbridge_fix: bool = False,
 ) -> int:
     """Run a simulation until ``stop`` is set or SIGINT/SIGTERM; print the URLs first.
 
@@ -510,6 +521,7 @@ async def run_sim(
                 release=release,
                 twist_stamped=twist_stamped,
                 humble_queue=humble_queue,
+                rosbridge_fix=rosbridge_fix,
             )
         except (OSError, ServeurError, ValueError) as exc:
             print(f"serveur sim: cannot start: {exc}", file=sys.stderr, flush=True)
@@ -574,4 +586,5 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
         release=getattr(ns, "release", "jazzy"),
         twist_stamped=getattr(ns, "twist_stamped", None),
         humble_queue=getattr(ns, "humble_queue", None),
+        rosbridge_fix=getattr(ns, "rosbridge_fix", False),
     )

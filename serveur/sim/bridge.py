@@ -407,8 +407,10 @@ class BridgeClient:
 
         * no acknowledgement frame; ``action_feedback`` only if ``feedback`` is true;
         * a goal the action server rejects, or for an action nobody serves, gets no frame at
-          all (the handler waits for ever), an unknown action type or a goal rosbridge cannot
-          populate gets ``action_result`` with ``result`` false, status 0 and the error text;
+          all (the handler waits for ever; with the robot's ``rosbridge_fix``, the 2026 fix,
+          ``action_result`` with ``result`` false, at once or after 1 s); an unknown action
+          type or a goal rosbridge cannot populate gets ``action_result`` with ``result``
+          false, status 0 and the error text;
         * ids live in one table for the whole bridge (``cancel_action_goal`` by any connection);
         * with the queue trap (``send_action_goals_in_new_thread`` false, Humble's default) the
           connection's op thread runs the goal itself: every later op of this connection waits
@@ -425,19 +427,30 @@ class BridgeClient:
         if self.robot.humble_queue:
             self.blocker = goal
         if action_type.strip("/") not in ros2.ACTION_TYPES:
-            goal.fail(f"Unable to import action type {action_type!r}")
-            self.release(goal)
+            self._fail(goal, f"Unable to import action type {action_type!r}")
             return
         if self.robot.local(name) != ros2.NAVIGATE_TO_POSE:
-            return  # no action server: rosbridge waits for one for ever, and sends nothing
+            # No action server: rosbridge waits for one for ever and sends nothing; with the
+            # fix it gives up after wait_for_server's 1 s.
+            if self.robot.rosbridge_fix:
+                loop = asyncio.get_running_loop()
+                loop.call_later(
+                    self.clock.wall(1.0), self._fail, goal, "No action server available"
+                )
+            return
         try:
             frame, x, y, q = ros2.goal_from_args(msg.get("args"))
         except ServeurError as exc:
-            goal.fail(exc.message)
-            self.release(goal)
+            self._fail(goal, exc.message)
             return
-        # Rejected: no frame, the handler waits for ever.
-        self.robot.nav2_goal(goal, frame, x, y, q, None if oid is None else str(oid))
+        taken = self.robot.nav2_goal(goal, frame, x, y, q, None if oid is None else str(oid))
+        if not taken and self.robot.rosbridge_fix:
+            self._fail(goal, "Action goal was rejected")
+        # Rejected without the fix: no frame, the handler waits for ever.
+
+    def _fail(self, goal: ActionGoal, text: str) -> None:
+        goal.fail(text)
+        self.release(goal)
 
     def _cancel_action_goal(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
         """``cancel_action_goal``: the goal with this id in the bridge's table, whichever

@@ -200,9 +200,9 @@ class SimRobot:
 
     Public read-only state: ``name``, ``pose`` (true pose), ``kinematics``, ``battery``
     (0..1), ``home``, ``velocity``, ``clock_offset``, ``amcl``, ``ros`` (1 or 2), and for ROS 2
-    ``release``, ``twist_stamped``, ``humble_queue``; ``topic_types`` and ``subscribes`` (the
-    robot's graph in its dialect). Fault hooks: :meth:`block_path`, :meth:`ignore_goals`, and
-    for ROS 2 :meth:`drop_results`.
+    ``release``, ``twist_stamped``, ``humble_queue``, ``rosbridge_fix``; ``topic_types`` and
+    ``subscribes`` (the robot's graph in its dialect). Fault hooks: :meth:`block_path`,
+    :meth:`ignore_goals`, and for ROS 2 :meth:`drop_results`.
 
     ``clock_offset`` (seconds) is added to every stamp the robot makes (:meth:`epoch`);
     ``amcl`` is one of :data:`AMCL_MODES` (see the module's docstring).
@@ -229,6 +229,7 @@ class SimRobot:
         release: str = "jazzy",
         twist_stamped: bool | None = None,
         humble_queue: bool | None = None,
+        rosbridge_fix: bool = False,
     ) -> None:
         if amcl not in AMCL_MODES:
             raise ValueError(f"amcl must be one of {AMCL_MODES}, not {amcl!r}")
@@ -253,6 +254,9 @@ class SimRobot:
         #: ROS 2: rosbridge's ``send_action_goals_in_new_thread`` is false (Humble's default):
         #: a goal holds its connection's later ops until it ends (see serveur.sim.bridge).
         self.humble_queue = release == "humble" if humble_queue is None else bool(humble_queue)
+        #: ROS 2: rosbridge with the 2026 fix: a rejected goal, or one to an action nobody
+        #: serves (after 1 s), gets ``action_result`` with ``result`` false instead of nothing.
+        self.rosbridge_fix = bool(rosbridge_fix)
         if ros == 2:
             self.topic_types = ros2.topic_types(self.twist_stamped)
             self.subscribes = ROS2_SUBSCRIBES

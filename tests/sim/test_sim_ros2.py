@@ -219,6 +219,21 @@ async def test_a_goal_the_robot_cannot_take_gets_no_frame_at_all(sim: Simulation
     assert not any(json.loads(f)["op"] == "status" for f in c.frames)
 
 
+async def test_with_rosbridges_fix_rejected_and_unserved_goals_fail_and_free_the_queue() -> None:
+    s = await start(release="humble", rosbridge_fix=True)
+    try:
+        c = await open_raw(s)
+        await c.send(send_goal("offmap", (100.0, 100.0, 0.0)))
+        await c.send(send_goal("nobody", T1, action="/follow_waypoints"))
+        await c.send(rb.op_call_service("/rosapi/get_time", id="after"))
+        for gid, text in (("offmap", "rejected"), ("nobody", "No action server")):
+            res = await result(c, gid)
+            assert res["result"] is False and res["status"] == 0 and text in res["values"]
+        await c.wait_for(lambda m: m.get("id") == "after")  # the queue trap let go of both
+    finally:
+        await shut(s)
+
+
 async def test_unknown_action_type_fails_and_an_unserved_action_is_silent(sim: Simulation) -> None:
     c = await open_raw(sim)
     await c.send(send_goal("typo", T1, action_type="nav2_msgs/action/NavigateToPlace"))
