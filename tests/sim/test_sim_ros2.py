@@ -283,7 +283,7 @@ async def test_namespaced_robot_serves_its_own_action() -> None:
 async def test_queue_trap_holds_the_connection_until_arrival(humble: Simulation) -> None:
     robot = humble.robots[0]
     c, other = await open_raw(humble), await open_raw(humble)
-    await c.send(send_goal("held", T1, feedback=True))
+    await c.send(send_goal("held", FAR, feedback=True))  # far: it drives ~1 s of wall time
     await feedback(c, "held")
     await c.send(cancel_goal("held"))  # waits behind the goal
     await c.send(rb.op_call_service("/rosapi/get_time", id="behind"))
@@ -428,14 +428,14 @@ async def test_cmd_vel_twist_drives_when_idle_then_the_watchdog_stops_it(sim: Si
 async def test_cmd_vel_is_ignored_while_a_goal_drives(sim: Simulation) -> None:
     robot = sim.robots[0]
     c = await open_raw(sim)
-    await c.send(send_goal("g", T1, feedback=True))
+    await c.send(send_goal("g", FAR, feedback=True))
     await feedback(c, "g")
-    for _ in range(3):
+    for i in range(3):
         await c.send(rb.op_publish("/cmd_vel", rb.twist(-0.4, 0.0, 0.7)))
-        await feedback(c, "g")
-        assert robot._teleop is None
+        await ping2(c, f"p{i}")  # handled
+        assert robot._active is not None and robot._teleop is None
     assert (await result(c, "g"))["status"] == ros2.SUCCEEDED
-    assert math.hypot(robot.pose[0] - T1[0], robot.pose[1] - T1[1]) <= 0.1
+    assert math.hypot(robot.pose[0] - FAR[0], robot.pose[1] - FAR[1]) <= 0.1
 
 
 async def test_twist_stamped_switch() -> None:
