@@ -912,7 +912,8 @@ class SimRobot:
         for _ in range(steps):
             self._step(TICK)
             self._ticks = k = self._ticks + 1
-            if self._subs or self.amcl == "real":  # a latched pose is kept without subscribers
+            # A latched pose is kept without subscribers; a ROS 2 goal's feedback has none.
+            if self._subs or self.amcl == "real" or self.ros == 2:
                 self._publish_due(k)
 
     def _publish_due(self, k: int) -> None:

@@ -34,7 +34,8 @@ NODE_DIR = Path(__file__).resolve().parents[1] / "node"
 
 @pytest.fixture
 async def sim() -> AsyncIterator[Simulation]:
-    s = await start_simulation(1, port=0, clock=ScaledClock(SCALE), seed=3, ros=2, amcl="real")
+    # The default (continuous) AMCL here: test_sim_ros2.py runs the "real" one.
+    s = await start_simulation(1, port=0, clock=ScaledClock(SCALE), seed=3, ros=2)
     try:
         yield s
     finally:
