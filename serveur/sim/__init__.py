@@ -1,7 +1,8 @@
 """The simulator's parts: one robot's ROS graph, its rosbridge server, its physics.
 
-Owns :mod:`~serveur.sim.robot` (move_base, AMCL, odometry, laser, battery of one robot),
-:mod:`~serveur.sim.bridge` (its rosbridge v2 server: ops, subscriptions, queues),
+Owns :mod:`~serveur.sim.robot` (move_base or Nav2, AMCL, odometry, laser, battery of one
+robot), :mod:`~serveur.sim.bridge` (its rosbridge v2 server: ops, subscriptions, queues, and
+rosbridge 2.x's action ops), :mod:`~serveur.sim.ros2` (the ROS 2 dialect's names and shapes),
 :mod:`~serveur.sim.topics` (frames and subscriptions both share) and
 :mod:`~serveur.sim.kinematics` (omni / differential drive, path following, odometry).
 :mod:`serveur.robot_sim` assembles a fleet from these and is the simulator's entry.
