@@ -245,6 +245,18 @@ async def test_unknown_action_type_fails_and_an_unserved_action_is_silent(sim: S
     assert ops_about(c, "nobody") == []
 
 
+async def test_malformed_action_ops_answer_errors_and_hold_nothing(humble: Simulation) -> None:
+    c = await open_raw(humble, level="error")
+    await c.send({"op": "send_action_goal", "id": "b1", "action_type": TYPE})  # no action
+    assert (await c.wait_for(lambda m: m["op"] == "status"))["id"] == "b1"
+    await c.send({"op": "cancel_action_goal", "id": "b2"})
+    assert (await c.wait_for(lambda m: m["op"] == "status"))["id"] == "b2"
+    await c.send(send_goal("b3", T1, args={"pose": "T1"}))  # rosbridge cannot fill the goal
+    bad = await result(c, "b3")
+    assert bad["result"] is False and bad["status"] == 0 and "pose" in bad["values"]
+    await ping2(c)  # and the connection is not held
+
+
 async def test_ids_are_global_and_closing_does_not_cancel(sim: Simulation) -> None:
     a, b = await open_raw(sim), await open_raw(sim)
     # A cancel from another connection cancels by id; the result goes to the goal's sender.
