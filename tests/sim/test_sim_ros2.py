@@ -478,8 +478,9 @@ async def test_battery_scan_map_and_rosapi_are_ros2_shaped(sim: Simulation) -> N
         "sec",
         "nanosec",
     }
-    for t in ("/battery_state", "/scan"):
-        await c.send(rb.op_subscribe(t))
+    # Types in either spelling (rosbridge's loaders take both).
+    await c.send(rb.op_subscribe("/battery_state", "sensor_msgs/msg/BatteryState"))
+    await c.send(rb.op_subscribe("/scan", "sensor_msgs/LaserScan"))
     bat = await c.topic("/battery_state")
     assert 0.0 <= bat["percentage"] <= 1.0 and bat["power_supply_status"] in (1, 2, 3, 4)
     assert bat["temperature"] is None  # unmeasured: NaN -> null
