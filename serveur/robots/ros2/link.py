@@ -68,6 +68,10 @@ TELEOP_TIMEOUT = 0.5
 BATTERY_MS = 5000
 #: A robot this close to its goal when the result never came has arrived (metres).
 ARRIVED_WITHOUT_RESULT = 0.5
+#: Heartbeat answers without feedback, besides the ack timeout, before a goal's silence is
+#: believed: after a stall of the server (or of a Pi's Wi-Fi) the pings and the feedback
+#: queued behind them arrive together, and time alone would misjudge a goal under way.
+SILENT_PINGS = 3
 #: Goal ids remembered for cancelling: a goal of an earlier connection may still run.
 _RECENT_GOALS = 4
 
@@ -82,6 +86,7 @@ class _Goal:
     sent_at: float
     attempts: int = 1
     feedback_at: float | None = None  # last feedback (clock); None: not accepted yet
+    pings: int = 0  # heartbeat answers since it was sent or since its last feedback
 
 
 class Nav2Link:
@@ -317,6 +322,8 @@ class Nav2Link:
 
     def _on_service(self, op: Mapping[str, Any]) -> None:
         if op.get("id") == "ping":
+            if self._goal is not None:
+                self._goal.pings += 1
             if not self._have_ping:
                 self._have_ping = True
                 self._maybe_up()
@@ -361,6 +368,7 @@ class Nav2Link:
         goal = self._goal
         if goal is not None and op.get("id") == goal.id:
             goal.feedback_at = self._clock.now()
+            goal.pings = 0
 
     def _on_result(self, op: Mapping[str, Any]) -> None:
         goal = self._goal
@@ -372,7 +380,7 @@ class Nav2Link:
 
     async def _check_goal(self, now: float) -> None:
         goal = self._goal
-        if goal is None:
+        if goal is None or goal.pings < SILENT_PINGS:
             return
         if goal.feedback_at is None:
             if now - goal.sent_at > self._ack_timeout:
@@ -450,6 +458,7 @@ class Nav2Link:
         goal.id = str(uuid.uuid4())
         goal.attempts += 1
         goal.sent_at = self._clock.now()
+        goal.pings = 0
         log.warning("%s: goal %s not accepted, re-sending as %s", self.name, old, goal.id)
         with contextlib.suppress(LinkError):
             await self._cancel(old)
