@@ -19,6 +19,16 @@ from serveur.replay.orders import OrderLogError, read_orders
 __all__ = ["add_replay_parser"]
 
 
+def _ros_list(text: str) -> tuple[int, ...]:
+    try:
+        versions = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        versions = ()
+    if not versions or any(v not in (1, 2) for v in versions):
+        raise argparse.ArgumentTypeError(f"--ros wants 1, 2 or a list like 1,2, not {text!r}")
+    return versions
+
+
 def _cmd_replay(ns: argparse.Namespace) -> int:
     root = logging.getLogger()
     level = root.level
@@ -52,6 +62,7 @@ def _replay_command(ns: argparse.Namespace) -> int:
         seed=ns.seed,
         capacity=ns.capacity,
         kinematics=ns.kinematics,
+        ros=ns.ros,
         hold=ns.hold,
         hold_max=ns.hold_max,
         rank=ns.rank,
@@ -109,6 +120,13 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--seed", type=int, default=0, help="robots' and guests' seed (default 0)")
     p.add_argument("--capacity", type=int, default=4, help="tables per tray (default 4)")
     p.add_argument("--kinematics", choices=["omni", "diff"], default="omni")
+    p.add_argument(
+        "--ros",
+        type=_ros_list,
+        default=(1,),
+        metavar="1|2|1,2",
+        help="which ROS the simulated robots run, cycled over them (1,2: a mixed fleet)",
+    )
     p.add_argument(
         "--hold",
         type=float,

@@ -63,6 +63,8 @@ class ReplayOptions:
     seed: int = 0
     capacity: int = 4
     kinematics: str = "omni"
+    #: Which ROS each robot runs, cycled over the robots: (1,), (2,) or a mixed fleet (1, 2).
+    ros: tuple[int, ...] = (1,)
     hold: float = 10.0  # serveur staff: wait this long at most for a table's next dish ...
     hold_max: float = 60.0  # ... growing to this as tables queue (scheduler.adaptive_hold)
     rank: str = "best"  # serveur staff: how tables are ranked (scheduler.RANKS)

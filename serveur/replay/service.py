@@ -275,12 +275,15 @@ class _Service:
             kinematics=opts.kinematics,
             clock=self.clock,
             seed=opts.seed,
+            ros=[opts.ros[i % len(opts.ros)] for i in range(opts.robots)],
         )
         # Every waypoint's distance field before the service opens: a robot's first goal at a
         # spot would otherwise wait for it (40-80 ms of CPU, in the middle of the service).
         await sim.warm_plans([(w.x, w.y) for w in waypoints.values()])
         specs = [
-            RobotSpec(r.name, url, homes[i].name, opts.kinematics)
+            RobotSpec(
+                r.name, url, homes[i].name, opts.kinematics, {"ros": "2"} if r.ros == 2 else {}
+            )
             for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
         ]
         cfg, security = server_config(opts, self.policy)

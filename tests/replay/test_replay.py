@@ -147,3 +147,17 @@ def test_short_replay_both_policies_and_again(tmp_path: Path) -> None:
     scaled = json.loads((out3 / "report.json").read_text())["policies"]["serveur"]
     assert scaled["summary"]["undelivered"] == 0
     assert scaled["summary"]["wait_mean"] == pytest.approx(serveur["summary"]["wait_mean"], abs=10)
+
+
+def test_a_mixed_ros1_and_ros2_fleet_replays_the_same_service(tmp_path: Path) -> None:
+    # Issue 19: the replay runs ROS 2 robots (Nav2 over rosbridge 2.x) beside ROS1 ones.
+    log = tmp_path / "orders.csv"
+    log.write_text(LOG)
+    out = tmp_path / "mixed"
+    args = [*ARGS, "--policy", "serveur", "--ros", "1,2", "--out", str(out)]
+    assert main(["replay", str(log), *args]) == 0
+    pol = json.loads((out / "report.json").read_text())["policies"]["serveur"]
+    s = pol["summary"]
+    assert s["orders"] == s["delivered"] == 20 and s["undelivered"] == 0
+    assert s["nav_errors"] == 0 and s["recoveries"] == 0
+    assert all(r["trips"] > 0 for r in pol["robots"]), "both kinds of robot served"
