@@ -69,7 +69,7 @@ def _add_service_arguments(p: argparse.ArgumentParser) -> None:
         type=float,
         default=180.0,
         metavar="S",
-        help="a robot waiting this long at a table without \"food collected\" goes on, the"
+        help='a robot waiting this long at a table without "food collected" goes on, the'
         " dishes returned to the pass (0: wait for ever; default 180)",
     )
     g.add_argument(
