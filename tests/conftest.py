@@ -324,3 +324,20 @@ async def one_robot(tmp_path: Path) -> AsyncIterator[Restaurant]:
 async def two_robots(tmp_path: Path) -> AsyncIterator[Restaurant]:
     async with restaurant(tmp_path, robots=2) as r:
         yield r
+
+
+@pytest.fixture(params=[1, 2], ids=["ros1", "ros2"])
+async def any_robot(request: pytest.FixtureRequest, tmp_path: Path) -> AsyncIterator[Restaurant]:
+    """One robot, run once as a ROS1 and once as a ROS 2 robot: a module that takes its
+    ``one_robot`` from this checks that nothing above the robot driver tells them apart."""
+    async with restaurant(tmp_path, robots=1, ros=request.param) as r:
+        yield r
+
+
+@pytest.fixture(params=[[1, 1], [1, 2]], ids=["ros1", "mixed"])
+async def any_two_robots(
+    request: pytest.FixtureRequest, tmp_path: Path
+) -> AsyncIterator[Restaurant]:
+    """Two ROS1 robots, then a mixed fleet (one ROS1, one ROS 2)."""
+    async with restaurant(tmp_path, robots=2, ros=request.param) as r:
+        yield r

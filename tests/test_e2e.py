@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import asyncio
 import math
-from collections.abc import AsyncIterator
-from pathlib import Path
 from typing import Any
 
 import pytest
 
 from serveur.maps.navigation import load_demo
-from tests.conftest import Client, Restaurant, restaurant
+from tests.conftest import Client, Restaurant
 
 _, WAYPOINTS = load_demo()
 
@@ -20,16 +18,14 @@ _, WAYPOINTS = load_demo()
 # above the robot-driver interface may tell them apart (issue 19).
 
 
-@pytest.fixture(params=[1, 2], ids=["ros1", "ros2"])
-async def one_robot(request: pytest.FixtureRequest, tmp_path: Path) -> AsyncIterator[Restaurant]:
-    async with restaurant(tmp_path, robots=1, ros=request.param) as r:
-        yield r
+@pytest.fixture
+def one_robot(any_robot: Restaurant) -> Restaurant:
+    return any_robot
 
 
-@pytest.fixture(params=[[1, 1], [1, 2]], ids=["ros1", "mixed"])
-async def two_robots(request: pytest.FixtureRequest, tmp_path: Path) -> AsyncIterator[Restaurant]:
-    async with restaurant(tmp_path, robots=2, ros=request.param) as r:
-        yield r
+@pytest.fixture
+def two_robots(any_two_robots: Restaurant) -> Restaurant:
+    return any_two_robots
 
 
 async def activate(c: Client, robot: str) -> None:

@@ -25,6 +25,19 @@ from tests import invariants
 from tests.conftest import Client, Restaurant
 from tests.test_e2e import activate, near, new_orders, serve_current_stop, staff
 
+# Link faults happen to ROS1 and ROS 2 robots alike (and to a mixed fleet): issue 19.
+
+
+@pytest.fixture
+def one_robot(any_robot: Restaurant) -> Restaurant:
+    return any_robot
+
+
+@pytest.fixture
+def two_robots(any_two_robots: Restaurant) -> Restaurant:
+    return any_two_robots
+
+
 pytestmark = pytest.mark.cuts_links  # robots drop off the network on purpose
 
 #: Fault schedule seed; set SERVEUR_FAULT_SEED to explore other schedules.

@@ -104,7 +104,7 @@ async def test_a_goal_nobody_answers_times_out_instead_of_waiting_for_ever(
     ids = await new_orders(c, ("Laksa", "T12"))
     await c.ok("create", type="task", orders=ids)
     robot = await c.status("r1", "Error", timeout=60)
-    assert "not accepted by Nav2" in robot["last_error"]
+    assert "not acknowledged by Nav2" in robot["last_error"]
     sent = [gid for gid, _, _ in sim(humble).goal_statuses]
     # Goal ids are UUIDs: the bridge's goal table is shared by every client.
     assert all(uuid.UUID(g) for g in sent)
@@ -206,3 +206,31 @@ async def test_wifi_that_stops_forwarding_takes_a_ros2_robot_offline_in_time(
         assert took <= limit + 0.8, f"Offline after {took:.1f}s (heartbeat {limit:.1f}s)"
         r.proxies[0].resume()
         await c.status("r1", "Ready")
+
+
+async def test_shutdown_cancels_the_goal_itself(humble: Restaurant) -> None:
+    # Closing the websocket does not cancel a Nav2 goal: a server going down must cancel it,
+    # or the robot drives on with nobody watching.
+    c = await staff(humble)
+    await activate(c, "r1")
+    ids = await new_orders(c, ("Laksa", "T12"))
+    await c.ok("create", type="task", orders=ids)
+    await c.status("r1", "Delivering")
+    await poll_until(lambda: math.hypot(*sim(humble).velocity[:2]) > 0.1, 10, "moving")
+    await humble.app.core.halt_robots()
+    await poll_until(lambda: math.hypot(*sim(humble).velocity[:2]) < 0.01, 5, "stopped")
+    assert [s.name for _, s, _ in sim(humble).goal_statuses][-1:] == ["PREEMPTED"]
+
+
+async def test_jazzys_error_message_reaches_staff(tmp_path: Path) -> None:
+    # Jazzy's NavigateToPose result carries error_code/error_msg (Humble's is empty): staff
+    # see Nav2's own reason.
+    async with restaurant(tmp_path, robots=1, config=CONFIG, ros=2, release="jazzy") as r:
+        c = await staff(r)
+        await activate(c, "r1")
+        r.sim.robots[0].block_path(True)
+        ids = await new_orders(c, ("Laksa", "T12"))
+        await c.ok("create", type="task", orders=ids)
+        robot = await c.status("r1", "Error")
+        assert "navigate_to_pose ABORTED:" in robot["last_error"]
+        assert "(error 208)" in robot["last_error"]

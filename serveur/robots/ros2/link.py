@@ -451,7 +451,7 @@ class Nav2Link:
     async def _resend(self, goal: _Goal) -> None:
         if goal.attempts > self._ack_retries:
             self._goal = None
-            reason = f"goal not accepted by Nav2 after {goal.attempts} attempts (no feedback)"
+            reason = f"goal not acknowledged by Nav2 after {goal.attempts} attempts (no feedback)"
             self._listener.goal_lost(self.name, goal.handle, reason)
             return
         old = goal.id
