@@ -13,7 +13,9 @@ two:
   publishes the events that wrote.
 
 It also turns the hub's "someone watches / nobody watches" signals into the links' stream
-rates (laser scans only while watched, poses slowed while unwatched).
+rates (laser scans only while watched, poses slowed while unwatched), and passes poses to the
+screens through a :class:`~serveur.core.pose_rate.PoseGate` (at most 10 a wall second per
+robot, none while parked).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from serveur import protocol as P
 from serveur.clock import Clock
 from serveur.core.hub import Hub
 from serveur.core.places import Places
+from serveur.core.pose_rate import Pose, PoseGate
 from serveur.core.publisher import Publisher
 from serveur.core.runtime import CoreConfig, Runtime, pose_dict
 from serveur.errors import StoreError
@@ -81,6 +84,8 @@ class LinkReports:
         self._publisher = publisher
         self._closing = False
         self._battery_shown: dict[str, float] = {}  # the level last published, per robot
+        # Poses reach the screens at most 10 a wall second per robot, and not when parked.
+        self._poses = PoseGate(self._publish_pose)
 
     # -- the per-robot queue and worker ------------------------------------------------------
 
@@ -97,6 +102,7 @@ class LinkReports:
     def stop_queueing(self) -> None:
         """Shutting down: reports arriving from now on are dropped."""
         self._closing = True
+        self._poses.close()
 
     async def stop_worker(self, rt: Runtime) -> None:
         """Cancel the robot's worker and wait for it to end."""
@@ -189,12 +195,16 @@ class LinkReports:
         if rt is None:
             return
         rt.pose = (x, y, yaw)
-        topic = f"pose:{robot}"
-        if self._hub.watched(topic):
-            self._hub.publish(topic, P.dump(pose_dict(rt.pose, stamp)))
+        if self._hub.watched(f"pose:{robot}"):
+            self._poses.offer(robot, rt.pose, stamp)
         if self._clock.now() - rt.pose_saved_at > self._config.pose_persist_period:
             rt.pose_saved_at = self._clock.now()
             self.post(robot, "persist_pose")
+
+    def _publish_pose(self, robot: str, pose: Pose, stamp: float) -> None:
+        topic = f"pose:{robot}"
+        if self._hub.watched(topic):
+            self._hub.publish(topic, P.dump(pose_dict(pose, stamp)))
 
     def battery(self, robot: str, fraction: float) -> None:
         rt = self._rt.get(robot)
@@ -242,6 +252,8 @@ class LinkReports:
             if rt is not None and rt.link is not None:
                 asyncio.get_running_loop().create_task(rt.link.want_scan(on))
         elif topic.startswith("pose:"):
+            if not on:
+                self._poses.forget(topic[5:])
             rt = self._rt.get(topic[5:])
             if rt is not None and rt.link is not None:
                 asyncio.get_running_loop().create_task(rt.link.want_pose(on))

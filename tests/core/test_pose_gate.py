@@ -1,0 +1,85 @@
+"""Poses reach a console at most 10 times a wall second per robot, whatever the time scale,
+and not at all while the robot is parked; the last pose after a stop is always delivered.
+
+The simulator here streams AMCL poses continuously (10 Hz of simulated time: 100 a wall second
+at time scale 10, parked or not); without :class:`~serveur.core.pose_rate.PoseGate` a console
+would receive every one of them.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from pathlib import Path
+
+from serveur.core.pose_rate import MAX_RATE, PoseGate
+from tests.conftest import Client, restaurant
+from tests.test_e2e import activate, new_orders, staff
+
+
+def pose_updates(c: Client, robot: str) -> list[dict[str, float]]:
+    return [
+        f["data"]
+        for f in c.frames
+        if f["servermsg"] == "update" and f.get("topic") == f"pose:{robot}"
+    ]
+
+
+async def test_a_moving_robot_at_time_scale_10_sends_at_most_10_poses_a_second(
+    tmp_path: Path,
+) -> None:
+    async with restaurant(tmp_path, robots=1, time_scale=10.0, amcl="continuous") as r:
+        c = await staff(r)
+        await activate(c, "r1")
+        await c.subscribe("pose:r1")
+        # Parked and watched: the simulator sends ~100 identical poses a second; none is new.
+        before = len(pose_updates(c, "r1"))
+        await asyncio.sleep(0.8)
+        assert len(pose_updates(c, "r1")) - before <= 2  # the first ones after the watch
+        ids = await new_orders(c, ("Laksa", "T6"))
+        await c.ok("create", type="task", orders=ids)
+        await c.status("r1", "Delivering")
+        start, t0 = len(pose_updates(c, "r1")), time.monotonic()
+        await asyncio.sleep(1.5)
+        got = len(pose_updates(c, "r1")) - start
+        rate = got / (time.monotonic() - t0)
+        assert got >= 3 and rate <= MAX_RATE * 1.15, (got, rate)
+        # Arrived: the last pose sent is where the robot stopped, then nothing more.
+        await c.status("r1", "Delivered")
+        rt = r.app.core._rt["r1"]
+
+        async def settled() -> None:
+            while True:
+                last = pose_updates(c, "r1")[-1]
+                assert rt.pose is not None
+                # AMCL's noise (1 cm sigma) apart at most: the resting pose, not one en route
+                if abs(last["x"] - rt.pose[0]) < 0.08 and abs(last["y"] - rt.pose[1]) < 0.08:
+                    return
+                await asyncio.sleep(0.05)
+
+        await asyncio.wait_for(settled(), 5.0)
+        await asyncio.sleep(0.3)  # any trailing motion has been delivered
+        quiet = len(pose_updates(c, "r1"))
+        await asyncio.sleep(0.8)
+        assert len(pose_updates(c, "r1")) == quiet
+
+
+async def test_the_gate_keeps_the_latest_pose_and_delivers_the_last_one() -> None:
+    sent: list[tuple[float, float, float]] = []
+    gate = PoseGate(lambda robot, pose, stamp: sent.append(pose), max_rate=10.0)
+    loop = asyncio.get_running_loop()
+    t0 = loop.time()
+    for i in range(1, 101):  # 100 poses in ~0.5 s
+        gate.offer("r1", (i * 0.01, 0.0, 0.0), float(i))
+        await asyncio.sleep(0.005)
+    elapsed = loop.time() - t0
+    await asyncio.sleep(0.15)  # the held pose's interval ends
+    assert sent[-1] == (1.0, 0.0, 0.0)  # the last one, not a stale one
+    assert len(sent) <= elapsed * 10 + 2
+    n = len(sent)
+    for i in range(30):  # parked: the same pose again and again, with AMCL's noise
+        gate.offer("r1", (1.0 + (i % 3) * 0.01, 0.0, 0.0), 0.0)
+        await asyncio.sleep(0.01)
+    await asyncio.sleep(0.15)
+    assert len(sent) <= n + 1  # its resting pose at most, once
+    gate.close()
