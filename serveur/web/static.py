@@ -10,13 +10,24 @@ Pages: ``/`` and ``/staff`` (staff console), ``/robot/<name>`` (a robot's screen
 the name from its own URL, so the server does not template anything. Nor does it pick a language:
 the pages' words are in the catalogs ``/i18n/<lang>.json`` (plain files, ``application/json``),
 which ``js/i18n.js`` fetches and applies in the browser.
+
+Caching: every answer carries an ``ETag`` (a hash of the body) and a ``Last-Modified`` (when
+this server loaded the site) with ``Cache-Control: no-cache``: a browser keeps its copy but
+asks each time, and gets a body-less 304 while the file is unchanged. So a page, a script or
+a catalog never goes stale after an upgrade (new body, new ETag; a restart, a new
+Last-Modified), and a reload costs a few hundred bytes a file. Text files (pages, scripts,
+styles, catalogs, SVG) are gzipped once at load and sent compressed to a client that accepts
+gzip (``Vary: Accept-Encoding``; the gzipped body has its own ETag).
 """
 
 from __future__ import annotations
 
+import email.utils
 import functools
+import gzip
 import hashlib
 import http
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -61,16 +72,31 @@ ALIASES = {"/": "/staff.html", "/staff": "/staff.html"}
 MAX_NAME = 64
 
 
+# Worth compressing: text. Images and fonts are compressed already.
+COMPRESSIBLE = (".html", ".js", ".css", ".svg", ".json", ".txt")
+
+
 @dataclass(frozen=True)
 class Asset:
     body: bytes
     content_type: str
     etag: str
+    gzipped: bytes | None = None  # the body gzipped, when that is smaller
+    modified: float = 0.0  # Unix time for Last-Modified
 
     @classmethod
-    def of(cls, name: str, body: bytes) -> Asset:
-        ctype = CONTENT_TYPES.get(Path(name).suffix.lower(), "application/octet-stream")
-        return cls(body, ctype, '"' + hashlib.sha256(body).hexdigest()[:32] + '"')
+    def of(cls, name: str, body: bytes, modified: float | None = None) -> Asset:
+        suffix = Path(name).suffix.lower()
+        ctype = CONTENT_TYPES.get(suffix, "application/octet-stream")
+        gz = gzip.compress(body, compresslevel=9, mtime=0) if suffix in COMPRESSIBLE else None
+        if gz is not None and len(gz) >= len(body):
+            gz = None
+        etag = '"' + hashlib.sha256(body).hexdigest()[:32] + '"'
+        return cls(body, ctype, etag, gz, time.time() if modified is None else modified)
+
+    @property
+    def gzip_etag(self) -> str:
+        return self.etag[:-1] + '-gz"'
 
 
 def _response(status: http.HTTPStatus, headers: list[tuple[str, str]], body: bytes) -> Response:
@@ -113,6 +139,7 @@ class StaticSite:
         """Read every regular file under ``root`` (not following symlinks out of it)."""
         assets: dict[str, Asset] = {}
         base = root.resolve()
+        loaded = float(int(time.time()))  # Last-Modified: HTTP dates have whole seconds
         for path in sorted(root.rglob("*")):
             if not path.is_file() or path.name.startswith("."):
                 continue
@@ -120,7 +147,7 @@ class StaticSite:
             if not real.is_relative_to(base):
                 continue  # a symlink pointing outside the web root is not served
             name = "/" + path.relative_to(root).as_posix()
-            assets[name] = Asset.of(name, real.read_bytes())
+            assets[name] = Asset.of(name, real.read_bytes(), loaded)
         return cls(assets)
 
     def resolve(self, raw_path: str) -> Asset | None:
@@ -157,21 +184,62 @@ class StaticSite:
             asset = None
         if asset is None:
             return _plain(http.HTTPStatus.NOT_FOUND, "not found\n", head=head)
+        zipped = asset.gzipped is not None and _accepts_gzip(
+            request.headers.get("Accept-Encoding", "")
+        )
+        etag = asset.gzip_etag if zipped else asset.etag
         headers = [
             ("Content-Type", asset.content_type),
-            ("ETag", asset.etag),
+            ("ETag", etag),
+            ("Last-Modified", email.utils.formatdate(asset.modified, usegmt=True)),
             # Revalidate every time (a 304 is cheap on a LAN): a tablet never keeps running an
             # old UI against an upgraded server.
             ("Cache-Control", "no-cache"),
             ("Connection", "close"),
             *SECURITY_HEADERS,
         ]
-        tags = _etags(request.headers.get("If-None-Match", ""))
-        if asset.etag in tags or "*" in tags:
+        if asset.gzipped is not None:
+            headers.append(("Vary", "Accept-Encoding"))
+        if _not_modified(request.headers, asset, etag):
             return _response(http.HTTPStatus.NOT_MODIFIED, headers, b"")
-        headers.append(("Content-Length", str(len(asset.body))))
-        body = b"" if head else asset.body
-        return _response(http.HTTPStatus.OK, headers, body)
+        body = asset.gzipped if zipped and asset.gzipped is not None else asset.body
+        if zipped:
+            headers.append(("Content-Encoding", "gzip"))
+        headers.append(("Content-Length", str(len(body))))
+        return _response(http.HTTPStatus.OK, headers, b"" if head else body)
+
+
+def _not_modified(headers: Headers, asset: Asset, etag: str) -> bool:
+    """RFC 9110 13.2.2: If-None-Match decides when present, else If-Modified-Since."""
+    if "If-None-Match" in headers:
+        tags = _etags(headers.get("If-None-Match", ""))
+        return etag in tags or "*" in tags
+    since = headers.get("If-Modified-Since")
+    if since:
+        try:
+            when = email.utils.parsedate_to_datetime(since).timestamp()
+        except (TypeError, ValueError, IndexError, OverflowError):
+            return False
+        return asset.modified <= when
+    return False
+
+
+def _accepts_gzip(header: str) -> bool:
+    """``Accept-Encoding`` names gzip (or ``*``) with a q-value above zero."""
+    for item in header.split(","):
+        coding, _, params = item.strip().partition(";")
+        if coding.strip().lower() not in ("gzip", "x-gzip", "*"):
+            continue
+        q = 1.0
+        for param in params.split(";"):
+            key, _, value = param.strip().partition("=")
+            if key.strip().lower() == "q":
+                try:
+                    q = float(value)
+                except ValueError:
+                    q = 0.0
+        return q > 0
+    return False
 
 
 def _etags(header: str) -> set[str]:

@@ -211,3 +211,67 @@ def test_the_ui_mirrors_the_allowed_actions_table() -> None:
     for status, cells in rows.items():
         ticked = {n for n, c in zip(names, cells.split(","), strict=True) if c.strip() == "T"}
         assert ticked == {a.value for a in ALLOWED[RobotStatus(status)]}, status
+
+
+def test_text_files_are_gzipped_for_a_client_that_accepts_it(site: StaticSite) -> None:
+    import gzip
+
+    for path in ("/", "/js/ws.js", "/css/staff.css", "/i18n/en.json"):
+        status, plain_h, plain = get(site, path)
+        status_gz, headers, body = get(site, path, **{"Accept-Encoding": "gzip, deflate, br"})
+        assert status == status_gz == 200
+        assert "Content-Encoding" not in plain_h
+        assert headers["Content-Encoding"] == "gzip" and headers["Vary"] == "Accept-Encoding"
+        assert gzip.decompress(body) == plain and len(body) < len(plain) / 2
+        assert headers["Content-Length"] == str(len(body))
+        # Two representations, two tags; each revalidates to a 304.
+        assert headers["ETag"] != plain_h["ETag"]
+        ims = {"If-None-Match": headers["ETag"], "Accept-Encoding": "gzip"}
+        assert get(site, path, **ims)[0] == 304
+    # Refused (q=0) or not offered: the plain body.
+    for enc in ("gzip;q=0", "identity", "br"):
+        assert "Content-Encoding" not in get(site, "/", **{"Accept-Encoding": enc})[1]
+    # HEAD: the gzipped length, no body.
+    status, headers, body = get(site, "/js/ws.js", "HEAD", **{"Accept-Encoding": "gzip"})
+    assert (status, body) == (200, b"") and headers["Content-Encoding"] == "gzip"
+
+
+def test_last_modified_revalidation_and_no_stale_page_after_an_upgrade(
+    tmp_path: Path,
+) -> None:
+    import email.utils
+    import time
+
+    (tmp_path / "staff.html").write_text("<p>v1</p>")
+    (tmp_path / "i18n").mkdir()
+    (tmp_path / "i18n" / "en.json").write_text('{"a": "one"}')
+    old = StaticSite.load(tmp_path)
+    for path in ("/", "/i18n/en.json"):
+        _, headers, _ = get(old, path)
+        assert headers["Cache-Control"] == "no-cache"  # always asked again, never stale
+        since = headers["Last-Modified"]
+        assert email.utils.parsedate_to_datetime(since).timestamp() <= time.time()
+        assert get(old, path, **{"If-Modified-Since": since})[0] == 304
+        assert get(old, path, **{"If-Modified-Since": "Thu, 01 Jan 1970 00:00:00 GMT"})[0] == 200
+        assert get(old, path, **{"If-Modified-Since": "garbage"})[0] == 200
+    # The upgrade: new files, same names. The browser's tag no longer matches: 200, new body
+    # (If-None-Match decides even when If-Modified-Since alone would say "not modified").
+    _, headers, _ = get(old, "/i18n/en.json")
+    (tmp_path / "staff.html").write_text("<p>v2</p>")
+    (tmp_path / "i18n" / "en.json").write_text('{"a": "uno"}')
+    new = StaticSite.load(tmp_path)
+    cond = {"If-None-Match": headers["ETag"], "If-Modified-Since": "Fri, 01 Jan 2100 00:00:00 GMT"}
+    status, _, body = get(new, "/i18n/en.json", **cond)
+    assert status == 200 and body == b'{"a": "uno"}'
+    assert get(new, "/")[2] == b"<p>v2</p>"
+
+
+async def test_the_real_server_sends_gzip(one_robot: Restaurant) -> None:
+    import gzip
+
+    server = one_robot.app.server
+    assert server is not None
+    req = b"GET /js/ws.js HTTP/1.1\r\nHost: localhost\r\nAccept-Encoding: gzip\r\n\r\n"
+    status, headers, body = await raw_http(server.port, req)
+    assert status == 200 and headers["content-encoding"] == "gzip"
+    assert gzip.decompress(body) == (WEB_ROOT / "js" / "ws.js").read_bytes()
