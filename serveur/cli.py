@@ -411,6 +411,9 @@ def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     from serveur.store.maintenance import add_maintenance_parser
 
     add_maintenance_parser(sub)
+    from serveur.stats.cli import add_stats_parser
+
+    add_stats_parser(sub)
 
     schema = sub.add_parser("schema", help="print the JSON Schema of every message")
     schema.set_defaults(func=_schema, is_async=False)
