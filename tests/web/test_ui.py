@@ -9,6 +9,7 @@ Screenshots for the README are written to ``docs/screenshots/`` when SERVEUR_SCR
 
 from __future__ import annotations
 
+import asyncio
 import base64
 import contextlib
 import json
@@ -649,6 +650,7 @@ async def test_a_stalled_tablet_shows_it_and_its_late_food_collected_is_refused(
         stalled = {"on": False}
         held: list[tuple[Any, str | bytes]] = []  # frames the stalled path holds, to the server
         replies: list[dict[str, Any]] = []  # what the server said to them
+        stale = asyncio.Event()  # set by the relay: c's own updates need not come meanwhile
 
         def relay(ws: Any) -> None:
             server = ws.connect_to_server()
@@ -662,6 +664,8 @@ async def test_a_stalled_tablet_shows_it_and_its_late_food_collected_is_refused(
             def down(frame: str | bytes) -> None:
                 if held and not stalled["on"]:
                     replies.append(json.loads(frame))
+                    if replies[-1].get("code") == "stale":
+                        stale.set()
                 if not stalled["on"]:
                     ws.send(frame)
 
@@ -683,7 +687,7 @@ async def test_a_stalled_tablet_shows_it_and_its_late_food_collected_is_refused(
             server.send(frame)
         late = [json.loads(f) for _, f in held if json.loads(f).get("clientmsg") == "next"]
         assert late and late[0]["stop"] == 0 and late[0]["task"] == task["id"], held
-        await c.until(lambda: any(m.get("code") == "stale" for m in replies), what="stale")
+        await asyncio.wait_for(stale.wait(), 20)
         # Nothing changed: the robot is on its way to (or at) T12 with the dish still aboard.
         second = c.task(task["id"])["stops"][1]
         assert c.task(task["id"])["current_stop"] == 1 and second["status"] != "done"
