@@ -61,7 +61,14 @@ from serveur.robots import rosbridge as rb
 from serveur.sim import ros2
 from serveur.sim.bridge import Endpoint
 from serveur.sim.kinematics import KINDS
-from serveur.sim.robot import AMCL_MODES, AMCL_TICKS, MAX_CATCH_UP, TICK, SimRobot
+from serveur.sim.robot import (
+    AMCL_MODES,
+    AMCL_TICKS,
+    MAX_CATCH_UP,
+    ROBOT_PATIENCE,
+    TICK,
+    SimRobot,
+)
 from serveur.sim.topics import Frame
 
 __all__ = [
@@ -92,12 +99,19 @@ class Simulation:
         clock: Clock,
         *,
         spread: bool = False,
+        robots_see_each_other: bool = False,
+        blocked_patience: float = ROBOT_PATIENCE,
     ) -> None:
         self.robots: list[SimRobot] = list(robots)
         self._endpoints = list(endpoints)
         self.clock = clock
         #: Step robot i i/N of the AMCL period after robot 0 (see :meth:`phases`).
         self.spread = spread
+        #: Each robot's footprint is an obstacle to the others (:meth:`SimRobot.share_floor`).
+        self.robots_see_each_other = robots_see_each_other
+        if robots_see_each_other:
+            for r in self.robots:
+                r.share_floor(self.robots, blocked_patience)
         self._loop_task: asyncio.Task[None] | None = None
 
     def phases(self) -> list[tuple[int, float]]:
@@ -286,6 +300,8 @@ async def start_simulation(
     twist_stamped: bool | None = None,
     humble_queue: bool | None = None,
     rosbridge_fix: bool = False,
+    robots_see_each_other: bool = False,
+    blocked_patience: float = ROBOT_PATIENCE,
 ) -> Simulation:
     """Start ``n`` robots listening on ports ``port``..``port+n-1`` (0: free ports).
 
@@ -307,6 +323,16 @@ async def start_simulation(
     goal holds its connection's later ops until it ends); None takes the release's default.
     ``rosbridge_fix``: rosbridge with its 2026 fix, which answers a rejected or unserved goal
     with ``action_result`` ``result: false`` (without it: no frame at all).
+
+    ``robots_see_each_other``: every robot's footprint (a disc of the planner's robot radius,
+    0.2 m) is an obstacle to the others, in their ``/scan`` and in motion: a robot stops short
+    of another in its way, waits, plans around one standing still, and after
+    ``blocked_patience`` s of sim time (default :data:`~serveur.sim.robot.ROBOT_PATIENCE`, 30 s,
+    about what move_base's and Nav2's default patience and recoveries add up to) its goal
+    ABORTs ("blocked by another robot"); see :meth:`SimRobot.share_floor`. Robots can then
+    deadlock, e.g. meeting head-on in an aisle one robot wide. Off by default: the server has
+    no zone leases yet (issue 21), and every multi-robot test and replay so far assumes robots
+    pass through each other.
     """
     if n < 1:
         raise ValueError("at least one robot")
@@ -370,7 +396,14 @@ async def start_simulation(
         )
         robots.append(robot)
         endpoints.append(Endpoint(robot, host, port + i if port else 0, ssl))
-    sim = Simulation(robots, endpoints, clock, spread=spread)
+    sim = Simulation(
+        robots,
+        endpoints,
+        clock,
+        spread=spread,
+        robots_see_each_other=robots_see_each_other,
+        blocked_patience=blocked_patience,
+    )
     await sim.start()
     return sim
 
@@ -458,6 +491,21 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
         "serves, gets a failed action_result (default: no frame at all, as before the fix)",
     )
     parser.add_argument(
+        "--robots-see-each-other",
+        action="store_true",
+        help="each robot's footprint is an obstacle to the others (scans, motion): robots stop "
+        "short of each other, go around one standing still, abort a goal blocked too long; "
+        "they can deadlock (default: robots pass through each other)",
+    )
+    parser.add_argument(
+        "--blocked-patience",
+        type=float,
+        default=ROBOT_PATIENCE,
+        metavar="SECONDS",
+        help="with --robots-see-each-other: sim seconds a robot blocked by another waits "
+        f"before its goal aborts (default {ROBOT_PATIENCE:g}, like move_base's/Nav2's defaults)",
+    )
+    parser.add_argument(
         "--amcl",
         choices=AMCL_MODES,
         default="continuous",
@@ -488,6 +536,8 @@ async def run_sim(
     twist_stamped: bool | None = None,
     humble_queue: bool | None = None,
     rosbridge_fix: bool = False,
+    robots_see_each_other: bool = False,
+    blocked_patience: float = ROBOT_PATIENCE,
 ) -> int:
     """Run a simulation until ``stop`` is set or SIGINT/SIGTERM; print the URLs first.
 
@@ -522,6 +572,8 @@ async def run_sim(
                 twist_stamped=twist_stamped,
                 humble_queue=humble_queue,
                 rosbridge_fix=rosbridge_fix,
+                robots_see_each_other=robots_see_each_other,
+                blocked_patience=blocked_patience,
             )
         except (OSError, ServeurError, ValueError) as exc:
             print(f"serveur sim: cannot start: {exc}", file=sys.stderr, flush=True)
@@ -587,4 +639,6 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
         twist_stamped=getattr(ns, "twist_stamped", None),
         humble_queue=getattr(ns, "humble_queue", None),
         rosbridge_fix=getattr(ns, "rosbridge_fix", False),
+        robots_see_each_other=getattr(ns, "robots_see_each_other", False),
+        blocked_patience=getattr(ns, "blocked_patience", ROBOT_PATIENCE),
     )

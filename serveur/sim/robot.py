@@ -73,7 +73,7 @@ import logging
 import math
 import random
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -105,6 +105,8 @@ __all__ = [
     "MAX_CATCH_UP",
     "NAV2_UPDATE_MIN_A",
     "NAV2_UPDATE_MIN_D",
+    "ROBOT_GAP",
+    "ROBOT_PATIENCE",
     "ROS1_SUBSCRIBES",
     "SAS_ACCEPTED",
     "SAS_CANCELED",
@@ -133,6 +135,23 @@ CMD_VEL_TIMEOUT: Final = 0.5
 TERMINAL_KEEP: Final = 5.0  # s sim a finished goal stays in the status list (actionlib's default)
 BLOCKED_ABORT_AFTER: Final = 1.0  # s sim a blocked robot waits before aborting its goal
 STUCK_ABORT_AFTER: Final = 3.0  # s sim pushing against an obstacle before aborting
+#: Other robots as obstacles (opt-in, :meth:`SimRobot.share_floor`). A robot blocked by another
+#: waits this long (s sim) before its goal ABORTs. move_base gives up after controller_patience
+#: (15 s by default, move_base.cpp) then its default recoveries (two costmap clearings, two
+#: in-place rotations); Nav2's default tree retries 6 times with Wait 5 s among its recoveries
+#: and a progress checker allowing 10 s per 0.5 m. Some tens of seconds either way: 30 s.
+ROBOT_PATIENCE: Final = 30.0
+#: s sim blocked by a robot standing still before planning around it (a costmap marks it and
+#: the planner routes around it), then at most every 5 s (move_base's planner_patience).
+ROBOT_REPLAN_AFTER: Final = 2.0
+ROBOT_REPLAN_EVERY: Final = 5.0
+#: m a robot's footprint stops short of another's (a local planner's safety margin).
+ROBOT_GAP: Final = 0.05
+_ROBOT_STOP: Final = 0.02  # m of room left under which a robot counts as blocked
+#: m a blocked robot must get from where it stopped to count as progressing again (Nav2's
+#: SimpleProgressChecker ``required_movement_radius`` default).
+ROBOT_PROGRESS: Final = 0.5
+_ROBOT_STILL: Final = 0.05  # m/s: a robot slower than this is standing still (planned around)
 
 SCAN_RAYS: Final = 360
 SCAN_RANGE_MIN: Final = 0.12
@@ -313,6 +332,14 @@ class SimRobot:
         # laser
         self._scan_rel = -math.pi + (2.0 * math.pi / SCAN_RAYS) * np.arange(SCAN_RAYS)
         self._scan_cache: tuple[tuple[float, float, float], npt.NDArray[np.float64]] | None = None
+        # other robots (share_floor): none unless the fleet makes them solid
+        #: Footprint radius (m): the planner's robot radius, a disc.
+        self.radius = planner.robot_radius
+        self._others: tuple[SimRobot, ...] = ()
+        self._patience = ROBOT_PATIENCE
+        self._wait_since: float | None = None  # sim time a robot in the way stopped this one
+        self._wait_at = (0.0, 0.0)  # where it stopped
+        self._replanned = -math.inf  # sim time of the last plan around standing robots
 
     # -- names -------------------------------------------------------------------------------
 
@@ -384,6 +411,25 @@ class SimRobot:
     def teleport(self, x: float, y: float, yaw: float) -> None:
         """Put the robot somewhere else (like /initialpose, for tests)."""
         self._relocalise(x, y, yaw)
+
+    def share_floor(self, others: Sequence[SimRobot], patience: float = ROBOT_PATIENCE) -> None:
+        """Make ``others`` solid for this robot: their footprints (discs of their
+        :attr:`radius`) show in its ``/scan`` and it never drives its own into theirs.
+
+        Driving a goal, the robot slows down to stop :data:`ROBOT_GAP` short of a robot in its
+        way and waits; after :data:`ROBOT_REPLAN_AFTER` s, if the robots in the way stand still,
+        it plans around their footprints (again at most every :data:`ROBOT_REPLAN_EVERY` s)
+        and follows the detour if there is one. Blocked ``patience`` s (sim) without getting
+        :data:`ROBOT_PROGRESS` m from where it stopped, its goal ABORTs ("blocked by another
+        robot"). Any other motion (teleop) into another robot is simply not taken. Nothing
+        decides who gives way: two robots meeting head-on in an aisle one robot wide deadlock
+        until both goals abort, as two move_base/Nav2 robots without a fleet manager would.
+        """
+        if not (math.isfinite(patience) and patience > 0):
+            raise ValueError("patience must be a positive number of seconds")
+        self._others = tuple(o for o in others if o is not self)
+        self._patience = float(patience)
+        self._wait_since = None
 
     # -- subscriptions -----------------------------------------------------------------------
 
@@ -681,6 +727,8 @@ class SimRobot:
             self._active = None
             self._follower = None
             self._blocked_since = None
+            self._wait_since = None
+            self._replanned = -math.inf
         if g is self._pending:
             self._pending = None
         if g is self._plan_goal:
@@ -759,6 +807,8 @@ class SimRobot:
         x, y, _ = self.pose
         self._follower = PathFollower(path, g.yaw, self.kinematics, self.limits)
         self._stuck_for = 0.0
+        self._wait_since = None
+        self._replanned = -math.inf
         length = sum(
             math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in itertools.pairwise([(x, y), *path])
         )
@@ -824,7 +874,122 @@ class SimRobot:
             ):
                 self._finish(g, GoalStatus.SUCCEEDED, "Goal reached.")
                 return 0.0, 0.0, 0.0
+        if self._others:
+            return self._mind_robots(g, cmd)
         return cmd
+
+    # -- other robots (share_floor) ----------------------------------------------------------
+
+    def _gap_ahead(self, dx: float, dy: float) -> tuple[float, SimRobot | None]:
+        """How far (m) this robot's footprint can go along the unit vector (dx, dy) before it
+        touches another robot's, and which robot that is (inf, None: nothing in the way)."""
+        m = self._motion
+        best, who = math.inf, None
+        for o in self._others:
+            om = o._motion
+            px, py = om.x - m.x, om.y - m.y
+            s = px * dx + py * dy
+            if s <= 0.0:
+                continue  # beside or behind
+            reach = self.radius + o.radius
+            h2 = px * px + py * py - s * s
+            if h2 >= reach * reach:
+                continue  # passes clear of it
+            gap = max(0.0, s - math.sqrt(reach * reach - h2))
+            if gap < best:
+                best, who = gap, o
+        return best, who
+
+    def _mind_robots(self, g: _Goal, cmd: tuple[float, float, float]) -> tuple[float, float, float]:
+        """The local planner facing other robots: slow down to stop short of one in the way,
+        wait, plan around robots standing still, and abort after the patience."""
+        vx, vy, wz = cmd
+        m = self._motion
+        speed = math.hypot(vx, vy)
+        gap, who = math.inf, None
+        if speed > 1e-9:
+            c, s = math.cos(m.yaw), math.sin(m.yaw)
+            gap, who = self._gap_ahead((vx * c - vy * s) / speed, (vx * s + vy * c) / speed)
+        room = gap - ROBOT_GAP
+        if room > _ROBOT_STOP:
+            if self._wait_since is not None and (
+                math.hypot(m.x - self._wait_at[0], m.y - self._wait_at[1]) >= ROBOT_PROGRESS
+            ):
+                self._wait_since = None  # got away: a new block starts a new wait
+            if gap < math.inf:
+                lim = self.limits
+                v = min(math.sqrt(2.0 * 0.8 * lim.max_accel * room), 2.0 * room)
+                if v < speed:
+                    k = v / speed
+                    return vx * k, vy * k, wz
+            return cmd
+        t = self._t
+        if self._wait_since is None:
+            self._wait_since, self._wait_at = t, (m.x, m.y)
+            # waiting for a robot is not slowness: the goal's deadline leaves room for it
+            self._goal_deadline = max(self._goal_deadline, t + self._patience + 1.0)
+        waited = t - self._wait_since
+        if waited >= self._patience:
+            name = who.name if who is not None else "?"
+            self._finish(
+                g,
+                GoalStatus.ABORTED,
+                f"blocked by another robot ({name}) for {waited:.0f} s",
+                code=ros2.FAILED_TO_MAKE_PROGRESS,
+            )
+        elif waited >= ROBOT_REPLAN_AFTER and t - self._replanned >= ROBOT_REPLAN_EVERY:
+            self._replanned = t
+            self._plan_around(g)
+        return 0.0, 0.0, 0.0
+
+    def _plan_around(self, g: _Goal) -> None:
+        """Plan to ``g`` with the footprints of the robots standing still marked as obstacles
+        (a costmap's obstacle layer); follow the detour if there is one, else keep waiting.
+
+        Synchronous (so a run is deterministic): a fresh planner on a copy of the map, one
+        distance field, ~40 ms on the demo room, at most once per ROBOT_REPLAN_EVERY s of a
+        blocked robot.
+        """
+        still = [o for o in self._others if o._motion.speed < _ROBOT_STILL]
+        if not still:
+            return
+        base = self._map
+        grid = base.grid.copy()
+        res, (ox, oy, _) = base.resolution, base.origin
+        rows, cols = np.ogrid[0 : base.height, 0 : base.width]
+        for o in still:
+            om = o._motion
+            cx, cy = (om.x - ox) / res - 0.5, (om.y - oy) / res - 0.5  # in cell-centre units
+            r = o.radius / res
+            grid[(rows - cy) ** 2 + (cols - cx) ** 2 <= r * r] = 100
+        planner = Planner(
+            OccupancyMap(grid, res, base.origin),
+            self._planner.robot_radius,
+            clearance=self._planner.clearance,
+            cache_size=1,
+        )
+        m = self._motion
+        try:
+            path = planner.plan((m.x, m.y), (g.x, g.y))
+        except ServeurError as exc:
+            log.debug("%s: no way around the robots in the way: %s", self.name, exc)
+            return
+        self._follower = PathFollower(path, g.yaw, self.kinematics, self.limits)
+        length = sum(math.dist(a, b) for a, b in itertools.pairwise(path))
+        self._goal_deadline = max(
+            self._goal_deadline, self._t + 30.0 + 3.0 * length / self.limits.max_speed
+        )
+
+    def _into_robot(self, x0: float, y0: float, x1: float, y1: float) -> bool:
+        """Whether moving from (x0, y0) to (x1, y1) drives this robot's footprint into another
+        robot's (robots already overlapping may still move apart)."""
+        for o in self._others:
+            om = o._motion
+            reach = self.radius + o.radius
+            d1 = math.hypot(x1 - om.x, y1 - om.y)
+            if d1 < reach and d1 < math.hypot(x0 - om.x, y0 - om.y):
+                return True
+        return False
 
     # -- physics -----------------------------------------------------------------------------
 
@@ -858,6 +1023,9 @@ class SimRobot:
         else:
             x0, y0 = m.x, m.y
             moved_ok = m.step(*cmd, dt, self._planner.is_traversable)
+            if self._others and self._into_robot(x0, y0, m.x, m.y):
+                m.x, m.y = x0, y0  # never into another robot: the base stops short
+                m.vx = m.vy = 0.0
             if (
                 abs(m.vx) < 1e-4
                 and abs(m.vy) < 1e-4
@@ -1017,7 +1185,10 @@ class SimRobot:
                 raycast(self._map, x, y, self._scan_rel + yaw, SCAN_RANGE_MAX), dtype=np.float64
             )
             self._scan_cache = cache = (pose, clean)
-        ranges = cache[1] + self._np_rng.normal(0.0, SCAN_NOISE, SCAN_RAYS)
+        ranges = cache[1]
+        if self._others:
+            ranges = np.minimum(ranges, self._robot_ranges(*pose))
+        ranges = ranges + self._np_rng.normal(0.0, SCAN_NOISE, SCAN_RAYS)
         ranges[ranges < SCAN_RANGE_MIN] = SCAN_RANGE_MIN
         ranges[ranges > SCAN_RANGE_MAX] = np.inf  # no return within range: +Inf (REP 117)
         return rb.laser_scan(
@@ -1031,6 +1202,31 @@ class SimRobot:
             scan_time=TICK * _SCAN_TICKS,
             time_increment=TICK * _SCAN_TICKS / SCAN_RAYS,
         )
+
+    def _robot_ranges(self, x: float, y: float, yaw: float) -> npt.NDArray[np.float64]:
+        """Range along each scan ray to the nearest other robot's footprint (inf: none).
+
+        Ray-disc intersection from the laser at the robot's centre; a robot whose disc holds
+        the laser (overlapping robots) is not seen, as a laser does not see inside a body.
+        """
+        out = np.full(SCAN_RAYS, np.inf)
+        ang = None
+        for o in self._others:
+            om = o._motion
+            px, py = om.x - x, om.y - y
+            d2 = px * px + py * py
+            r2 = o.radius * o.radius
+            if d2 <= r2 or d2 > (SCAN_RANGE_MAX + o.radius) ** 2:
+                continue
+            if ang is None:
+                ang = self._scan_rel + yaw
+                ux, uy = np.cos(ang), np.sin(ang)
+            b = px * ux + py * uy
+            disc = b * b - (d2 - r2)
+            hit = (disc >= 0.0) & (b > 0.0)
+            t = np.where(hit, b - np.sqrt(np.maximum(disc, 0.0)), np.inf)
+            np.minimum(out, t, out=out)
+        return out
 
     def _build_battery(self, seq: int, stamp: float) -> dict[str, Any]:
         m = self._motion
