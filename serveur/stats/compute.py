@@ -586,11 +586,14 @@ def periods(
     lo = -math.inf if start is None else start
     hi = math.inf if end is None else end
     found: dict[str, Period] = {}
+    last = Period("", math.inf, -math.inf)  # the latest period found, unclipped
 
     def add(ts: float) -> float:
-        p = period_of(ts, by, tz, day_start)
-        found.setdefault(p.label, Period(p.label, max(p.start, lo), min(p.end, hi)))
-        return p.end
+        nonlocal last
+        if not last.start <= ts < last.end:  # stamps come sorted: most are in the last one
+            last = period_of(ts, by, tz, day_start)
+            found.setdefault(last.label, Period(last.label, max(last.start, lo), min(last.end, hi)))
+        return last.end
 
     for ts in log.stamps:
         if lo <= ts < hi:
