@@ -157,9 +157,16 @@ def test_a_cancelled_trip_puts_its_dishes_back_on_the_pass() -> None:
     g.status(30, "r1", "Awaiting", "cancel")
     g.add(31, "task.created", task=2, stops=[{"table": "T3", "orders": [1]}])
     g.add(40, "task.started", robot="r1", task=2, data={"robot": "r1"}, stops=["T3"])
+    # A queued trip cancelled (its table blocked) never took dish 2 off the pass: one spell.
+    g.add(50, "order.created", order=2, dish="Kopi", table="T4", ready_at=T0 + 50, status="pending")
+    g.add(51, "task.created", task=3, stops=[{"table": "T4", "orders": [2]}])
+    g.add(60, "task.cancelled", task=3, reason="table blocked", orders_returned=[2])
+    g.add(61, "task.created", task=4, stops=[{"table": "T4", "orders": [2]}])
+    g.add(70, "task.started", robot="r1", task=4, data={"robot": "r1"}, stops=["T4"])
     log = read_events(g.events)
     f = figures(log, ALL)
-    assert (f.trips, f.trips_cancelled) == (0, 1)
+    assert (f.trips, f.trips_cancelled) == (0, 2)
+    assert log.dishes[2].on_pass == [(T0 + 50, T0 + 70)]
     assert log.trips[1].stops[0].outcome == "cancelled" and log.trips[1].loading == 10.0
     assert log.dishes[1].on_pass == [(T0 + 10, T0 + 20), (T0 + 30, T0 + 40)]
     assert math.isnan(f.wait_mean) and f.delivered == 0
