@@ -9,14 +9,13 @@ from __future__ import annotations
 import argparse
 import asyncio
 import csv
-import io
 import math
 import os
 import sys
 from collections.abc import Sequence
 from datetime import tzinfo
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TextIO
 
 from serveur.domain import EventRecord
 from serveur.errors import ServeurError
@@ -243,7 +242,7 @@ def _cell(v: object) -> object:
     return v
 
 
-def write_csv(rows: Sequence[dict[str, object]], out: io.TextIOBase | io.TextIOWrapper) -> None:
+def write_csv(rows: Sequence[dict[str, object]], out: TextIO) -> None:
     """``rows`` as CSV (NaN: an empty cell; seconds to the millisecond)."""
     if not rows:
         return
@@ -314,7 +313,7 @@ def _cmd_stats(ns: argparse.Namespace) -> int:
         text = render(rows, total)
         csv_rows = figure_rows(rows, total, log.robots, tz)
     if ns.csv == "-":
-        write_csv(csv_rows, sys.stdout)  # type: ignore[arg-type]
+        write_csv(csv_rows, sys.stdout)
         return 0
     print(text, end="")
     if ns.csv:
