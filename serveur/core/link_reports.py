@@ -225,7 +225,7 @@ class LinkReports:
 
     def scan(self, robot: str, msg: Mapping[str, Any]) -> None:
         rt = self._rt.get(robot)
-        if rt is None or not self._hub.watched(f"scan:{robot}"):
+        if rt is None or not self._hub.watched(f"scan:{robot}") or not self._poses.scan_due(robot):
             return
         x, y, yaw = rt.pose or (0.0, 0.0, 0.0)
         data = {

@@ -14,6 +14,10 @@ robot sends 50 poses a wall second, and a console has no use for more poses than
   reports poses a centimetre or two apart. After a robot stops, one pose inside that band is
   still published (where it came to rest), then nothing until it moves again.
 
+Laser scans (only streamed while someone watches) are paced the same way, by dropping: at most
+:data:`SCAN_RATE_MOVING` a wall second while the robot moves, :data:`SCAN_RATE_PARKED` while it
+is parked (a parked robot's scan changes only when someone walks by).
+
 Time is the event loop's (wall time, except in a replay's virtual-time loop, where nobody
 watches the poses anyway).
 """
@@ -25,10 +29,13 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-__all__ = ["MAX_RATE", "MOVED_M", "MOVED_RAD", "PoseGate"]
+__all__ = ["MAX_RATE", "MOVED_M", "MOVED_RAD", "SCAN_RATE_MOVING", "SCAN_RATE_PARKED", "PoseGate"]
 
 #: Poses a robot's topic carries at most per wall second.
 MAX_RATE = 10.0
+#: Laser scans a robot's topic carries at most per wall second, moving and parked.
+SCAN_RATE_MOVING = 5.0
+SCAN_RATE_PARKED = 1.0
 #: A pose this close to the last one published (metres, radians) is "not moved": several
 #: times AMCL's noise (the simulator's is 1 cm and 0.005 rad, sigma), under a robot's width.
 MOVED_M = 0.08
@@ -44,6 +51,7 @@ class _Robot:
     held: tuple[Pose, float] | None = None  # (pose, stamp) waiting for the interval to end
     timer: asyncio.TimerHandle | None = field(default=None, repr=False)
     settled: bool = False  # the pose last published was inside the band of the one before
+    scan_at: float = -math.inf  # loop time the last scan was let through
 
 
 def _moved(a: Pose, b: Pose) -> bool:
@@ -74,6 +82,16 @@ class PoseGate:
         st.held = (pose, stamp)
         if st.timer is None:
             st.timer = loop.call_at(due, self._flush, robot)
+
+    def scan_due(self, robot: str) -> bool:
+        """Whether a scan arriving now is let through (else dropped: the next one will be)."""
+        st = self._robots.setdefault(robot, _Robot())
+        now = asyncio.get_running_loop().time()
+        rate = SCAN_RATE_PARKED if st.settled else SCAN_RATE_MOVING
+        if now - st.scan_at < 1.0 / rate:
+            return False
+        st.scan_at = now
+        return True
 
     def forget(self, robot: str) -> None:
         """Nobody watches the robot's pose: drop what is held (a watcher's snapshot has it)."""

@@ -12,7 +12,7 @@ import asyncio
 import time
 from pathlib import Path
 
-from serveur.core.pose_rate import MAX_RATE, PoseGate
+from serveur.core.pose_rate import MAX_RATE, SCAN_RATE_PARKED, PoseGate
 from tests.conftest import Client, restaurant
 from tests.test_e2e import activate, new_orders, staff
 
@@ -83,3 +83,16 @@ async def test_the_gate_keeps_the_latest_pose_and_delivers_the_last_one() -> Non
     await asyncio.sleep(0.15)
     assert len(sent) <= n + 1  # its resting pose at most, once
     gate.close()
+
+
+async def test_a_parked_robots_scan_is_sent_once_a_second(tmp_path: Path) -> None:
+    async with restaurant(tmp_path, robots=1, time_scale=10.0, amcl="continuous") as r:
+        c = await staff(r)
+        await activate(c, "r1")
+        await c.subscribe("pose:r1", "scan:r1")
+        await c.until(lambda: "scan:r1" in c.streams, what="a scan")
+        n0, t0 = sum(f.get("topic") == "scan:r1" for f in c.frames), time.monotonic()
+        await asyncio.sleep(2.0)
+        got = sum(f.get("topic") == "scan:r1" for f in c.frames) - n0
+        # Parked: ~1 a second (the simulator sends 50 a wall second at this time scale).
+        assert 1 <= got <= (time.monotonic() - t0) * SCAN_RATE_PARKED + 2, got
