@@ -260,7 +260,9 @@ async def test_the_staff_console_in_chinese_and_malay(tmp_path: Path, browser: A
 
         # Plural forms through Intl.PluralRules: one form in Chinese.
         await staff.get_by_role("tab", name=tr("zh", "staff.tab.issue")).click()
-        await staff.get_by_role("button", name="把 T3 的 Laksa 加入清单").click()
+        await staff.get_by_role(
+            "button", name=tr("zh", "issue.addFor", dish="Laksa", table="T3")
+        ).click()
         dishes, tables = tr("zh", "count.dishes", count=1), tr("zh", "count.tables", count=1)
         assert (dishes, tables) == ("1 道菜", "1 桌")
         send = staff.get_by_role(

@@ -159,8 +159,8 @@ async def test_a_service_loaded_sent_timed_out_and_sent_again(tmp_path: Path, br
 
         # Issue task: both into the cart, sent; the robot takes the trip and waits at the pass.
         await staff.get_by_role("tab", name="Issue task").click()
-        await staff.get_by_role("button", name=f"Add {laksa} for T1 to cart").click()
-        await staff.get_by_role("button", name="Add Satay for T12 to cart").click()
+        await staff.get_by_role("button", name=f"Add to cart: {laksa} for T1").click()
+        await staff.get_by_role("button", name="Add to cart: Satay for T12").click()
         await staff.get_by_role("button", name=re.compile(r"^Send 2 dishes")).click()
         rb = await c.status("r1", "Loading")
         task = c.task(rb["current_task"])
@@ -221,7 +221,7 @@ async def test_a_service_loaded_sent_timed_out_and_sent_again(tmp_path: Path, br
         back = dishes[second]
         await expect(returned).to_contain_text(back)
         await returned.get_by_role("button", name=f"Send {back} for {second} again").click()
-        add_back = staff.get_by_role("button", name=f"Add {back} for {second} to cart")
+        add_back = staff.get_by_role("button", name=f"Add to cart: {back} for {second}")
         await expect(add_back).to_be_visible()
         await expect(returned).to_be_hidden()
 
@@ -242,7 +242,7 @@ async def test_a_blocked_table_its_alert_and_a_dish_changed(tmp_path: Path, brow
         screens = Screens(browser, http_base(r), r.token)
         staff = await screens.open("/")
         await staff.get_by_role("tab", name="Issue task").click()
-        add = staff.get_by_role("button", name="Add Laksa for T5 to cart")
+        add = staff.get_by_role("button", name="Add to cart: Laksa for T5")
         await expect(add).to_be_enabled()
 
         # A robot could not reach T5 (as the core records it): no robot goes there.
@@ -291,7 +291,7 @@ async def test_a_blocked_table_its_alert_and_a_dish_changed(tmp_path: Path, brow
         await expect(banner).to_be_hidden()
         await c.until(lambda: c.records["blocks"]["T5"]["reason"] == "", what="cleared")
         await expect(
-            staff.get_by_role("button", name=f"Add Laksa {TIMES}3 (extra sambal) for T5 to cart")
+            staff.get_by_role("button", name=f"Add to cart: Laksa {TIMES}3 (extra sambal) for T5")
         ).to_be_enabled()
         screens.assert_no_errors()
 

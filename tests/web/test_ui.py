@@ -220,7 +220,7 @@ async def test_a_whole_delivery_by_clicking(tmp_path: Path, browser: Any) -> Non
         row = staff.get_by_role("row").filter(has_text="Laksa")
         await expect(row).to_contain_text("T3")
         await expect(row.locator("td.waiting")).to_have_text(re.compile(r"\d+ (s|min)"))
-        await staff.get_by_role("button", name="Add Laksa for T3 to cart").click()
+        await staff.get_by_role("button", name="Add to cart: Laksa for T3").click()
         cart = staff.get_by_role("list", name="Cart")
         await expect(cart).to_contain_text("Laksa")
         await expect(staff.get_by_role("row")).to_have_count(4)  # header + the 3 others
@@ -307,7 +307,7 @@ async def test_stop_then_cancel_with_confirmation(tmp_path: Path, browser: Any) 
         await expect(robot.get_by_text("Awaiting orders")).to_be_visible()
         await c.until(lambda: c.order(oid).get("status") == "pending", what="order pending")
         await staff.get_by_role("tab", name="Issue task").click()
-        await expect(staff.get_by_role("button", name="Add Curry for T16 to cart")).to_be_visible()
+        await expect(staff.get_by_role("button", name="Add to cart: Curry for T16")).to_be_visible()
         screens.assert_no_errors()
 
 
@@ -481,7 +481,7 @@ async def test_pages_reconnect_after_a_server_restart(tmp_path: Path, browser: A
         # Without a reload, every page is live again: a new order shows up...
         await c.ok("create", type="order", dish="Soup", table="T5")
         await staff.get_by_role("tab", name="Issue task").click()
-        await expect(staff.get_by_role("button", name="Add Soup for T5 to cart")).to_be_visible()
+        await expect(staff.get_by_role("button", name="Add to cart: Soup for T5")).to_be_visible()
         await expect(table.get_by_role("list", name="Ready in the kitchen")).to_contain_text("Soup")
         # ...and a click on one page reaches the new server and shows on the others (once
         # that page is back online: a click while offline is refused, and says so).

@@ -109,6 +109,7 @@ export function showError(err) {
  * Resolves with the reply, or null after showing the error — never throws, never hides.
  */
 export async function act(button, makeRequest) {
+  const hadFocus = Boolean(button) && document.activeElement === button;
   if (button) button.disabled = true;
   try {
     return await makeRequest();
@@ -116,7 +117,12 @@ export async function act(button, makeRequest) {
     showError(err);
     return null;
   } finally {
-    if (button && button.isConnected) button.disabled = false;
+    if (button && button.isConnected) {
+      button.disabled = false;
+      // Disabling dropped the focus to <body>: give it back to the button pressed.
+      const lost = !document.activeElement || document.activeElement === document.body;
+      if (hadFocus && lost) button.focus();
+    }
   }
 }
 

@@ -19,7 +19,8 @@ export function drawGrid(ctx, view, map, image) {
   ctx.restore();
 }
 
-export function drawWaypoints(ctx, view, waypoints) {
+/** Waypoint markers; their names go to `labels` (placed by drawLabels). */
+export function drawWaypoints(ctx, view, waypoints, labels) {
   ctx.save();
   ctx.font = "12px system-ui, sans-serif";
   ctx.textBaseline = "middle";
@@ -37,9 +38,61 @@ export function drawWaypoints(ctx, view, waypoints) {
     ctx.strokeStyle = "#fff";
     ctx.lineWidth = 1.5;
     ctx.stroke();
-    labelAt(ctx, w.name, x + r + 3, y, "#222");
+    labels.push({ text: w.name, x, y, r: r + 2, colour: "#222", font: "12px system-ui, sans-serif", prio: 2 });
   }
   ctx.restore();
+}
+
+/**
+ * Place and draw every label so none overlaps another or a marker: highest priority first
+ * (robots, then destinations, then waypoints), each at the first free spot around its anchor
+ * (below, right, above, left, then further out); a label with no free spot near its anchor is
+ * left out rather than drawn over another. Returns the placed boxes (for tests).
+ */
+export function drawLabels(ctx, labels) {
+  const boxes = labels.map((l) => ({ x0: l.x - l.r, y0: l.y - l.r, x1: l.x + l.r, y1: l.y + l.r }));
+  const placed = [];
+  const sorted = labels.map((l, i) => [l, i]).sort((a, b) => a[0].prio - b[0].prio || a[1] - b[1]);
+  ctx.save();
+  ctx.textBaseline = "top";
+  ctx.textAlign = "left";
+  for (const [l, i] of sorted) {
+    ctx.font = l.font;
+    const w = ctx.measureText(l.text).width;
+    const h = 14;
+    const spots = [];
+    for (const k of [1, 2]) {
+      const gap = 3 + (k - 1) * (h + 2);
+      spots.push(
+        [l.x - w / 2, l.y + l.r + gap], // below
+        [l.x + l.r + gap, l.y - h / 2], // right
+        [l.x - w / 2, l.y - l.r - gap - h], // above
+        [l.x - l.r - gap - w, l.y - h / 2], // left
+      );
+    }
+    const others = boxes.filter((_, j) => j !== i);
+    const spot = spots
+      .map(([x, y]) => ({ x0: x - 1, y0: y - 1, x1: x + w + 1, y1: y + h + 1 }))
+      .find((b) => !placed.some((p) => overlap(p, b)) && !others.some((p) => overlap(p, b)));
+    if (!spot) continue;
+    placed.push(spot);
+    labelAt(ctx, l.text, spot.x0 + 1, spot.y0 + 1, l.colour);
+  }
+  ctx.restore();
+  return placed;
+}
+
+function overlap(a, b) {
+  return a.x0 < b.x1 && b.x0 < a.x1 && a.y0 < b.y1 && b.y0 < a.y1;
+}
+
+/** A status colour made dark enough to read as text on the light map. */
+function darker(hex) {
+  const m = /^#([0-9a-f]{6})$/i.exec(hex);
+  if (!m) return "#222";
+  const n = parseInt(m[1], 16);
+  const c = [(n >> 16) & 255, (n >> 8) & 255, n & 255].map((v) => Math.round(v * 0.6));
+  return `rgb(${c.join(",")})`;
 }
 
 function labelAt(ctx, text, x, y, colour) {
@@ -84,7 +137,7 @@ export function drawScan(ctx, view, scan) {
 }
 
 /** A dashed line from the robot to where it is going, and a flag there. */
-export function drawGoal(ctx, view, from, goal, colour) {
+export function drawGoal(ctx, view, from, goal, colour, labels) {
   const [x0, y0] = view.toScreen(from.x, from.y);
   const [x1, y1] = view.toScreen(goal.x, goal.y);
   ctx.save();
@@ -100,11 +153,7 @@ export function drawGoal(ctx, view, from, goal, colour) {
   ctx.arc(x1, y1, 9, 0, 2 * Math.PI);
   ctx.stroke();
   if (goal.yaw !== undefined && goal.yaw !== null) arrow(ctx, x1, y1, goal.yaw, 18, colour);
-  if (goal.label) {
-    ctx.font = "bold 12px system-ui, sans-serif";
-    ctx.textBaseline = "bottom";
-    labelAt(ctx, goal.label, x1 + 10, y1 - 8, colour);
-  }
+  if (goal.label) labels.push({ text: goal.label, x: x1, y: y1, r: 10, colour, font: "bold 12px system-ui, sans-serif", prio: 1 });
   ctx.restore();
 }
 
@@ -130,7 +179,7 @@ export function arrow(ctx, x, y, yaw, length, colour) {
   ctx.restore();
 }
 
-export function drawRobot(ctx, view, name, pose, status, selected) {
+export function drawRobot(ctx, view, name, pose, status, selected, labels) {
   const [x, y] = view.toScreen(pose.x, pose.y);
   const r = Math.max(8, ROBOT_RADIUS_M * view.scale);
   const colour = statusColour(status);
@@ -160,9 +209,6 @@ export function drawRobot(ctx, view, name, pose, status, selected) {
   ctx.fillStyle = "#fff";
   ctx.fill();
   // Only the name: robots park side by side, and the status is the colour (and in the list).
-  ctx.font = "bold 13px system-ui, sans-serif";
-  ctx.textBaseline = "top";
-  ctx.textAlign = "center";
-  labelAt(ctx, name, x, y + r + 3, colour);
+  labels.push({ text: name, x, y, r: r + (selected ? 5 : 1), colour: darker(colour), font: "bold 13px system-ui, sans-serif", prio: 0 });
   ctx.restore();
 }

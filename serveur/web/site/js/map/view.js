@@ -5,17 +5,27 @@
 // with `scale` in pixels per metre. The map's resolution and origin only matter for drawing the
 // grid (draw.js); every other position on the map is already in metres in the map frame.
 // The view is published on the canvas as data-scale / data-origin-x / data-origin-y so tests
-// and tools can aim at a map position.
+// and tools can aim at a map position; data-draws counts the frames drawn.
+//
+// Drawing happens only when something changed (requestDraw, at most once per animation frame),
+// and not while the map is hidden (another tab): a parked fleet costs nothing.
+//
+// The keyboard: the canvas takes focus; arrow keys pan, + and - zoom. With a pose tool on
+// (Calibrate, Move here), a cursor starts on the selected robot: arrow keys move it (Shift: in
+// bigger steps), [ and ] turn its heading, Enter confirms, Escape cancels.
 
 import { decodeGrid } from "./grid.js";
-import { arrow, drawGoal, drawGrid, drawRobot, drawScan, drawWaypoints } from "./draw.js";
+import { arrow, drawGoal, drawGrid, drawLabels, drawRobot, drawScan, drawWaypoints } from "./draw.js";
 import { statusColour } from "../status.js";
 import { t } from "../i18n.js";
 
 const MIN_SCALE = 5;
 const MAX_SCALE = 400;
 const CLICK_SLOP_PX = 6;
-const TOOL_COLOURS = { initialpose: "#16a34a", goal: "#7c3aed" };
+const TOOL_COLOURS = { initialpose: "#15803d", goal: "#7c3aed" };
+const KEY_STEP_M = 0.1; // a cursor step; Shift: five
+const KEY_TURN = Math.PI / 12; // 15 degrees
+const KEY_PAN_PX = 40;
 
 export class MapView {
   /**
@@ -25,6 +35,7 @@ export class MapView {
    * @param opts.goals () => Map robot -> {x, y, yaw, label} of goals this console sent
    * @param opts.onPose (tool, {x, y, yaw}) after a press-and-drag with a pose tool
    * @param opts.onSelect (robotName) after a click on a robot
+   * @param opts.onCancel () after Escape cancels a pose tool
    */
   constructor(canvas, live, opts) {
     this.canvas = canvas;
@@ -41,6 +52,9 @@ export class MapView {
     this._pointers = new Map();
     this._gesture = null;
     this._frame = 0;
+    this._dirty = true;
+    this._draws = 0;
+    this._cursor = null; // the keyboard's pose cursor: {x, y, yaw}
     this._listen();
     new ResizeObserver(() => this._resize()).observe(canvas);
     this._resize();
@@ -58,7 +72,29 @@ export class MapView {
     this.tool = tool;
     this.canvas.dataset.tool = tool;
     this._gesture = null;
+    this._cursor = null;
     this.requestDraw();
+  }
+
+  /** Start the keyboard cursor of the current pose tool on the selected robot and focus the map. */
+  startKeyboardTool() {
+    if (this.tool === "pan") return;
+    const name = this.opts.selected();
+    const p = (name && this.live.pose(name)) || { x: 0, y: 0, yaw: 0 };
+    const [cx, cy] = this.toWorld(this.canvas.clientWidth / 2, this.canvas.clientHeight / 2);
+    this._cursor = name && this.live.pose(name) ? { x: p.x, y: p.y, yaw: p.yaw } : { x: cx, y: cy, yaw: 0 };
+    this._publishCursor();
+    this.canvas.focus();
+    this.requestDraw();
+  }
+
+  _publishCursor() {
+    const c = this._cursor;
+    if (c) {
+      this.canvas.dataset.cursor = `${c.x.toFixed(2)},${c.y.toFixed(2)},${c.yaw.toFixed(3)}`;
+    } else {
+      delete this.canvas.dataset.cursor;
+    }
   }
 
   zoomBy(factor, sx = this.canvas.clientWidth / 2, sy = this.canvas.clientHeight / 2) {
@@ -97,11 +133,16 @@ export class MapView {
     this._viewChanged();
   }
 
+  /** Something shown changed: draw once, at the next animation frame, if the map is visible. */
   requestDraw() {
-    if (this._frame) return;
+    this._dirty = true;
+    if (this._frame || !this.canvas.isConnected || this.canvas.offsetParent === null) return;
     this._frame = requestAnimationFrame(() => {
       this._frame = 0;
+      if (!this._dirty) return;
+      this._dirty = false;
       this._draw();
+      this.canvas.dataset.draws = String(++this._draws);
     });
   }
 
@@ -142,7 +183,9 @@ export class MapView {
       ctx.font = "16px system-ui, sans-serif";
       ctx.fillText(t("map.none"), 20, 30);
     }
-    drawWaypoints(ctx, this, [...live.waypoints.values()]);
+    // Labels are placed last, robots' names first, so none covers another (draw.js).
+    const labels = [];
+    drawWaypoints(ctx, this, [...live.waypoints.values()], labels);
     const selected = this.opts.selected();
     const scan = selected && live.scans.get(selected);
     if (scan) drawScan(ctx, this, scan);
@@ -153,22 +196,28 @@ export class MapView {
       const colour = statusColour(robot.status);
       const table = live.destination(name);
       const wp = table && live.waypoints.get(table);
-      if (wp) drawGoal(ctx, this, pose, { ...wp, label: table }, colour);
-      else if (goals.has(name)) drawGoal(ctx, this, pose, { label: t("map.goalLabel"), ...goals.get(name) }, colour);
+      if (wp) drawGoal(ctx, this, pose, { ...wp, label: `${name} → ${table}` }, colour, labels);
+      else if (goals.has(name)) {
+        drawGoal(ctx, this, pose, { ...goals.get(name), label: `${name} → ${t("map.goalLabel")}` }, colour, labels);
+      }
     }
     for (const [name, robot] of live.robots) {
       const pose = live.pose(name);
-      if (pose) drawRobot(ctx, this, name, pose, robot.status, name === selected);
+      if (pose) drawRobot(ctx, this, name, pose, robot.status, name === selected, labels);
     }
     const g = this._gesture;
-    if (g && g.kind === "pose") {
-      const [sx, sy] = this.toScreen(g.x, g.y);
+    const c = this._cursor;
+    const pick = g && g.kind === "pose" ? g : c;
+    if (pick && this.tool !== "pan") {
+      const [sx, sy] = this.toScreen(pick.x, pick.y);
       ctx.beginPath();
-      ctx.arc(sx, sy, 6, 0, 2 * Math.PI);
+      ctx.arc(sx, sy, c === pick ? 10 : 6, 0, 2 * Math.PI);
       ctx.fillStyle = TOOL_COLOURS[this.tool];
       ctx.fill();
-      if (g.yaw !== null) arrow(ctx, sx, sy, g.yaw, 40, TOOL_COLOURS[this.tool]);
+      if (pick.yaw !== null) arrow(ctx, sx, sy, pick.yaw, 40, TOOL_COLOURS[this.tool]);
     }
+    const placed = drawLabels(ctx, labels);
+    this.canvas.dataset.labels = JSON.stringify(placed.map((b) => [b.x0, b.y0, b.x1, b.y1].map(Math.round)));
   }
 
   _local(ev) {
@@ -178,6 +227,8 @@ export class MapView {
 
   _listen() {
     const c = this.canvas;
+    c.tabIndex = 0;
+    c.addEventListener("keydown", (ev) => this._key(ev));
     c.addEventListener("pointerdown", (ev) => this._down(ev));
     c.addEventListener("pointermove", (ev) => this._move(ev));
     c.addEventListener("pointerup", (ev) => this._up(ev, false));
@@ -256,6 +307,50 @@ export class MapView {
       if (name) this.opts.onSelect(name);
     } else if (g.kind === "pose") {
       this.opts.onPose(this.tool, { x: g.x, y: g.y, yaw: g.yaw });
+    }
+  }
+
+  _key(ev) {
+    const arrows = { ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, 1], ArrowDown: [0, -1] };
+    const c = this._cursor;
+    if (this.tool !== "pan" && !c && (ev.key in arrows || ev.key === "Enter")) this.startKeyboardTool();
+    const cur = this._cursor;
+    if (cur) {
+      if (ev.key in arrows) {
+        const [dx, dy] = arrows[ev.key];
+        const step = KEY_STEP_M * (ev.shiftKey ? 5 : 1);
+        cur.x += dx * step;
+        cur.y += dy * step;
+      } else if (ev.key === "[" || ev.key === "]") {
+        cur.yaw = Math.atan2(Math.sin(cur.yaw + (ev.key === "[" ? KEY_TURN : -KEY_TURN)), Math.cos(cur.yaw + (ev.key === "[" ? KEY_TURN : -KEY_TURN)));
+      } else if (ev.key === "Enter") {
+        const pose = { ...cur };
+        this._cursor = null;
+        this._publishCursor();
+        this.opts.onPose(this.tool, pose);
+      } else if (ev.key === "Escape") {
+        this._cursor = null;
+        this._publishCursor();
+        if (this.opts.onCancel) this.opts.onCancel();
+      } else return;
+      ev.preventDefault();
+      this._publishCursor();
+      this.requestDraw();
+      return;
+    }
+    if (ev.key === "Escape" && this.tool !== "pan" && this.opts.onCancel) {
+      ev.preventDefault();
+      this.opts.onCancel();
+    } else if (ev.key in arrows) {
+      ev.preventDefault();
+      const [dx, dy] = arrows[ev.key];
+      this.panBy(-dx * KEY_PAN_PX, dy * KEY_PAN_PX);
+    } else if (ev.key === "+" || ev.key === "=") {
+      ev.preventDefault();
+      this.zoomBy(1.25);
+    } else if (ev.key === "-") {
+      ev.preventDefault();
+      this.zoomBy(0.8);
     }
   }
 

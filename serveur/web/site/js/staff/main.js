@@ -63,6 +63,7 @@ const view = new MapView(document.getElementById("map"), live, {
   goals: () => goals,
   onSelect: (name) => selection.set(name),
   onPose: (tool, pose) => tools.posePicked(tool, pose),
+  onCancel: () => tools.cancel(),
 });
 const tools = new MapTools(conn, live, view, selection, goals);
 new RobotsPanel(document.getElementById("robots"), conn, live, selection);
@@ -90,7 +91,10 @@ live.addEventListener("change", (e) => {
     conn.subscribe([...live.robots.keys()].map((n) => `pose:${n}`));
     if (!selection.name && live.robots.size) selection.set([...live.robots.keys()][0]);
   }
-  view.requestDraw();
+  // Only what the map shows: a new order or an alert does not redraw it.
+  const [kind, robot] = topic.split(":");
+  const drawn = ["robots", "tasks", "waypoints", "map"].includes(topic) || kind === "pose" || (kind === "scan" && robot === selection.name);
+  if (drawn) view.requestDraw();
 });
 
 const showSelected = (name) => {

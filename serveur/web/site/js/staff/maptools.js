@@ -1,5 +1,7 @@
 // The map toolbar: Calibrate (initialpose) and Move here (goal) as one-shot press-and-drag
-// tools like RViz's 2D Pose Estimate / 2D Nav Goal, and zoom buttons.
+// tools like RViz's 2D Pose Estimate / 2D Nav Goal, and zoom buttons. From the keyboard, a tool
+// button pressed with Enter or Space puts a cursor on the map (view.js: arrow keys move it, [ and
+// ] turn it, Enter confirms, Escape cancels); focus then returns to the tool's button.
 
 import { act, toast } from "../ui.js";
 import { allowed } from "../status.js";
@@ -21,8 +23,13 @@ export class MapTools {
     this.goals = goals;
     this.hint = document.getElementById("tool-hint");
     for (const [tool, { button }] of Object.entries(TOOLS)) {
-      document.getElementById(button).addEventListener("click", () => {
+      document.getElementById(button).addEventListener("click", (e) => {
         this._setTool(this.view.tool === tool ? "pan" : tool);
+        // detail 0: pressed from the keyboard, so the keyboard places the pose too.
+        if (e.detail === 0 && this.view.tool === tool) {
+          this.view.startKeyboardTool();
+          this.hint.textContent = t("map.hintFor", { robot: this.selection.name, hint: t("map.keysHint") });
+        }
       });
     }
     document.getElementById("zoom-in").addEventListener("click", () => view.zoomBy(1.25));
@@ -41,6 +48,13 @@ export class MapTools {
       this._showHint(this.view.tool);
     });
     this._refresh();
+  }
+
+  /** Escape on the map: the tool is off, focus back on its button. */
+  cancel() {
+    const button = TOOLS[this.view.tool] && document.getElementById(TOOLS[this.view.tool].button);
+    this._setTool("pan");
+    if (button) button.focus();
   }
 
   _setTool(tool) {
@@ -69,7 +83,9 @@ export class MapTools {
 
   async posePicked(tool, pose) {
     const name = this.selection.name;
+    const fromKeys = document.activeElement === this.view.canvas;
     this._setTool("pan"); // one-shot, as in RViz: the next drag pans again
+    if (fromKeys) document.getElementById(TOOLS[tool].button).focus(); // focus kept on the tool
     if (!name) return;
     let yaw = pose.yaw;
     if (yaw === null) {

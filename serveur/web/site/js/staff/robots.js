@@ -62,7 +62,12 @@ export class RobotsPanel {
       }
       if (row.signature !== signature) {
         row.signature = signature;
+        // A rebuilt row must not drop the keyboard's place: focus goes back to the same control.
+        const lost = !document.activeElement || document.activeElement === document.body;
+        const acting = lost && this._acting && this._acting.name === name ? this._acting.action : null;
+        const focused = row.li.contains(document.activeElement) ? document.activeElement.dataset.focusKey : acting;
         row.li.replaceChildren(...this._content(robot, trip, selected).filter(Boolean));
+        if (focused) this._refocus(name, focused);
         row.li.classList.toggle("selected", selected);
         row.li.dataset.status = robot.status;
       }
@@ -90,6 +95,7 @@ export class RobotsPanel {
       el("button", {
         class: action === "stop" || action === "cancel" ? "danger" : action === "skip" ? "secondary" : "",
         "data-needs-online": true,
+        "data-focus-key": action,
         "aria-label": t("robots.actionFor", { action: t(key), name }),
         // The trip and stop shown now: the server refuses the command if the robot moved on.
         onclick: (e) => this._do(e.currentTarget, action, name, make(name, this.live.target(name))),
@@ -101,6 +107,7 @@ export class RobotsPanel {
         "button",
         {
           class: "robot-name",
+          "data-focus-key": "select",
           "aria-pressed": String(selected),
           "aria-label": t("robots.select", { name }),
           onclick: () => this.selection.set(name),
@@ -177,7 +184,24 @@ export class RobotsPanel {
       });
       if (!yes) return;
     }
-    await act(button, () => this.conn.request(msg));
+    this._acting = { name, action };
+    try {
+      await act(button, () => this.conn.request(msg));
+    } finally {
+      this._acting = null;
+    }
+    // Focus kept: on the button pressed if still there, else on the robot's row.
+    if (!document.activeElement || document.activeElement === document.body) this._refocus(name, action);
+  }
+
+  /** Focus the row's control `key` (an action, "select"), or its name if that one is gone. */
+  _refocus(name, key) {
+    const row = this.rows.get(name);
+    if (!row) return;
+    const usable = (b) => b && !b.disabled;
+    const same = row.li.querySelector(`[data-focus-key="${key}"]`);
+    const target = usable(same) ? same : row.li.querySelector('[data-focus-key]:not(:disabled)') || row.li.querySelector(".robot-name");
+    if (target) target.focus();
   }
 }
 
