@@ -1,0 +1,112 @@
+"""Accessibility: axe-core finds no serious or critical violation on any page (issue 20).
+
+axe-core comes from the npm registry (tests/node/package.json, installed by ``npm ci`` into the
+git-ignored tests/node/node_modules, as .ci/run does); the test skips without it locally and
+fails without it in CI (``$CI`` set). The pages' Content-Security-Policy forbids an inline
+script, so the browser context bypasses it to inject axe.
+
+Checked: the staff console after login on each of its tabs (the owner's, so the menu tab too),
+a robot's screen and a table's screen, with a trip under way so status badges and buttons show.
+The WCAG 2.1 A/AA rules and best practices run, with ``label-content-name-mismatch`` (an
+experimental rule: a button whose accessible name does not contain its visible words).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.web.test_ui import (
+    TABLET,
+    browser,  # noqa: F401  (the module's browser fixture)
+    expect,
+    http_base,
+    log_in,
+    pytestmark,  # noqa: F401
+    staff_client,
+    ui_restaurant,
+)
+
+AXE = Path(__file__).parents[1] / "node" / "node_modules" / "axe-core" / "axe.min.js"
+
+RUN_AXE = """async () => {
+  const r = await axe.run(document, {
+    runOnly: { type: "tag", values: ["wcag2a", "wcag2aa", "wcag21a", "wcag21aa", "best-practice"] },
+    rules: { "label-content-name-mismatch": { enabled: true } },
+  });
+  return r.violations
+    .filter((v) => v.impact === "serious" || v.impact === "critical")
+    .map((v) => ({
+      id: v.id,
+      impact: v.impact,
+      help: v.help,
+      nodes: v.nodes.slice(0, 5).map((n) => n.target.join(" ") + " :: " + n.failureSummary),
+    }));
+}"""
+
+
+def need_axe() -> None:
+    if not AXE.is_file():
+        msg = "tests/node has no node_modules/axe-core: run `npm ci` in tests/node"
+        if os.environ.get("CI"):
+            pytest.fail(msg)
+        pytest.skip(msg)
+
+
+async def open_page(b: Any, url: str, *, online: bool = True) -> Any:
+    context = await b.new_context(viewport=TABLET, bypass_csp=True)
+    page = await context.new_page()
+    await page.goto(url)
+    if online:
+        await expect(page.locator("body")).to_have_attribute("data-connection", "online")
+    return page
+
+
+async def violations(page: Any) -> list[dict[str, Any]]:
+    if not await page.evaluate("() => typeof axe !== 'undefined'"):
+        await page.add_script_tag(path=str(AXE))
+    result: list[dict[str, Any]] = await page.evaluate(RUN_AXE)
+    return result
+
+
+async def test_no_serious_or_critical_violation_on_any_page(
+    tmp_path: Path,
+    browser: Any,  # noqa: F811
+) -> None:
+    need_axe()
+    async with ui_restaurant(tmp_path) as r:
+        c = await staff_client(r)
+        await c.ok("control", robot="r1", action="auto")
+        ids = [
+            (await c.ok("create", type="order", dish=d, table=t))["order"]["id"]
+            for d, t in (("Laksa", "T3"), ("Satay", "T5"))
+        ]
+        await c.ok("create", type="order", dish="Pho", table="T7")  # left waiting in the kitchen
+        await c.ok("create", type="task", orders=ids)
+        base = http_base(r)
+        found: dict[str, list[dict[str, Any]]] = {}
+
+        staff = await open_page(browser, f"{base}/", online=False)
+        found["login"] = await violations(staff)
+        await log_in(staff, "owner", r.app.first_owner_password or "")
+        await expect(staff.get_by_role("button", name="Select r1")).to_be_visible()
+        for tab in ("Map", "Issue task", "New order", "Kitchen", "Menu"):
+            await staff.get_by_role("tab", name=tab).click()
+            await expect(staff.get_by_role("tab", name=tab)).to_have_attribute(
+                "aria-selected", "true"
+            )
+            found[f"staff {tab}"] = await violations(staff)
+
+        robot = await open_page(
+            browser, f"{base}/robot/r1#token={await r.app.issue_token('robot-screen', robot='r1')}"
+        )
+        found["robot screen"] = await violations(robot)
+        table = await open_page(
+            browser, f"{base}/table/T3#token={await r.app.issue_token('table-screen', table='T3')}"
+        )
+        found["table screen"] = await violations(table)
+        bad = {page: v for page, v in found.items() if v}
+        assert bad == {}, bad
