@@ -139,10 +139,7 @@ export class MapView {
     if (this._frame || !this.canvas.isConnected || this.canvas.offsetParent === null) return;
     this._frame = requestAnimationFrame(() => {
       this._frame = 0;
-      if (!this._dirty) return;
-      this._dirty = false;
-      this._draw();
-      this.canvas.dataset.draws = String(++this._draws);
+      if (this._dirty) this._drawNow();
     });
   }
 
@@ -162,6 +159,16 @@ export class MapView {
     this.canvas.height = Math.max(1, Math.round(h * dpr));
     if (!this.userMoved) this.fit();
     this._viewChanged();
+    // A new size cleared the canvas: draw now (before the paint), not a blank frame first.
+    if (w && h) this._drawNow();
+  }
+
+  _drawNow() {
+    if (this._frame) cancelAnimationFrame(this._frame);
+    this._frame = 0;
+    this._dirty = false;
+    this._draw();
+    this.canvas.dataset.draws = String(++this._draws);
   }
 
   _draw() {
