@@ -79,6 +79,8 @@ async def test_calibrate_and_move_here_from_the_keyboard(tmp_path: Path, browser
         )
         await expect(calibrate).to_be_focused()
         await expect(calibrate).to_have_attribute("aria-pressed", "false")
+        # The arrows moved the mark only: the robot (Manual) was not driven by them.
+        assert not [m for m in screens.sent if m.get("action") == "teleop"]
 
         # Escape cancels: nothing sent, focus back on the tool.
         goal = staff.get_by_role("button", name="Move here")

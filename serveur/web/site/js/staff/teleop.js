@@ -76,6 +76,8 @@ export class Teleop {
     const t = e.target;
     if (t && (t.isContentEditable || ["INPUT", "TEXTAREA", "SELECT"].includes(t.tagName))) return;
     if (t && t.getAttribute && t.getAttribute("role") === "tab") return; // arrows move between tabs
+    // The focused map takes the arrow keys (pan, or the Calibrate / Move here mark): W/A/S/D/Q/E drive.
+    if (t && t.id === "map" && e.key.startsWith("Arrow")) return;
     if (document.getElementById("panel-map").hidden || document.querySelector("dialog[open]")) return;
     if (!this._enabled() && down) return;
     if (e.key.startsWith("Arrow")) e.preventDefault(); // no page scrolling while driving
