@@ -93,6 +93,13 @@ async def test_calibrate_and_move_here_from_the_keyboard(tmp_path: Path, browser
         await expect(goal).to_have_attribute("aria-pressed", "false")
         assert not [m for m in screens.sent if m.get("action") == "goal"]
 
+        # A tool turned on by a click: Escape turns it off too, wherever the focus is.
+        await goal.click()
+        await expect(goal).to_have_attribute("aria-pressed", "true")
+        await staff.keyboard.press("Escape")
+        await expect(goal).to_have_attribute("aria-pressed", "false")
+        await expect(goal).to_be_focused()
+
         # Move here: Shift+arrows take 0.5 m steps (south, into the dining room).
         await staff.keyboard.press("Enter")
         await staff.keyboard.press("Shift+ArrowDown")

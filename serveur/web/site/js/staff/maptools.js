@@ -32,6 +32,12 @@ export class MapTools {
         }
       });
     }
+    // Escape turns a tool off wherever the focus is (the map handles its own, with the mark).
+    document.addEventListener("keydown", (e) => {
+      if (e.key !== "Escape" || e.defaultPrevented || this.view.tool === "pan") return;
+      if (e.target === this.view.canvas || document.querySelector("dialog[open]")) return;
+      this.cancel();
+    });
     document.getElementById("zoom-in").addEventListener("click", () => view.zoomBy(1.25));
     document.getElementById("zoom-out").addEventListener("click", () => view.zoomBy(0.8));
     document.getElementById("zoom-fit").addEventListener("click", () => view.fit());
