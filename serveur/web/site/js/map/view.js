@@ -36,6 +36,7 @@ export class MapView {
    * @param opts.onPose (tool, {x, y, yaw}) after a press-and-drag with a pose tool
    * @param opts.onSelect (robotName) after a click on a robot
    * @param opts.onCancel () after Escape cancels a pose tool
+   * @param opts.onCursor ({x, y, yaw} or null) when the keyboard's mark moves or goes
    */
   constructor(canvas, live, opts) {
     this.canvas = canvas;
@@ -73,6 +74,7 @@ export class MapView {
     this.canvas.dataset.tool = tool;
     this._gesture = null;
     this._cursor = null;
+    this._publishCursor();
     this.requestDraw();
   }
 
@@ -95,6 +97,7 @@ export class MapView {
     } else {
       delete this.canvas.dataset.cursor;
     }
+    if (this.opts.onCursor) this.opts.onCursor(c); // said aloud: the hint is a live region
   }
 
   zoomBy(factor, sx = this.canvas.clientWidth / 2, sy = this.canvas.clientHeight / 2) {
@@ -329,7 +332,8 @@ export class MapView {
         cur.x += dx * step;
         cur.y += dy * step;
       } else if (ev.key === "[" || ev.key === "]") {
-        cur.yaw = Math.atan2(Math.sin(cur.yaw + (ev.key === "[" ? KEY_TURN : -KEY_TURN)), Math.cos(cur.yaw + (ev.key === "[" ? KEY_TURN : -KEY_TURN)));
+        const yaw = cur.yaw + (ev.key === "[" ? KEY_TURN : -KEY_TURN);
+        cur.yaw = Math.atan2(Math.sin(yaw), Math.cos(yaw));
       } else if (ev.key === "Enter") {
         const pose = { ...cur };
         this._cursor = null;

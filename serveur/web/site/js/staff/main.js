@@ -58,14 +58,16 @@ const selection = {
 
 const goals = new Map(); // robot -> the last goal this console sent, drawn until it is reached
 
+let tools = null; // the map's toolbar, made once the view exists
 const view = new MapView(document.getElementById("map"), live, {
   selected: () => selection.name,
   goals: () => goals,
   onSelect: (name) => selection.set(name),
   onPose: (tool, pose) => tools.posePicked(tool, pose),
   onCancel: () => tools.cancel(),
+  onCursor: (mark) => tools && tools.showMark(mark),
 });
-const tools = new MapTools(conn, live, view, selection, goals);
+tools = new MapTools(conn, live, view, selection, goals);
 new RobotsPanel(document.getElementById("robots"), conn, live, selection);
 new RegisterRobot(document.getElementById("register"), conn, live);
 new Teleop(document.getElementById("teleop"), conn, live, selection);

@@ -26,10 +26,7 @@ export class MapTools {
       document.getElementById(button).addEventListener("click", (e) => {
         this._setTool(this.view.tool === tool ? "pan" : tool);
         // detail 0: pressed from the keyboard, so the keyboard places the pose too.
-        if (e.detail === 0 && this.view.tool === tool) {
-          this.view.startKeyboardTool();
-          this.hint.textContent = t("map.hintFor", { robot: this.selection.name, hint: t("map.keysHint") });
-        }
+        if (e.detail === 0 && this.view.tool === tool) this.view.startKeyboardTool();
       });
     }
     // Escape turns a tool off wherever the focus is (the map handles its own, with the mark).
@@ -54,6 +51,17 @@ export class MapTools {
       this._showHint(this.view.tool);
     });
     this._refresh();
+  }
+
+  /** The keyboard's mark moved: the hint (a live region) says where it is now. */
+  showMark(mark) {
+    if (!mark || !TOOLS[this.view.tool]) return;
+    const where = t("map.where", {
+      x: mark.x.toFixed(2),
+      y: mark.y.toFixed(2),
+      heading: Math.round((mark.yaw * 180) / Math.PI),
+    });
+    this.hint.textContent = `${t("map.hintFor", { robot: this.selection.name, hint: t("map.keysHint") })} ${where}`;
   }
 
   /** Escape on the map: the tool is off, focus back on its button. */
