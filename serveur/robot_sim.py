@@ -18,6 +18,9 @@ Structure:
   and never blocks the robot or grows memory.
 * :class:`Simulation` — the robots of a fleet, one physics loop stepping all of them at a fixed
   20 Hz of *simulated* time (so results do not depend on ``time_scale``), and the fault hooks.
+  With ``robots_see_each_other`` (``serveur sim --robots-see-each-other``; off by default)
+  the robots are obstacles to each other, in their scans and in motion, and can deadlock
+  (:meth:`SimRobot.share_floor <serveur.sim.robot.SimRobot.share_floor>`).
 
 All time goes through a :class:`~serveur.clock.Clock`: motion, publish rates, ``throttle_rate``,
 the stale ``cmd_vel`` timeout and ROS stamps (``clock.epoch()``, plus the robots'

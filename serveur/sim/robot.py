@@ -63,6 +63,22 @@ A robot made with ``ros=2`` is a ROS 2 robot running Nav2 behind rosbridge 2.x
   goal runs, with the same stale-command watchdog as a ROS1 robot.
 * ``release`` picks the result's shape (Humble ``{result: {}}``, Jazzy and Kilted
   ``{error_code, error_msg}`` with Nav2's codes: 208 no valid path, 105 no progress, 9000).
+
+Other robots are not obstacles unless the fleet says so (:meth:`SimRobot.share_floor`, the
+fleet's ``robots_see_each_other``; off by default). Then each robot's footprint, a disc of the
+planner's robot radius, shows in the others' ``/scan`` (ray-disc intersection) and stops them:
+a robot slows down to stop :data:`ROBOT_GAP` short of one in its way and waits, as a local
+planner whose costmap holds the other robot does; after :data:`ROBOT_REPLAN_AFTER` s it plans
+around the robots standing still (their discs marked on a copy of the map, as a costmap's
+obstacle layer marks them) and takes the detour if one exists; after the patience
+(:data:`ROBOT_PATIENCE`, 30 s of sim time: move_base aborts after ``controller_patience``, 15 s
+by default in move_base.cpp, plus its default recoveries; Nav2's default navigate_to_pose tree
+retries 6 times, with a progress checker allowing 10 s per 0.5 m, docs.nav2.org) its goal
+ABORTs with "blocked by another robot (NAME) for N s": move_base ABORTED (4), Nav2 status 6
+with error code 105 (FAILED_TO_MAKE_PROGRESS). What is not modelled: the recoveries' own motion
+(in-place rotations, backing up), other robots' velocities (only where they are now), and any
+rule about who gives way, so two robots meeting head-on in an aisle one robot wide deadlock
+until both goals abort.
 """
 
 from __future__ import annotations
@@ -340,6 +356,12 @@ class SimRobot:
         self._wait_since: float | None = None  # sim time a robot in the way stopped this one
         self._wait_at = (0.0, 0.0)  # where it stopped
         self._replanned = -math.inf  # sim time of the last plan around standing robots
+        self._robots_scan: (
+            tuple[
+                tuple[float, float, float], tuple[tuple[float, float], ...], npt.NDArray[np.float64]
+            ]
+            | None
+        ) = None
 
     # -- names -------------------------------------------------------------------------------
 
@@ -1206,26 +1228,28 @@ class SimRobot:
     def _robot_ranges(self, x: float, y: float, yaw: float) -> npt.NDArray[np.float64]:
         """Range along each scan ray to the nearest other robot's footprint (inf: none).
 
-        Ray-disc intersection from the laser at the robot's centre; a robot whose disc holds
-        the laser (overlapping robots) is not seen, as a laser does not see inside a body.
+        Ray-disc intersection from the laser at the robot's centre, every robot in range at
+        once; a robot whose disc holds the laser (overlapping robots) is not seen, as a laser
+        does not see inside a body. Kept while neither this robot nor any other moved (a
+        parked fleet's scans cost one comparison).
         """
+        where = tuple((o._motion.x, o._motion.y) for o in self._others)
+        cache = self._robots_scan
+        if cache is not None and cache[0] == (x, y, yaw) and cache[1] == where:
+            return cache[2]
+        c = np.asarray(where, dtype=np.float64).reshape(-1, 2) - (x, y)
+        r = np.fromiter((o.radius for o in self._others), np.float64, len(self._others))
+        d2 = (c * c).sum(axis=1)
+        near = (d2 > r * r) & (d2 <= (SCAN_RANGE_MAX + r) ** 2)
         out = np.full(SCAN_RAYS, np.inf)
-        ang = None
-        for o in self._others:
-            om = o._motion
-            px, py = om.x - x, om.y - y
-            d2 = px * px + py * py
-            r2 = o.radius * o.radius
-            if d2 <= r2 or d2 > (SCAN_RANGE_MAX + o.radius) ** 2:
-                continue
-            if ang is None:
-                ang = self._scan_rel + yaw
-                ux, uy = np.cos(ang), np.sin(ang)
-            b = px * ux + py * uy
-            disc = b * b - (d2 - r2)
-            hit = (disc >= 0.0) & (b > 0.0)
-            t = np.where(hit, b - np.sqrt(np.maximum(disc, 0.0)), np.inf)
-            np.minimum(out, t, out=out)
+        if near.any():
+            c, d2, r = c[near], d2[near], r[near]
+            ang = self._scan_rel + yaw
+            b = c[:, :1] * np.cos(ang) + c[:, 1:] * np.sin(ang)  # (robots, rays)
+            disc = b * b - (d2 - r * r)[:, None]
+            t = np.where((disc >= 0.0) & (b > 0.0), b - np.sqrt(np.maximum(disc, 0.0)), np.inf)
+            out = t.min(axis=0)
+        self._robots_scan = ((x, y, yaw), where, out)
         return out
 
     def _build_battery(self, seq: int, stamp: float) -> dict[str, Any]:

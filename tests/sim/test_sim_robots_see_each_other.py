@@ -177,6 +177,22 @@ async def test_a_robot_stops_short_of_a_parked_one_and_goes_around(
     assert closest[0] >= 2 * RADIUS
 
 
+async def test_teleop_into_a_parked_robot_stops_at_its_footprint(
+    tmp_path: Path, sims: list[Simulation]
+) -> None:
+    sim = await start(room(tmp_path, [(1.0, 3.0, 0.0), (2.5, 3.0, 0.0)]), 2, solid=True)
+    sims.append(sim)
+    closest = watch_closest(sim)
+    r1, r2 = sim.robots
+    c = await open_raw(sim, 0)
+    # One command lasts CMD_VEL_TIMEOUT wall seconds (10 s of sim time at this scale).
+    await c.send(rb.op_publish("/cmd_vel", rb.twist(0.5, 0.0, 0.0)))
+    await poll_until(lambda: r1.pose[0] > 1.9 and r1.velocity[0] == 0.0, WAIT, "r1 stopped")
+    assert 2 * RADIUS - 1e-9 <= math.dist(r1.pose[:2], r2.pose[:2]) < 2 * RADIUS + 0.05
+    assert closest[0] >= 2 * RADIUS - 1e-9
+    assert r2.pose[:2] == (2.5, 3.0)
+
+
 async def test_a_robot_parked_on_the_goal_makes_it_abort_after_the_patience(
     tmp_path: Path, sims: list[Simulation]
 ) -> None:
@@ -201,10 +217,12 @@ async def test_a_robot_parked_on_the_goal_makes_it_abort_after_the_patience(
 # -- (c) head-on in a narrow aisle: deadlock with the option, ghosts without -----------------
 
 
-async def head_on(tmp_path: Path, sims: list[Simulation], *, solid: bool) -> dict[str, Any]:
+async def head_on(
+    tmp_path: Path, sims: list[Simulation], *, solid: bool, kinematics: str = "omni"
+) -> dict[str, Any]:
     """r1 (ROS1, move_base) and r2 (ROS 2, Nav2) swap ends of the aisle."""
     a, b = (0.6, 0.75, 0.0), (4.4, 0.75, math.pi)
-    sim = await start(aisle(tmp_path, [a, b]), 2, solid=solid, ros=[1, 2])
+    sim = await start(aisle(tmp_path, [a, b]), 2, solid=solid, ros=[1, 2], kinematics=kinematics)
     sims.append(sim)
     closest = watch_closest(sim)
     c1, c2 = await open_raw(sim, 0), await open_raw(sim, 1)
@@ -216,10 +234,11 @@ async def head_on(tmp_path: Path, sims: list[Simulation], *, solid: bool) -> dic
     return {"sim": sim, "r1": s1, "r2": s2, "closest": closest[0], "took": sim.clock.now() - t0}
 
 
+@pytest.mark.parametrize("kinematics", ["omni", "diff"])
 async def test_head_on_in_a_narrow_aisle_deadlocks_when_robots_see_each_other(
-    tmp_path: Path, sims: list[Simulation]
+    tmp_path: Path, sims: list[Simulation], kinematics: str
 ) -> None:
-    out = await head_on(tmp_path, sims, solid=True)
+    out = await head_on(tmp_path, sims, solid=True, kinematics=kinematics)
     r1, r2 = out["sim"].robots
     # Both stopped facing each other, nose to nose, and neither got past the other...
     assert r1.pose[0] < r2.pose[0]
