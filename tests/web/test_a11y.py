@@ -110,3 +110,35 @@ async def test_no_serious_or_critical_violation_on_any_page(
         found["table screen"] = await violations(table)
         bad = {page: v for page, v in found.items() if v}
         assert bad == {}, bad
+
+
+def contrast(a: str, b: str) -> float:
+    """WCAG 2 contrast ratio of two #rrggbb colours."""
+
+    def lum(h: str) -> float:
+        c = [int(h[i : i + 2], 16) / 255 for i in (1, 3, 5)]
+        c = [x / 12.92 if x <= 0.03928 else ((x + 0.055) / 1.055) ** 2.4 for x in c]
+        return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+
+    hi, lo = sorted((lum(a), lum(b)), reverse=True)
+    return (hi + 0.05) / (lo + 0.05)
+
+
+async def test_every_status_colour_reads_at_4_5_to_1() -> None:
+    """Each status, whichever the page shows now: white words on the colour (the robot
+    screen's badge) and the colour on the page's background (the console's dots and names)."""
+    import re
+
+    site = Path(__file__).parents[2] / "serveur" / "web" / "site"
+    js = (site / "js" / "status.js").read_text()
+    block = js.split("STATUS_COLOURS = {")[1].split("}")[0]
+    colours = dict(re.findall(r'(\w+): "(#[0-9a-fA-F]{6})"', block))
+    assert len(colours) == 10, colours
+    bg = re.search(r"--bg: (#[0-9a-fA-F]{6})", (site / "css" / "base.css").read_text())
+    assert bg is not None
+    low = {
+        status: (round(contrast(c, "#ffffff"), 2), round(contrast(c, bg.group(1)), 2))
+        for status, c in colours.items()
+        if min(contrast(c, "#ffffff"), contrast(c, bg.group(1))) < 4.5
+    }
+    assert low == {}, low
