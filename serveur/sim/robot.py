@@ -84,6 +84,7 @@ until both goals abort.
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import itertools
 import logging
 import math
@@ -168,6 +169,19 @@ _ROBOT_STOP: Final = 0.02  # m of room left under which a robot counts as blocke
 #: SimpleProgressChecker ``required_movement_radius`` default).
 ROBOT_PROGRESS: Final = 0.5
 _ROBOT_STILL: Final = 0.05  # m/s: a robot slower than this is standing still (planned around)
+#: s sim between asking for a plan around robots and taking it: the planning runs in a worker
+#: thread meanwhile (~40 ms on the demo room), and the robot, standing still, takes the detour
+#: exactly this long after it asked whatever the load (a run stays deterministic).
+ROBOT_REPLAN_TAKES: Final = 0.5
+_DETOURS: concurrent.futures.ThreadPoolExecutor | None = None
+
+
+def _detour_pool() -> concurrent.futures.ThreadPoolExecutor:
+    global _DETOURS
+    if _DETOURS is None:
+        _DETOURS = concurrent.futures.ThreadPoolExecutor(2, thread_name_prefix="sim-detour")
+    return _DETOURS
+
 
 SCAN_RAYS: Final = 360
 SCAN_RANGE_MIN: Final = 0.12
@@ -356,6 +370,11 @@ class SimRobot:
         self._wait_since: float | None = None  # sim time a robot in the way stopped this one
         self._wait_at = (0.0, 0.0)  # where it stopped
         self._replanned = -math.inf  # sim time of the last plan around standing robots
+        #: A plan around robots under way: (sim time to take it, where it starts, the plan).
+        self._detour: (
+            tuple[float, tuple[float, float], concurrent.futures.Future[list[tuple[float, float]]]]
+            | None
+        ) = None
         self._robots_scan: (
             tuple[
                 tuple[float, float, float], tuple[tuple[float, float], ...], npt.NDArray[np.float64]
@@ -751,6 +770,7 @@ class SimRobot:
             self._blocked_since = None
             self._wait_since = None
             self._replanned = -math.inf
+            self._detour = None
         if g is self._pending:
             self._pending = None
         if g is self._plan_goal:
@@ -831,6 +851,7 @@ class SimRobot:
         self._stuck_for = 0.0
         self._wait_since = None
         self._replanned = -math.inf
+        self._detour = None
         length = sum(
             math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in itertools.pairwise([(x, y), *path])
         )
@@ -925,8 +946,11 @@ class SimRobot:
     def _mind_robots(self, g: _Goal, cmd: tuple[float, float, float]) -> tuple[float, float, float]:
         """The local planner facing other robots: slow down to stop short of one in the way,
         wait, plan around robots standing still, and abort after the patience."""
-        vx, vy, wz = cmd
         m = self._motion
+        if self._detour is not None and self._t >= self._detour[0] - 1e-9:
+            self._take_detour(g)
+            cmd = self._follower.command(m.x, m.y, m.yaw) if self._follower else (0.0, 0.0, 0.0)
+        vx, vy, wz = cmd
         speed = math.hypot(vx, vy)
         gap, who = math.inf, None
         if speed > 1e-9:
@@ -959,18 +983,24 @@ class SimRobot:
                 f"blocked by another robot ({name}) for {waited:.0f} s",
                 code=ros2.FAILED_TO_MAKE_PROGRESS,
             )
-        elif waited >= ROBOT_REPLAN_AFTER and t - self._replanned >= ROBOT_REPLAN_EVERY:
+        elif (
+            waited >= ROBOT_REPLAN_AFTER
+            and t - self._replanned >= ROBOT_REPLAN_EVERY
+            and self._detour is None
+        ):
             self._replanned = t
             self._plan_around(g)
         return 0.0, 0.0, 0.0
 
     def _plan_around(self, g: _Goal) -> None:
-        """Plan to ``g`` with the footprints of the robots standing still marked as obstacles
-        (a costmap's obstacle layer); follow the detour if there is one, else keep waiting.
+        """Ask for a plan to ``g`` with the footprints of the robots standing still marked as
+        obstacles (a costmap's obstacle layer); :meth:`_take_detour` follows it if there is
+        one, else the robot keeps waiting.
 
-        Synchronous (so a run is deterministic): a fresh planner on a copy of the map, one
-        distance field, ~40 ms on the demo room, at most once per ROBOT_REPLAN_EVERY s of a
-        blocked robot.
+        The map and the robots are copied now and planned on in a worker thread (a fresh
+        planner, one distance field: ~40 ms on the demo room), taken :data:`ROBOT_REPLAN_TAKES`
+        s of sim time later, so neither the physics loop stalls nor a run's outcome depends on
+        the machine's speed (a slow plan is waited for then).
         """
         still = [o for o in self._others if o._motion.speed < _ROBOT_STILL]
         if not still:
@@ -984,18 +1014,38 @@ class SimRobot:
             cx, cy = (om.x - ox) / res - 0.5, (om.y - oy) / res - 0.5  # in cell-centre units
             r = o.radius / res
             grid[(rows - cy) ** 2 + (cols - cx) ** 2 <= r * r] = 100
-        planner = Planner(
-            OccupancyMap(grid, res, base.origin),
-            self._planner.robot_radius,
-            clearance=self._planner.clearance,
-            cache_size=1,
-        )
+        m = self._motion
+        start, goal = (m.x, m.y), (g.x, g.y)
+        radius, clearance = self._planner.robot_radius, self._planner.clearance
+
+        def work() -> list[tuple[float, float]]:
+            planner = Planner(
+                OccupancyMap(grid, res, base.origin), radius, clearance=clearance, cache_size=1
+            )
+            return planner.plan(start, goal)
+
+        fut = _detour_pool().submit(work)
+        fut.add_done_callback(lambda f: f.cancelled() or f.exception())
+        self._detour = (self._t + ROBOT_REPLAN_TAKES, start, fut)
+
+    def _take_detour(self, g: _Goal) -> None:
+        """Follow the plan :meth:`_plan_around` asked for (waiting for it if it is late), unless
+        there is none or the robot moved since it asked."""
+        due = self._detour
+        self._detour = None
+        assert due is not None
+        _, (x0, y0), fut = due
         m = self._motion
         try:
-            path = planner.plan((m.x, m.y), (g.x, g.y))
+            path = fut.result()
         except ServeurError as exc:
             log.debug("%s: no way around the robots in the way: %s", self.name, exc)
             return
+        except Exception:
+            log.exception("%s: planning around the robots in the way failed", self.name)
+            return
+        if math.hypot(m.x - x0, m.y - y0) > 0.05:
+            return  # the way cleared meanwhile and the robot drove on
         self._follower = PathFollower(path, g.yaw, self.kinematics, self.limits)
         length = sum(math.dist(a, b) for a, b in itertools.pairwise(path))
         self._goal_deadline = max(
