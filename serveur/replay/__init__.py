@@ -7,12 +7,13 @@ dwell and absences, loading at the pass, statistics; pure), :mod:`~serveur.repla
 (map and server settings), :mod:`~serveur.replay.client` (the protocol client and its
 console), the players
 :mod:`~serveur.replay.staff` and :mod:`~serveur.replay.guests`, :mod:`~serveur.replay.report`
-(summary and plots) and :mod:`~serveur.replay.cli` (the subcommand). It drives the server
+(summary and plots), :mod:`~serveur.replay.recorded` (a recorded service day as a log) and
+:mod:`~serveur.replay.cli` (the subcommand). It drives the server
 only as a client does, over ``/ws``.
 
 May import: serveur.app, serveur.clock, serveur.robot_sim, serveur.scheduler,
 serveur.core.runtime, serveur.core.engine, serveur.security.sessions, serveur.maps,
-serveur.sim.kinematics.
+serveur.sim.kinematics, serveur.stats.periods, serveur.store.factory, serveur.domain.
 """
 
 __all__: list[str] = []

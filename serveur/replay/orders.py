@@ -30,7 +30,7 @@ import sys
 from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 __all__ = [
     "HEADER",
@@ -287,6 +287,8 @@ def generate_orders(
 
 
 def _cmd_orders(ns: argparse.Namespace) -> int:
+    if ns.from_db:
+        return _cmd_recorded(ns)
     try:
         all_tables = map_tables(ns.waypoints)
     except Exception as exc:  # a bad waypoints file: say so, no traceback
@@ -309,6 +311,43 @@ def _cmd_orders(ns: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_recorded(ns: argparse.Namespace) -> int:
+    """``serveur orders --from-db DB --day D``: a recorded service day as an order log."""
+    import asyncio
+    import time
+
+    from serveur.errors import ServeurError
+    from serveur.replay.recorded import recorded_orders
+    from serveur.stats.periods import parse_offset, parse_when, period_of
+    from serveur.store.factory import open_store
+
+    try:
+        tz = parse_offset(ns.utc_offset) if ns.utc_offset else None
+        if ns.day == "today":  # the service day now running (it began at 04:00)
+            ns.day = period_of(time.time(), "day", tz).label
+        start = parse_when(ns.day, tz)
+        end = parse_when(ns.day, tz, end=True)
+    except ValueError as exc:
+        print(f"serveur orders: {exc}", file=sys.stderr)
+        return 2
+
+    async def read() -> list[Any]:
+        async with open_store(ns.from_db) as store:
+            return await store.list_orders()
+
+    try:
+        log = [LogOrder(*row) for row in recorded_orders(asyncio.run(read()), start, end)]
+    except ServeurError as exc:
+        print(f"serveur orders: {exc}", file=sys.stderr)
+        return 1
+    if not log:
+        print(f"serveur orders: no dish was ready on {ns.day} in {ns.from_db}", file=sys.stderr)
+        return 1
+    sys.stdout.write(format_orders(log))
+    sys.stdout.flush()
+    return 0
+
+
 def add_orders_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register ``serveur orders`` (called once from :mod:`serveur.cli`)."""
     p = sub.add_parser(
@@ -324,4 +363,14 @@ def add_orders_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument(
         "--waypoints", default=None, help="waypoints JSON whose tables to use (default: the demo)"
     )
+    g = p.add_argument_group(
+        "a recorded service instead (replay the restaurant's own night with another fleet)"
+    )
+    g.add_argument("--from-db", metavar="DB", help="the restaurant's database (path or URL)")
+    g.add_argument(
+        "--day",
+        default="today",
+        help="the service day to take (YYYY-MM-DD; a day runs 04:00 to 04:00; default today)",
+    )
+    g.add_argument("--utc-offset", help="the restaurant's time zone (default: this machine's)")
     p.set_defaults(func=_cmd_orders, is_async=False)
