@@ -79,8 +79,10 @@ from serveur.wire.frames import (
     ServerMessage,
     Session,
     Snapshot,
+    TokenInfo,
     UpdateData,
     UpdateMsg,
+    UserInfo,
     dump,
     error_frame,
     ok_frame,
@@ -101,6 +103,15 @@ __all__ = [
     "ROBOT_TOPICS",
     "STATE_TOPICS",
     "VERBS",
+    "AccountAddUser",
+    "AccountCreateToken",
+    "AccountListTokens",
+    "AccountListUsers",
+    "AccountMessage",
+    "AccountRemoveUser",
+    "AccountResetPassword",
+    "AccountRevokeToken",
+    "AccountSetRole",
     "AckMsg",
     "CancelMsg",
     "ClearMsg",
@@ -141,8 +152,10 @@ __all__ = [
     "Snapshot",
     "StopMsg",
     "TargetMsg",
+    "TokenInfo",
     "UpdateData",
     "UpdateMsg",
+    "UserInfo",
     "action_of",
     "dump",
     "error_frame",
@@ -511,6 +524,107 @@ class OrderMsg(_ClientMsg):
         return self
 
 
+# --------------------------------------------------------------------------- accounts (owners)
+
+#: The roles a person's account may have.
+UserRole: TypeAlias = Literal["owner", "staff"]
+#: The screens the console makes tokens for (scripts' tokens stay on the command line).
+ScreenRole: TypeAlias = Literal["robot-screen", "table-screen"]
+Label = Annotated[str, Field(max_length=64)]
+
+
+class _AccountMsg(_ClientMsg):
+    clientmsg: Literal["account"]
+
+
+class AccountListUsers(_AccountMsg):
+    """The people who log in (names and roles, never a password)."""
+
+    action: Literal["list_users"]
+
+
+class AccountAddUser(_AccountMsg):
+    """Add a person; the server generates a strong password, returned once."""
+
+    action: Literal["add_user"]
+    username: Name
+    role: UserRole = "staff"
+
+
+class AccountSetRole(_AccountMsg):
+    """Make a person owner or staff (their sessions end: they log in again)."""
+
+    action: Literal["set_role"]
+    username: Name
+    role: UserRole
+
+
+class AccountResetPassword(_AccountMsg):
+    """Give a person a new generated password, returned once; their sessions end."""
+
+    action: Literal["reset_password"]
+    username: Name
+
+
+class AccountRemoveUser(_AccountMsg):
+    """Remove a person and end their sessions (never the last owner)."""
+
+    action: Literal["remove_user"]
+    username: Name
+
+
+class AccountCreateToken(_AccountMsg):
+    """A token for a robot's or a table's screen: returned once, with its setup link."""
+
+    action: Literal["create_token"]
+    role: ScreenRole
+    robot: Name | None = None
+    table: Name | None = None
+    label: Label = ""
+    base: Annotated[str, Field(max_length=200, pattern=r"^https?://[^\s/#?]+$")] | None = Field(
+        default=None,
+        description="The server's address as the screen will type it (http://host:port):"
+        " the QR code holds base + link; without it, only the link",
+    )
+
+    @model_validator(mode="after")
+    def _bound(self) -> AccountCreateToken:
+        if (self.role == "robot-screen") != (self.robot is not None) or (
+            self.role == "table-screen"
+        ) != (self.table is not None):
+            raise PydanticCustomError(
+                "screen_target", "a robot-screen token needs robot, a table-screen token table"
+            )
+        return self
+
+
+class AccountListTokens(_AccountMsg):
+    """The active device tokens (never the token itself); ``all``: revoked and expired too."""
+
+    action: Literal["list_tokens"]
+    all: bool = False
+
+
+class AccountRevokeToken(_AccountMsg):
+    """Revoke a token by id: its connections are closed."""
+
+    action: Literal["revoke_token"]
+    token: OrderId
+
+
+AccountMessage: TypeAlias = Annotated[
+    AccountListUsers
+    | AccountAddUser
+    | AccountSetRole
+    | AccountResetPassword
+    | AccountRemoveUser
+    | AccountCreateToken
+    | AccountListTokens
+    | AccountRevokeToken,
+    Field(discriminator="action"),
+]
+
+
 ClientMessage: TypeAlias = Annotated[
     LoginMsg
     | LogoutMsg
@@ -528,7 +642,8 @@ ClientMessage: TypeAlias = Annotated[
     | DishMsg
     | AckMsg
     | ClearMsg
-    | OrderMsg,
+    | OrderMsg
+    | AccountMessage,
     Field(discriminator="clientmsg"),
 ]
 _CLIENT: TypeAdapter[ClientMessage] = TypeAdapter(ClientMessage)
@@ -537,6 +652,19 @@ _CLIENT: TypeAdapter[ClientMessage] = TypeAdapter(ClientMessage)
 _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
     "create": ("type", ("waypoint", "order", "task", "robot", "dish")),
     "control": ("action", ("auto", "manual", "teleop", "initialpose", "goal", "goto")),
+    "account": (
+        "action",
+        (
+            "list_users",
+            "add_user",
+            "set_role",
+            "reset_password",
+            "remove_user",
+            "create_token",
+            "list_tokens",
+            "revoke_token",
+        ),
+    ),
 }
 
 _ACTIONS: Final[dict[type[BaseModel], Action]] = {

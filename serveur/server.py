@@ -30,6 +30,7 @@ from serveur import protocol as P
 from serveur.core.engine import Core
 from serveur.core.hub import Subscriber
 from serveur.errors import InvalidField, NotFound, RateLimited, ServeurError, Unauthorized
+from serveur.security.accounts import handle_account
 from serveur.security.auth import Principal, RateLimiter, Role, authorize, visible
 from serveur.security.sessions import CLOSE_AUTH, Sessions
 from serveur.web.static import default_site
@@ -333,6 +334,8 @@ class Server:
             return await self._data(conn, msg)
         if msg.clientmsg == "ping":
             return {"time": self.core.clock.epoch()}
+        if msg.clientmsg == "account":
+            return await handle_account(self.sessions, p, msg)
         table = p.table if p is not None and p.role is Role.TABLE_SCREEN else None
         return await self.core.handle(msg, actor=p.actor if p else None, table=table)
 
@@ -368,6 +371,12 @@ class Server:
             v = getattr(msg, k, None)
             if v is not None:
                 data[k] = v
+        if verb == "account":  # the role asked for and the token id (never a secret)
+            for k in ("role", "token", "table", "robot"):
+                v = getattr(msg, k, None)
+                if v is not None:
+                    data[k] = v
+            target = target or getattr(msg, "username", None)
         await self.sessions.audit(p, conn.peer, verb, outcome, target=target, data=data)
 
     async def _data(self, conn: _Conn, msg: Any) -> dict[str, Any]:

@@ -66,6 +66,15 @@ PAYLOAD = {
     "dish": "order",
     "ack": "alert",
     "clear": "table",
+    # owners only: the fuzz connections (staff) are refused, but were one let through...
+    "account list_users": "users",
+    "account add_user": "password",
+    "account set_role": "user",
+    "account reset_password": "password",
+    "account remove_user": "user",
+    "account create_token": "token",
+    "account list_tokens": "tokens",
+    "account revoke_token": "device",
 }
 REPLY_TIMEOUT = 30.0  # wall seconds; generous for a loaded 2-core box
 MAX_QUEUED = 6  # trips waiting for a robot kept by housekeeping

@@ -523,6 +523,38 @@ def login_msgs() -> st.SearchStrategy[Obj]:
     )
 
 
+_USERS = st.sampled_from(["owner", "staff", "alice", "nobody", "\u00e9l\u00e9onore"])
+_USER_ROLES = st.sampled_from(["owner", "staff"])
+
+
+def _account(action: str, **fields: st.SearchStrategy[Node]) -> st.SearchStrategy[Obj]:
+    """An owner's ``account`` request: the fuzz connections are staff, so ``forbidden``."""
+    return st.fixed_dictionaries(fields).map(
+        lambda f: obj(clientmsg="account", id=IdSlot(), action=action, **f)
+    )
+
+
+@st.composite
+def account_create_token(draw: st.DrawFn) -> Obj:
+    if draw(st.booleans()):
+        return obj(
+            clientmsg="account",
+            id=IdSlot(),
+            action="create_token",
+            role="robot-screen",
+            robot=draw(_any_robot),
+        )
+    return obj(
+        clientmsg="account",
+        id=IdSlot(),
+        action="create_token",
+        role="table-screen",
+        table=draw(_table),
+        label=draw(st.text(max_size=20)),
+        base="http://127.0.0.1:8765",
+    )
+
+
 #: verb (or "verb sub-type") -> strategy of valid messages. One line per verb.
 VERB_STRATEGIES: dict[str, st.SearchStrategy[Obj]] = {
     "login": login_msgs(),
@@ -550,6 +582,14 @@ VERB_STRATEGIES: dict[str, st.SearchStrategy[Obj]] = {
     "dish": dish_msgs(),
     "ack": st.builds(lambda a: obj(clientmsg="ack", id=IdSlot(), alert=a), st.integers(1, 30)),
     "clear": st.builds(lambda t: obj(clientmsg="clear", id=IdSlot(), table=t), _table),
+    "account list_users": _account("list_users"),
+    "account add_user": _account("add_user", username=_USERS, role=_USER_ROLES),
+    "account set_role": _account("set_role", username=_USERS, role=_USER_ROLES),
+    "account reset_password": _account("reset_password", username=_USERS),
+    "account remove_user": _account("remove_user", username=_USERS),
+    "account create_token": account_create_token(),
+    "account list_tokens": _account("list_tokens", all=st.booleans()),
+    "account revoke_token": _account("revoke_token", token=st.integers(1, 30)),
 }
 
 
@@ -623,7 +663,11 @@ _EXTRA_KEYS = st.sampled_from(
 
 def _model(msg: Obj) -> type[Any] | None:
     verb = msg.get("clientmsg")
-    sub = {"create": "type", "control": "action"}.get(verb) if isinstance(verb, str) else None
+    sub = (
+        {"create": "type", "control": "action", "account": "action"}.get(verb)
+        if isinstance(verb, str)
+        else None
+    )
     label = f"{verb} {msg.get(sub)}" if sub else verb
     return _MODELS.get(label) if isinstance(label, str) else None
 
@@ -654,6 +698,14 @@ _MODELS: dict[str, type[Any]] = {
     "dish": P.DishMsg,
     "ack": P.AckMsg,
     "clear": P.ClearMsg,
+    "account list_users": P.AccountListUsers,
+    "account add_user": P.AccountAddUser,
+    "account set_role": P.AccountSetRole,
+    "account reset_password": P.AccountResetPassword,
+    "account remove_user": P.AccountRemoveUser,
+    "account create_token": P.AccountCreateToken,
+    "account list_tokens": P.AccountListTokens,
+    "account revoke_token": P.AccountRevokeToken,
 }
 
 
@@ -692,6 +744,8 @@ _TAGS = (
     "goto",
     "login",
     "void",
+    "add_user",
+    "revoke_token",
 )
 _BORROWED: tuple[tuple[str, Node], ...] = (
     ("robot", "r1"),

@@ -416,6 +416,8 @@ def test_action_of_and_robot_of() -> None:
         "dish": (None, None),
         "ack": (None, None),
         "clear": (None, None),
+        # people and screen tokens (owners): no robot's status either
+        **{f"account {a}": (None, None) for a in P._SUBTAGS["account"][1]},
     }
     seen = {}
     for ex in _client_examples():
@@ -920,7 +922,7 @@ def test_schema_covers_every_message() -> None:
     assert _consts(s["client"], "type") == set(P._SUBTAGS["create"][1])
     assert _consts(s["client"], "action") == {
         a.value for a in Action if a.value in P._SUBTAGS["control"][1]
-    }
+    } | set(P._SUBTAGS["account"][1])
     assert _consts(s["server"], "servermsg") == {"ok", "error", "update"}
     for part in s.values():
         for ref in _refs(part):

@@ -39,7 +39,8 @@ to that block. Its space-separated words:
 * ``fill=a,b``: the request's ids that only the run knows, filled in before it is sent:
   ``order`` (the newest order; ``order:S``: the newest in status ``S``), ``orders`` (the
   orders the ``orders=`` hint just created), ``task`` and ``stop`` (``r1``'s current trip and
-  stop), ``alert`` (the active alert of the documented reply's kind and subject).
+  stop), ``alert`` (the active alert of the documented reply's kind and subject), ``device``
+  (the id of the token the latest ``account`` ``create_token`` made, into ``token``).
 * ``token=ROLE:ROBOT``: replace the request's ``token`` by a fresh token of that role.
 * ``loose=a,b``: more volatile keys for this block. ``sample=k``: under key ``k`` the example
   lists some of the records (each must match one record the server sent; the real list may be
@@ -333,6 +334,7 @@ class World:
     made: list[int] = field(default_factory=list)  # orders the latest ``orders=`` hint created
     screens: dict[str, Raw] = field(default_factory=dict)  # table screens (``as=``)
     alert: int | None = None  # the alert the latest ``fill=alert`` named
+    device: int | None = None  # the token the latest ``account create_token`` made
 
     def watched(self) -> list[dict[str, Any]]:
         return [
@@ -572,6 +574,9 @@ async def _fill(w: World, msg: dict[str, Any], fill: str, reply: Block | None) -
 
             await c.until(lambda: active() is not None, what=f"alert {want['kind']}")
             msg["alert"] = w.alert = active()
+        elif name == "device":
+            assert w.device is not None, "fill=device before any create_token"
+            msg["token"] = w.device
         else:
             raise AssertionError(f"fill: unknown {name!r}")
 
@@ -601,6 +606,8 @@ async def _send(w: World, step: Step) -> None:
         got = await w.staff.request(msg)
     if got["servermsg"] == "error":
         w.codes.add(got["code"])
+    if msg["clientmsg"] == "account" and msg.get("action") == "create_token" and "device" in got:
+        w.device = got["device"]["id"]
     if reply is None:
         if got["servermsg"] != "ok":
             _fail(step, "documented without a reply, so it must succeed", [json.dumps(got)])

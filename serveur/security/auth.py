@@ -5,7 +5,8 @@ Pure code, no I/O: the server asks :func:`authorize` before every instruction an
 
 The roles (docs/security.md has the threat model behind them):
 
-* **owner** — everything, including registering robots and reading the audit trail;
+* **owner** — everything, including registering robots, reading the audit trail and managing
+  accounts and screen tokens (scope ``accounts``, which only an owner's session carries);
 * **staff** — orders, carts (tasks), robot control, waypoints, every topic;
 * **robot-screen** — bound to one robot: its own record, trip and tray, and
   next / stop / continue / cancel for that robot only (it sits in the dining room, where
@@ -78,6 +79,7 @@ class Scope(StrEnum):
     ROBOTS = "robots"  # register robots
     AUDIT = "audit"  # read the audit trail
     MENU = "menu"  # edit the menu
+    ACCOUNTS = "accounts"  # people and screen tokens (owners only: never a token's scope)
 
 
 STAFF_SCOPES: Final = frozenset(
@@ -161,6 +163,8 @@ def required_scope(msg: Any) -> Scope:
         return Scope.CONTROL
     if verb in ("next", "stop", "continue", "cancel"):
         return Scope.TASKS
+    if verb == "account":
+        return Scope.ACCOUNTS
     raise Forbidden(f"no rule for {verb!r}")  # a new verb must get a rule before anyone uses it
 
 

@@ -182,6 +182,10 @@ class Sessions:
         chosen = auth.parse_scopes(scopes)
         if chosen and role is not Role.INTEGRATION:
             raise InvalidField("only integration tokens take scopes; other roles have fixed ones")
+        if Scope.ACCOUNTS in chosen:
+            raise InvalidField(
+                "the accounts scope is an owner's, never a token's", scope="accounts"
+            )
         if role is Role.INTEGRATION and not chosen:
             raise InvalidField("an integration token needs at least one scope")
         now = self.clock.epoch()
@@ -274,6 +278,10 @@ class Sessions:
             if not closers:
                 del self._live[p.token_id]
 
+    def end(self, token_ids: Sequence[int], why: str) -> None:
+        """Close the live connections of these (revoked) tokens now, code 4001."""
+        self._kick(token_ids, why)
+
     def _kick(self, token_ids: Sequence[int], why: str) -> None:
         for tid in token_ids:
             for close in list(self._live.pop(tid, ())):
@@ -334,7 +342,7 @@ def principal_of(rec: TokenRecord) -> Principal:
     elif role is Role.STAFF:
         scopes = auth.STAFF_SCOPES
     elif role is Role.INTEGRATION:
-        known = {s.value for s in Scope}
+        known = {s.value for s in Scope} - {Scope.ACCOUNTS.value}
         scopes = frozenset(Scope(s) for s in rec.scopes if s in known)
     else:
         scopes = frozenset()

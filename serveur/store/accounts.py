@@ -185,6 +185,33 @@ class AccountsMixin:
 
         return await self._portable(work, write=True)
 
+    async def set_role(self, name: str, role: str, *, now: float) -> tuple[UserRecord, list[int]]:
+        """Make a user owner or staff; their sessions end (a session carries its role).
+
+        The last owner cannot become staff (``conflict``); an unchanged role changes nothing
+        and ends no session.
+        """
+        if role not in _USER_ROLES:
+            raise InvalidField(f"a user's role is owner or staff, not {role!r}", role=role)
+
+        async def work(db: SqlTx) -> tuple[UserRecord, list[int]]:
+            user = await _one(db, f"{_USER} WHERE name = ?", (name,))
+            if user is None:
+                raise NotFound(f"no user named {name!r}", user=name)
+            if user["role"] == role:
+                return _user(user), []
+            if user["role"] == "owner":
+                owners = await db.all("SELECT name FROM users WHERE role = 'owner'", ())
+                if len(owners) == 1:
+                    raise Conflict("cannot demote the last owner", user=name)
+            await db.run("UPDATE users SET role = ? WHERE name = ?", (role, name))
+            ended = await _revoke_where(db, "user_name = ? AND kind = 'session'", (name,), now)
+            row = await _one(db, f"{_USER} WHERE name = ?", (name,))
+            assert row is not None
+            return _user(row), ended
+
+        return await self._portable(work, write=True)
+
     async def set_password(self, name: str, pw_hash: str, *, now: float) -> list[int]:
         """Change a password and end every session of that user (ids returned)."""
 
@@ -260,17 +287,21 @@ class AccountsMixin:
         await self._portable(work, write=True)
 
     async def list_tokens(
-        self, *, include_ended: bool = False, now: float = 0.0
+        self, *, include_ended: bool = False, now: float = 0.0, kind: str | None = None
     ) -> list[TokenRecord]:
+        """Tokens by id; active ones unless ``include_ended``; of one ``kind`` if given."""
+
         async def work(db: SqlTx) -> list[TokenRecord]:
-            if include_ended:
-                rows = await db.all(f"{_TOKEN} ORDER BY id")
-            else:
-                rows = await db.all(
-                    f"{_TOKEN} WHERE revoked_at IS NULL AND (expires_at IS NULL OR expires_at > ?)"
-                    " ORDER BY id",
-                    (now,),
-                )
+            where: list[str] = []
+            params: list[Any] = []
+            if not include_ended:
+                where.append("revoked_at IS NULL AND (expires_at IS NULL OR expires_at > ?)")
+                params.append(now)
+            if kind is not None:
+                where.append("kind = ?")
+                params.append(kind)
+            cond = f" WHERE {' AND '.join(where)}" if where else ""
+            rows = await db.all(f"{_TOKEN}{cond} ORDER BY id", params)
             return [_token(r) for r in rows]
 
         return await self._portable(work, write=False)

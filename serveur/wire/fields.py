@@ -94,6 +94,7 @@ VERBS: Final = (
     "dish",
     "ack",
     "clear",
+    "account",
 )
 
 #: Limits of the work area: far beyond any restaurant, close enough to catch unit mistakes.

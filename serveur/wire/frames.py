@@ -40,8 +40,10 @@ __all__ = [
     "ServerMessage",
     "Session",
     "Snapshot",
+    "TokenInfo",
     "UpdateData",
     "UpdateMsg",
+    "UserInfo",
     "dump",
     "error_frame",
     "ok_frame",
@@ -170,6 +172,46 @@ class OkReply(_ServerModel):
     dish: MenuItem | None = Field(default=None, description="create dish: the menu entry")
     table: str | None = Field(default=None, description="clear: the table cleared")
     cleared: bool | None = Field(default=None, description="clear: false if it was not blocked")
+    users: list[UserInfo] | None = Field(default=None, description="account list_users")
+    user: UserInfo | None = Field(
+        default=None, description="account add_user, set_role, reset_password, remove_user"
+    )
+    password: str | None = Field(
+        default=None, description="account add_user, reset_password: shown once"
+    )
+    tokens: list[TokenInfo] | None = Field(default=None, description="account list_tokens")
+    device: TokenInfo | None = Field(
+        default=None, description="account create_token, revoke_token: the token's record"
+    )
+    token: str | None = Field(default=None, description="account create_token: shown once")
+    link: str | None = Field(
+        default=None, description="account create_token: the screen's setup path, token included"
+    )
+    qr: str | None = Field(default=None, description="account create_token: SVG of the QR code")
+
+
+class UserInfo(_ServerModel):
+    """A person who logs in (never their password)."""
+
+    name: str
+    role: Literal["owner", "staff"]
+    created_at: float
+    changed_at: float = Field(description="when the password last changed")
+
+
+class TokenInfo(_ServerModel):
+    """A device token as stored: never the token itself, only what it is for."""
+
+    id: int
+    role: Literal["owner", "staff", "robot-screen", "table-screen", "integration"]
+    robot: str | None = None
+    table: str | None = None
+    scopes: list[str]
+    label: str
+    created_at: float
+    expires_at: float | None = None
+    revoked_at: float | None = None
+    last_used_at: float | None = None
 
 
 class Session(_ServerModel):
