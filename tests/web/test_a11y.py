@@ -5,7 +5,8 @@ git-ignored tests/node/node_modules, as .ci/run does); the test skips without it
 fails without it in CI (``$CI`` set). The pages' Content-Security-Policy forbids an inline
 script, so the browser context bypasses it to inject axe.
 
-Checked: the staff console after login on each of its tabs (the owner's, so the menu tab too),
+Checked: the staff console after login on each of its tabs (the owner's, so the menu and
+accounts tabs too, the latter also showing a new password and a screen's QR code),
 a robot's screen and a table's screen, with a trip under way so status badges and buttons show.
 The WCAG 2.1 A/AA rules and best practices run, with ``label-content-name-mismatch`` (an
 experimental rule: a button whose accessible name does not contain its visible words).
@@ -93,12 +94,19 @@ async def test_no_serious_or_critical_violation_on_any_page(
         found["login"] = await violations(staff)
         await log_in(staff, "owner", r.app.first_owner_password or "")
         await expect(staff.get_by_role("button", name="Select r1")).to_be_visible()
-        for tab in ("Map", "Issue task", "New order", "Kitchen", "Menu"):
+        for tab in ("Map", "Issue task", "New order", "Kitchen", "Menu", "Accounts"):
             await staff.get_by_role("tab", name=tab).click()
             await expect(staff.get_by_role("tab", name=tab)).to_have_attribute(
                 "aria-selected", "true"
             )
             found[f"staff {tab}"] = await violations(staff)
+        # The owner's Accounts tab with what it shows once: a password and a screen's QR code.
+        await staff.get_by_label("User name").fill("sam")
+        await staff.get_by_role("button", name="Add person").click()
+        await expect(staff.get_by_test_id("password")).to_be_visible()
+        await staff.get_by_role("button", name="Make QR code").click()
+        await expect(staff.locator("img.qr").first).to_be_visible()
+        found["staff Accounts, shown once"] = await violations(staff)
 
         robot = await open_page(
             browser, f"{base}/robot/r1#token={await r.app.issue_token('robot-screen', robot='r1')}"

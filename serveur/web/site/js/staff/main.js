@@ -13,6 +13,7 @@ import { NewOrderPanel } from "./neworder.js";
 import { RegisterRobot } from "./register.js";
 import { KitchenPanel } from "./kitchen.js";
 import { MenuPanel } from "./menu.js";
+import { AccountsPanel } from "./accounts.js";
 import { AlertsPanel } from "./alerts.js";
 import { onLangChange, roleName, t } from "../i18n.js";
 
@@ -29,11 +30,14 @@ const showWho = () => {
   const s = conn.session;
   if (!s) return;
   who.textContent = s.user ? t("staff.who", { user: s.user, role: roleName(s.role) }) : roleName(s.role);
-  // The menu is the owner's: its tab shows only in an owner's session.
+  // The menu and the accounts are the owner's: their tabs show only in an owner's session.
   const owner = s.role === "owner";
-  const menuTab = document.getElementById("tab-menu");
-  menuTab.hidden = !owner;
-  if (!owner && menuTab.getAttribute("aria-selected") === "true") document.getElementById("tab-map").click();
+  for (const id of ["tab-menu", "tab-accounts"]) {
+    const tab = document.getElementById(id);
+    tab.hidden = !owner;
+    if (!owner && tab.getAttribute("aria-selected") === "true") document.getElementById("tab-map").click();
+  }
+  if (owner) accounts.refresh();
 };
 conn.addEventListener("session", showWho);
 onLangChange(showWho);
@@ -76,6 +80,7 @@ new IssuePanel(document.getElementById("panel-issue"), conn, live);
 new NewOrderPanel(document.getElementById("panel-order"), conn, live);
 new KitchenPanel(document.getElementById("panel-kitchen"), conn, live);
 new MenuPanel(document.getElementById("panel-menu"), conn, live);
+const accounts = new AccountsPanel(document.getElementById("panel-accounts"), conn, live);
 new AlertsPanel(
   {
     banner: document.getElementById("alerts"),
@@ -126,6 +131,7 @@ function setupTabs() {
       document.getElementById(t.getAttribute("aria-controls")).hidden = !on;
     }
     if (tab.id === "tab-map") view.requestDraw();
+    if (tab.id === "tab-accounts") accounts.refresh();
     tab.scrollIntoView({ block: "nearest", inline: "nearest" }); // a phone's tab row scrolls
   };
   tabs.forEach((t) => t.addEventListener("click", () => show(t)));
