@@ -243,7 +243,8 @@ def add_accounts_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser
     mk.add_argument("--table", help="the table a table-screen token is bound to")
     mk.add_argument(
         "--scope",
-        help="integration scopes, comma-separated: " + ", ".join(s.value for s in auth.Scope),
+        help="integration scopes, comma-separated: "
+        + ", ".join(s.value for s in auth.Scope if s is not auth.Scope.ACCOUNTS),
     )
     mk.add_argument("--label", default="", help="a note: which device or script")
     mk.add_argument(

@@ -11,6 +11,7 @@ import sqlite3
 from pathlib import Path
 from typing import Any
 
+import pytest
 from websockets.asyncio.client import ClientConnection, connect
 
 from serveur.app import App
@@ -118,7 +119,7 @@ async def test_screen_tokens_created_listed_and_revoked(tmp_path: Path) -> None:
 
 async def test_refusals_change_nothing(tmp_path: Path) -> None:
     async with bare_server(tmp_path) as app:
-        ws, session = await _owner(app)
+        ws, _ = await _owner(app)
         await request(ws, _account("add_user", username="bob"))
         before = _db(tmp_path)
         refusals: list[tuple[dict[str, Any], str]] = [
@@ -145,7 +146,7 @@ async def test_refusals_change_nothing(tmp_path: Path) -> None:
                 "invalid_field",
             ),
             (_account("revoke_token", token=999), "not_found"),
-            (_account("revoke_token", token=session_id(session)), "conflict"),
+            (_account("revoke_token", token=own_session_id(tmp_path)), "conflict"),
             (_account("delete_everything"), "invalid_field"),
         ]
         for body, code in refusals:
@@ -182,10 +183,13 @@ async def test_refusals_change_nothing(tmp_path: Path) -> None:
     assert ("user:owner", "account", "not_found") in trail
 
 
-def session_id(session: dict[str, Any]) -> int:
-    """The owner's own session token's id: the first token of a fresh database."""
-    del session
-    return 1
+def own_session_id(tmp_path: Path) -> int:
+    """The id of the owner's session token (the one asking), from the database."""
+    with contextlib.closing(sqlite3.connect(tmp_path / "s.db")) as conn:
+        (tid,) = conn.execute(
+            "SELECT id FROM tokens WHERE user_name = 'owner' AND revoked_at IS NULL"
+        ).fetchone()
+        return int(tid)
 
 
 async def test_an_owner_may_hand_over_then_step_down(tmp_path: Path) -> None:
@@ -195,3 +199,28 @@ async def test_an_owner_may_hand_over_then_step_down(tmp_path: Path) -> None:
         down = await request(ws, _account("set_role", username="owner", role="staff"))
         assert down["user"]["role"] == "staff"
         assert await closed_code(ws) == CLOSE_AUTH  # their own owner session ended
+
+
+async def test_no_token_ever_carries_the_accounts_scope(tmp_path: Path) -> None:
+    from serveur.errors import InvalidField
+    from serveur.security import auth
+
+    async with bare_server(tmp_path) as app:
+        assert app.sessions is not None
+        before = _db(tmp_path)
+        with pytest.raises(InvalidField, match="owner's, never a token's"):
+            await app.sessions.create_token("integration", scopes=["accounts", "read"])
+        assert _db(tmp_path) == before
+        # Even one written straight into the database would not grant it.
+        await app.store.add_token(
+            auth.token_digest("srv_planted-token-0000"),
+            kind="device",
+            role="integration",
+            scopes=["accounts", "read"],
+            now=0.0,
+        )
+        async with connect(app.url) as ws:
+            session = (await login(ws, token="srv_planted-token-0000"))["session"]
+            assert session["scopes"] == ["read"]
+            reply = await request(ws, _account("list_users"))
+            assert reply["code"] == "forbidden"
