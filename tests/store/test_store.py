@@ -1031,3 +1031,19 @@ async def test_two_stores_on_one_file_assign_each_order_once(backend: Backend) -
                 assert order.task_id is not None
                 assert order.id in [o for st in tasks[order.task_id].stops for o in st.orders]
         assert len(claimed) > 0
+
+
+async def test_set_role_keeps_an_owner_and_ends_the_changed_users_sessions(store: Store) -> None:
+    # Portable SQL (store/accounts.py): run on both backends.
+    from serveur.errors import Conflict
+
+    await store.add_user("ana", "owner", "h1", now=T0)
+    await store.add_user("bo", "staff", "h2", now=T0)
+    user, ended = await store.set_role("bo", "owner", now=T0 + 1)
+    assert (user.name, user.role) == ("bo", "owner")
+    _, ended = await store.set_role("bo", "owner", now=T0 + 2)
+    assert ended == []  # unchanged: no session ends
+    await store.set_role("ana", "staff", now=T0 + 3)
+    with pytest.raises(Conflict):
+        await store.set_role("bo", "staff", now=T0 + 4)  # the last owner
+    assert {u.name: u.role for u in await store.list_users()} == {"ana": "staff", "bo": "owner"}
