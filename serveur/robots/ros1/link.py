@@ -59,6 +59,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from serveur.clock import Clock
 from serveur.errors import LinkError, RosbridgeError
 from serveur.robots import rosbridge as rb
+from serveur.robots.deadman import DeadManSwitch
 from serveur.robots.driver import LinkListener
 from serveur.robots.names import RosNames
 
@@ -142,9 +143,7 @@ class RobotLink:
         self._heartbeat = heartbeat
         self._stall = stall
         self._names = names or RosNames()
-        self._teleop_timeout = teleop_timeout
-        self._teleop_sent = 0.0  # clock time of the last non-zero twist sent
-        self._failsafe: asyncio.Task[None] | None = None
+        self._deadman = DeadManSwitch(name, clock, teleop_timeout, self._deadman_stop)
         self._halted = False  # stopped for shutdown: nothing may move the robot any more
         self._ack_timeout = ack_timeout
         self._ack_retries = ack_retries
@@ -173,7 +172,6 @@ class RobotLink:
         self._status_ms = status_ms
         self._battery_ms = max(battery_ms, BATTERY_MS)
         self._pose_watched = pose_watched
-        self._teleop = False
         self._pose_ms: int | None = None  # the throttle of our /amcl_pose subscription
         self._idle_status_ms = max(status_ms, min(IDLE_STATUS_MS, int(heartbeat * 500)))
         self._status_sub_ms: int | None = None  # ... and of our /move_base/status one
@@ -195,7 +193,7 @@ class RobotLink:
             self._task = asyncio.create_task(self._run(), name=f"link-{self.name}")
 
     async def close(self) -> None:
-        self._stop_failsafe()
+        self._deadman.release()
         task, self._task = self._task, None
         if task is not None:
             task.cancel()
@@ -440,8 +438,7 @@ class RobotLink:
         """
         self._halted = True
         self._goal = None
-        self._teleop = False
-        self._stop_failsafe()
+        self._deadman.release()
         with contextlib.suppress(LinkError):
             await self._send(self._pub("/move_base/cancel", _CANCEL_ALL), halting=True)
             await self._send(self._pub("/cmd_vel", rb.twist(0.0, 0.0, 0.0)), halting=True)
@@ -503,37 +500,18 @@ class RobotLink:
         move_base does not listen to ``/cmd_vel`` (its controller drives the base while a goal
         is active), so callers cancel a goal before steering by hand.
         """
-        self._teleop = (vx, vy, wz) != (0.0, 0.0, 0.0)
+        self._deadman.twist((vx, vy, wz) != (0.0, 0.0, 0.0))
         await self._update_rates()
         await self._send(self._pub("/cmd_vel", rb.twist(vx, vy, wz)))
-        if self._teleop:
-            self._teleop_sent = self._clock.now()
-            if self._failsafe is None or self._failsafe.done():
-                self._failsafe = asyncio.create_task(
-                    self._teleop_failsafe(), name=f"teleop-failsafe-{self.name}"
-                )
-        else:
-            self._stop_failsafe()
 
-    async def _teleop_failsafe(self) -> None:
-        timeout = self._teleop_timeout * self._clock.time_scale  # wall seconds on the clock
-        while self._teleop:
-            left = self._teleop_sent + timeout - self._clock.now()
-            if left > 0:
-                await self._clock.sleep(left)
-                continue
-            self._teleop = False
-            log.warning(
-                "%s: no joystick command for %.1fs, stopping", self.name, self._teleop_timeout
-            )
-            with contextlib.suppress(LinkError):
-                await self._send(self._pub("/cmd_vel", rb.twist(0.0, 0.0, 0.0)))
-            await self._update_rates()
+    async def _deadman_stop(self) -> None:
+        with contextlib.suppress(LinkError):
+            await self._send(self._pub("/cmd_vel", rb.twist(0.0, 0.0, 0.0)))
+        await self._update_rates()
 
-    def _stop_failsafe(self) -> None:
-        task, self._failsafe = self._failsafe, None
-        if task is not None and task is not asyncio.current_task():
-            task.cancel()
+    @property
+    def _teleop(self) -> bool:
+        return self._deadman.held
 
     async def initial_pose(self, x: float, y: float, yaw: float) -> None:
         await self._send(

@@ -52,6 +52,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from serveur.clock import Clock
 from serveur.errors import LinkError, RosbridgeError
 from serveur.robots import rosbridge as rb
+from serveur.robots.deadman import DeadManSwitch
 from serveur.robots.driver import LinkListener
 from serveur.robots.names import RosNames
 from serveur.robots.ros2 import messages as m2
@@ -126,7 +127,6 @@ class Nav2Link:
         self._open_timeout = open_timeout
         self._ssl = ssl if url[:6].lower() == "wss://" else None
         self._stall = stall
-        self._teleop_timeout = teleop_timeout
         self._names = names or RosNames(ros=2)
         self._ctl: ClientConnection | None = None  # subscriptions, cancels, teleop, pings
         self._nav: ClientConnection | None = None  # goals only (the Humble queue)
@@ -139,9 +139,7 @@ class Nav2Link:
         self._up = False
         self._halted = False
         self._stamped_cmd_vel = False
-        self._teleop = False
-        self._teleop_sent = 0.0
-        self._failsafe: asyncio.Task[None] | None = None
+        self._deadman = DeadManSwitch(name, clock, teleop_timeout, self._deadman_stop)
         self._scan_wanted = False
         self._pings = 0
         self._cmd_vel_type: str | None = None  # /cmd_vel's type, once rosapi said it
@@ -166,7 +164,7 @@ class Nav2Link:
             self._task = asyncio.create_task(self._run(), name=f"link-{self.name}")
 
     async def close(self) -> None:
-        self._stop_failsafe()
+        self._deadman.release()
         task, self._task = self._task, None
         if task is not None:
             task.cancel()
@@ -478,8 +476,7 @@ class Nav2Link:
     async def halt(self) -> None:
         self._halted = True
         self._goal = None
-        self._teleop = False
-        self._stop_failsafe()
+        self._deadman.release()
         with contextlib.suppress(LinkError):
             for gid in list(self._recent):
                 await self._cancel(gid, halting=True)
@@ -490,33 +487,12 @@ class Nav2Link:
         return rb.op_publish(self._t("/cmd_vel"), msg)
 
     async def teleop(self, vx: float, vy: float, wz: float) -> None:
-        self._teleop = (vx, vy, wz) != (0.0, 0.0, 0.0)
+        self._deadman.twist((vx, vy, wz) != (0.0, 0.0, 0.0))
         await self._send(self._twist_op(vx, vy, wz))
-        if self._teleop:
-            self._teleop_sent = self._clock.now()
-            if self._failsafe is None or self._failsafe.done():
-                self._failsafe = asyncio.create_task(
-                    self._teleop_failsafe(), name=f"teleop-failsafe-{self.name}"
-                )
-        else:
-            self._stop_failsafe()
 
-    async def _teleop_failsafe(self) -> None:
-        timeout = self._teleop_timeout * self._clock.time_scale
-        while self._teleop:
-            left = self._teleop_sent + timeout - self._clock.now()
-            if left > 0:
-                await self._clock.sleep(left)
-                continue
-            self._teleop = False
-            log.warning("%s: no joystick command for %.1fs, stopping", self.name, timeout)
-            with contextlib.suppress(LinkError):
-                await self._send(self._twist_op(0.0, 0.0, 0.0))
-
-    def _stop_failsafe(self) -> None:
-        task, self._failsafe = self._failsafe, None
-        if task is not None and task is not asyncio.current_task():
-            task.cancel()
+    async def _deadman_stop(self) -> None:
+        with contextlib.suppress(LinkError):
+            await self._send(self._twist_op(0.0, 0.0, 0.0))
 
     async def initial_pose(self, x: float, y: float, yaw: float) -> None:
         msg = m2.pose_with_covariance_stamped(x, y, yaw, stamp=0.0, frame_id=self._names.frame)
