@@ -38,11 +38,14 @@ if TYPE_CHECKING:
 
 __all__ = [
     "FIXED_ARRAY_TYPES",
+    "MALFORMED",
     "STATUS_LEVELS",
     "TERMINAL_STATUSES",
     "TOPIC_TYPES",
     "BatteryStatus",
     "GoalStatus",
+    "amcl_pose_from_msg",
+    "battery_fraction",
     "battery_state",
     "decode",
     "encode",
@@ -531,6 +534,36 @@ def point_from_msg(p: Mapping[str, Any]) -> tuple[float, float, float]:
 def pose_msg(x: float, y: float, yaw: float) -> dict[str, Any]:
     """geometry_msgs/Pose of a planar pose."""
     return {"position": {"x": x, "y": y, "z": 0.0}, "orientation": quaternion_from_yaw(yaw)}
+
+
+#: What parsing a robot's frame raises when the frame is malformed: a driver drops the frame
+#: (1e999 is inf and int(inf) overflows, 10**400 overflows float(), deep nesting recurses).
+MALFORMED: Final = (
+    RosbridgeError,
+    KeyError,
+    TypeError,
+    ValueError,
+    AttributeError,
+    ArithmeticError,
+    RecursionError,
+)
+
+
+def amcl_pose_from_msg(msg: Mapping[str, Any]) -> tuple[float, float, float, float]:
+    """(x, y, yaw, stamp) of a PoseWithCovarianceStamped (``/amcl_pose``, ROS1 or ROS 2
+    time); RosbridgeError on a non-finite pose."""
+    x, y, yaw = pose_from_msg(msg["pose"]["pose"])
+    if not all(math.isfinite(v) for v in (x, y, yaw)):
+        raise RosbridgeError("non-finite pose")
+    return x, y, yaw, from_ros_time(msg["header"]["stamp"])
+
+
+def battery_fraction(msg: Mapping[str, Any]) -> float | None:
+    """A BatteryState's ``percentage`` clamped to 0..1; None when not measured (NaN, null)."""
+    pct = msg.get("percentage")
+    if isinstance(pct, int | float) and math.isfinite(pct):
+        return max(0.0, min(1.0, float(pct)))
+    return None
 
 
 def pose_from_msg(pose: Mapping[str, Any]) -> tuple[float, float, float]:

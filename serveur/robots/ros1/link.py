@@ -46,7 +46,6 @@ import asyncio
 import contextlib
 import itertools
 import logging
-import math
 import secrets
 import ssl as ssl_module
 from collections.abc import Mapping
@@ -336,15 +335,7 @@ class RobotLink:
                 self._on_publish(self._names.default_of(topic) or topic, op.get("msg"))
             elif op["op"] == "status":
                 log.info("%s: rosbridge says %s: %s", self.name, op.get("level"), op.get("msg"))
-        except (
-            RosbridgeError,
-            KeyError,
-            TypeError,
-            ValueError,
-            AttributeError,
-            ArithmeticError,  # 1e999 is inf (int(inf) overflows), 10**400 overflows float()
-            RecursionError,
-        ) as exc:
+        except rb.MALFORMED as exc:
             log.warning("%s: dropped malformed frame from robot: %s", self.name, exc)
         except Exception:
             # Nothing a robot sends may kill its link: whatever this frame broke, the next
@@ -357,11 +348,8 @@ class RobotLink:
         if topic == "/move_base/status":
             self._on_status(msg)
         elif topic == "/amcl_pose":
-            x, y, yaw = rb.pose_from_msg(msg["pose"]["pose"])
-            if not all(math.isfinite(v) for v in (x, y, yaw)):
-                raise RosbridgeError("non-finite pose")
+            x, y, yaw, stamp = rb.amcl_pose_from_msg(msg)
             self.pose = (x, y, yaw)
-            stamp = rb.from_ros_time(msg["header"]["stamp"])
             self._listener.pose(self.name, x, y, yaw, stamp)
             if not self._have_pose:
                 self._have_pose = True
@@ -372,10 +360,10 @@ class RobotLink:
                 str(st["goal_id"]["id"]), int(st["status"]), str(st.get("text", ""))
             )
         elif topic == "/battery_state":
-            pct = msg.get("percentage")
-            if isinstance(pct, int | float) and math.isfinite(pct):
-                self.battery = max(0.0, min(1.0, float(pct)))
-                self._listener.battery(self.name, self.battery)
+            fraction = rb.battery_fraction(msg)
+            if fraction is not None:
+                self.battery = fraction
+                self._listener.battery(self.name, fraction)
         elif topic == "/scan":
             self._listener.scan(self.name, msg)
         elif topic == "/map":

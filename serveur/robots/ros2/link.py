@@ -305,15 +305,7 @@ class Nav2Link:
                 self._on_result(op)
             elif kind == "status":
                 log.info("%s: rosbridge says %s: %s", self.name, op.get("level"), op.get("msg"))
-        except (
-            RosbridgeError,
-            KeyError,
-            TypeError,
-            ValueError,
-            AttributeError,
-            ArithmeticError,
-            RecursionError,
-        ) as exc:
+        except rb.MALFORMED as exc:
             log.warning("%s: dropped malformed frame from robot: %s", self.name, exc)
         except Exception:
             log.exception("%s: error handling a frame from the robot (dropped)", self.name)
@@ -344,19 +336,17 @@ class Nav2Link:
         if not isinstance(msg, dict):
             raise RosbridgeError(f"{topic}: msg is not an object")
         if topic == "/amcl_pose":
-            x, y, yaw = rb.pose_from_msg(msg["pose"]["pose"])
-            if not all(math.isfinite(v) for v in (x, y, yaw)):
-                raise RosbridgeError("non-finite pose")
+            x, y, yaw, stamp = rb.amcl_pose_from_msg(msg)
             self.pose = (x, y, yaw)
-            self._listener.pose(self.name, x, y, yaw, rb.from_ros_time(msg["header"]["stamp"]))
+            self._listener.pose(self.name, x, y, yaw, stamp)
             if not self._have_pose:
                 self._have_pose = True
                 self._maybe_up()
         elif topic == "/battery_state":
-            pct = msg.get("percentage")
-            if isinstance(pct, int | float) and math.isfinite(pct):
-                self.battery = max(0.0, min(1.0, float(pct)))
-                self._listener.battery(self.name, self.battery)
+            fraction = rb.battery_fraction(msg)
+            if fraction is not None:
+                self.battery = fraction
+                self._listener.battery(self.name, fraction)
         elif topic == "/scan":
             self._listener.scan(self.name, msg)
         elif topic == "/map":
