@@ -47,7 +47,7 @@ from serveur.domain import (
 from serveur.errors import InvalidField
 from serveur.status import RobotMode, RobotStatus
 from serveur.store.accounts import SqlTx, TokenRecord, UserRecord
-from serveur.store.service import ServiceMixin
+from serveur.store.service import ServiceMixin, check_note, check_quantity
 
 __all__ = [
     "SqlTx",
@@ -55,6 +55,7 @@ __all__ = [
     "TokenRecord",
     "UserRecord",
     "check_finite",
+    "check_new_order",
     "check_text",
     "check_trips",
     "digest",
@@ -332,6 +333,32 @@ def check_text(value: object, field: str) -> str:
 def link_json(link: Mapping[str, str] | None) -> str:
     """A robot's link options as the ``link`` column keeps them (sorted keys, compact)."""
     return json.dumps(dict(sorted((link or {}).items())), separators=(",", ":"))
+
+
+def check_new_order(
+    dish: str,
+    table: str,
+    *,
+    ready_at: float | None,
+    quantity: int,
+    note: str | None,
+    status: OrderStatus,
+) -> tuple[str | None, float | None, str]:
+    """A new order's fields checked, as every backend's ``add_order`` needs them: the note
+    (stripped, None if empty), ``ready_at`` (None while only ordered) and the fingerprint a
+    resend under the same key must match."""
+    check_text(dish, "dish")
+    check_text(table, "table")
+    check_quantity(quantity)
+    note = check_note(note)
+    if status not in (OrderStatus.ORDERED, OrderStatus.PENDING):
+        raise InvalidField("a new order is ordered or pending", field="status")
+    ready_at = check_finite(ready_at, "ready_at") if status is OrderStatus.PENDING else None
+    # The first fields alone for a plain dish ready at the pass: keys stored before quantity,
+    # note and status existed still match their resends.
+    plain = (quantity, note, status) == (1, None, OrderStatus.PENDING)
+    extra = [] if plain else [quantity, note, status.value]
+    return note, ready_at, digest(["order", dish, table, *extra])
 
 
 def check_finite(value: object, field: str) -> float:

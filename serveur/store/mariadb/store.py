@@ -31,8 +31,8 @@ from serveur.status import RobotMode, RobotStatus
 from serveur.store.base import (
     SqlTx,
     check_finite,
+    check_new_order,
     check_text,
-    digest,
     link_json,
     status_values,
     to_json,
@@ -51,7 +51,6 @@ from serveur.store.mariadb.rows import (
     sql_in,
 )
 from serveur.store.mariadb.tasks import MariaDBTasks
-from serveur.store.service import check_note, check_quantity
 
 __all__ = ["MAX_NAME", "MariaDBStore"]
 
@@ -354,23 +353,11 @@ class MariaDBStore(MariaDBTasks):
         note: str | None = None,
         status: OrderStatus = OrderStatus.PENDING,
     ) -> Order:
-        check_text(dish, "dish")
-        check_text(table, "table")
-        check_quantity(quantity)
-        note = check_note(note)
-        if status not in (OrderStatus.ORDERED, OrderStatus.PENDING):
-            raise InvalidField("a new order is ordered or pending", field="status")
-        ready_at = check_finite(ready_at, "ready_at") if status is OrderStatus.PENDING else None
+        note, ready_at, fingerprint = check_new_order(
+            dish, table, ready_at=ready_at, quantity=quantity, note=note, status=status
+        )
         if key is not None:
             check_name(key, "key")
-        # The first fields alone for a plain dish ready at the pass: keys stored before
-        # quantity, note and status existed still match their resends.
-        extra = (
-            [quantity, note, status.value]
-            if (quantity, note, status) != (1, None, OrderStatus.PENDING)
-            else []
-        )
-        fingerprint = digest(["order", dish, table, *extra])
 
         async def work(db: Tx) -> Order:
             if key is not None:

@@ -26,8 +26,13 @@ from typing import Any
 from serveur.domain import EventRecord, Order, OrderStatus, Robot, WaypointRecord
 from serveur.errors import Conflict, InvalidField, NotFound, StoreError
 from serveur.status import RobotMode, RobotStatus
-from serveur.store.base import check_finite, check_text, digest, link_json, status_values
-from serveur.store.service import check_note, check_quantity
+from serveur.store.base import (
+    check_finite,
+    check_new_order,
+    check_text,
+    link_json,
+    status_values,
+)
 from serveur.store.sqlite.rows import (
     BUSY_TIMEOUT_MS,
     EVENT,
@@ -287,23 +292,11 @@ class SQLiteStore(SQLiteTasks):
         note: str | None = None,
         status: OrderStatus = OrderStatus.PENDING,
     ) -> Order:
-        check_text(dish, "dish")
-        check_text(table, "table")
-        check_quantity(quantity)
-        note = check_note(note)
-        if status not in (OrderStatus.ORDERED, OrderStatus.PENDING):
-            raise InvalidField("a new order is ordered or pending", field="status")
-        ready_at = check_finite(ready_at, "ready_at") if status is OrderStatus.PENDING else None
+        note, ready_at, fingerprint = check_new_order(
+            dish, table, ready_at=ready_at, quantity=quantity, note=note, status=status
+        )
         if key is not None:
             check_text(key, "key")
-        # The first fields alone for a plain dish ready at the pass: keys stored before
-        # quantity, note and status existed still match their resends.
-        extra = (
-            [quantity, note, status.value]
-            if (quantity, note, status) != (1, None, OrderStatus.PENDING)
-            else []
-        )
-        fingerprint = digest(["order", dish, table, *extra])
         async with self._tx("write") as db:
             if key is not None:
                 done = await self._replayed(db, key, "order", fingerprint)
