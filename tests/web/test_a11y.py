@@ -22,7 +22,6 @@ import pytest
 
 from tests.web.test_ui import (
     TABLET,
-    browser,  # noqa: F401  (the module's browser fixture)
     expect,
     http_base,
     log_in,
@@ -75,7 +74,7 @@ async def violations(page: Any) -> list[dict[str, Any]]:
 
 async def test_no_serious_or_critical_violation_on_any_page(
     tmp_path: Path,
-    browser: Any,  # noqa: F811
+    browser: Any,
 ) -> None:
     need_axe()
     async with ui_restaurant(tmp_path) as r:

@@ -13,24 +13,24 @@ sleeps (playwright's ``expect`` and ``Client.until`` wait on the pages and the s
 from __future__ import annotations
 
 import contextlib
+import functools
 import re
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-import pytest_asyncio
 from websockets.asyncio.client import connect
 
-from serveur.app import App, RobotSpec
+from serveur.app import RobotSpec
 from serveur.clock import ScaledClock
 from serveur.core.engine import CoreConfig
-from serveur.maps.navigation import demo_map_path, load_demo
+from serveur.maps.navigation import demo_map_path
 from serveur.robot_sim import start_simulation
-from tests.conftest import TIME_SCALE, Client, Restaurant
+from tests.conftest import TIME_SCALE, Client, Restaurant, make_app
 from tests.test_e2e import activate
 from tests.web.test_i18n import tr
-from tests.web.test_ui import CHROMIUM, CHROMIUM_ARGS, Screens, http_base
+from tests.web.test_ui import CHROMIUM, Screens, http_base
 
 playwright_api = pytest.importorskip("playwright.async_api")
 expect = playwright_api.expect
@@ -42,23 +42,10 @@ pytestmark = [
 expect.set_options(timeout=20_000)
 
 
-@pytest_asyncio.fixture(loop_scope="module", scope="module")
-async def browser() -> AsyncIterator[Any]:
-    async with playwright_api.async_playwright() as p:
-        b = await p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-        try:
-            yield b
-        finally:
-            await b.close()
-
-
-def service_app(db: Path | str, clock: ScaledClock, specs: list[RobotSpec], port: int = 0) -> App:
-    """test_ui's app (a heartbeat a loaded machine keeps) with trips waiting for Go."""
-    nav_map, waypoints = load_demo()
-    cfg = CoreConfig(heartbeat=10.0, ack_timeout=5.0, auto_depart=False)
-    return App(
-        db, port=port, clock=clock, nav_map=nav_map, waypoints=waypoints, robots=specs, config=cfg
-    )
+#: test_ui's app (a heartbeat a loaded machine keeps) with trips waiting for Go.
+service_app = functools.partial(
+    make_app, config=CoreConfig(heartbeat=10.0, ack_timeout=5.0, auto_depart=False)
+)
 
 
 @contextlib.asynccontextmanager

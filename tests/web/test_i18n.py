@@ -15,13 +15,11 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import AsyncIterator
 from html.parser import HTMLParser
 from pathlib import Path
 from typing import Any
 
 import pytest
-import pytest_asyncio
 
 from serveur.web.static import StaticSite
 
@@ -62,7 +60,6 @@ try:
 
     from tests.web.test_ui import (
         CHROMIUM,
-        CHROMIUM_ARGS,
         Screens,
         http_base,
         staff_client,
@@ -190,18 +187,6 @@ def in_chromium(f: Any) -> Any:
     for mark in chromium:
         f = mark(f)
     return f
-
-
-@pytest_asyncio.fixture(loop_scope="module", scope="module")
-async def browser() -> AsyncIterator[Any]:
-    from playwright.async_api import async_playwright
-
-    async with async_playwright() as p:
-        b = await p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-        try:
-            yield b
-        finally:
-            await b.close()
 
 
 def tr(lang: str, key: str, **params: Any) -> str:

@@ -16,7 +16,6 @@ from typing import Any
 from tests.web.test_ui import (
     Screens,
     angle_diff,
-    browser,  # noqa: F401  (the module's browser fixture)
     expect,
     http_base,
     near,
@@ -40,7 +39,7 @@ FOCUSED = """() => {
 }"""
 
 
-async def test_calibrate_and_move_here_from_the_keyboard(tmp_path: Path, browser: Any) -> None:  # noqa: F811
+async def test_calibrate_and_move_here_from_the_keyboard(tmp_path: Path, browser: Any) -> None:
     async with ui_restaurant(tmp_path) as r:
         c = await staff_client(r)
         screens = Screens(browser, http_base(r), r.token)

@@ -15,7 +15,6 @@ from typing import Any
 
 from tests.web.test_ui import (
     Screens,
-    browser,  # noqa: F401  (the module's browser fixture)
     expect,
     http_base,
     log_in,
@@ -34,7 +33,7 @@ async def confirm(page: Any, yes: str) -> None:
 
 async def test_the_owner_manages_people_and_screens(
     tmp_path: Path,
-    browser: Any,  # noqa: F811
+    browser: Any,
 ) -> None:
     async with ui_restaurant(tmp_path) as r:
         screens = Screens(browser, http_base(r))

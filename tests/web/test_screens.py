@@ -15,7 +15,6 @@ import pytest
 
 from tests.web.test_ui import (
     SHOTS,
-    browser,  # noqa: F401  (the module's browser fixture)
     expect,
     http_base,
     log_in,
@@ -63,7 +62,7 @@ def in_view(box: dict[str, float] | None, size: dict[str, int]) -> bool:
 
 
 @pytest.mark.parametrize("name", list(SIZES))
-async def test_every_screen_size(tmp_path: Path, browser: Any, name: str) -> None:  # noqa: F811
+async def test_every_screen_size(tmp_path: Path, browser: Any, name: str) -> None:
     size = SIZES[name]
     async with ui_restaurant(tmp_path) as r:
         c = await staff_client(r)

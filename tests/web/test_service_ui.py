@@ -13,21 +13,21 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import re
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-import pytest_asyncio
 
-from serveur.app import App, RobotSpec
+from serveur.app import RobotSpec
 from serveur.clock import ScaledClock
 from serveur.core.engine import CoreConfig
-from serveur.maps.navigation import demo_map_path, load_demo
+from serveur.maps.navigation import demo_map_path
 from serveur.robot_sim import start_simulation
-from tests.conftest import TIME_SCALE, Client, Restaurant
-from tests.web.test_ui import CHROMIUM, CHROMIUM_ARGS, Screens, dismiss_toasts, http_base, log_in
+from tests.conftest import TIME_SCALE, Client, Restaurant, make_app
+from tests.web.test_ui import CHROMIUM, Screens, dismiss_toasts, http_base, log_in
 
 playwright_api = pytest.importorskip("playwright.async_api")
 expect = playwright_api.expect
@@ -55,27 +55,7 @@ SERVICE = dict(
 )
 
 
-@pytest_asyncio.fixture(loop_scope="module", scope="module")
-async def browser() -> AsyncIterator[Any]:
-    async with playwright_api.async_playwright() as p:
-        b = await p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-        try:
-            yield b
-        finally:
-            await b.close()
-
-
-def service_app(db: Path | str, clock: ScaledClock, specs: list[RobotSpec], port: int = 0) -> App:
-    nav_map, waypoints = load_demo()
-    return App(
-        db,
-        port=port,
-        clock=clock,
-        nav_map=nav_map,
-        waypoints=waypoints,
-        robots=specs,
-        config=CoreConfig(**SERVICE),  # type: ignore[arg-type]
-    )
+service_app = functools.partial(make_app, config=CoreConfig(**SERVICE))  # type: ignore[arg-type]
 
 
 @contextlib.asynccontextmanager

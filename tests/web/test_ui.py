@@ -23,7 +23,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-import pytest_asyncio
 
 from serveur.app import App, RobotSpec
 from serveur.clock import ScaledClock
@@ -31,23 +30,13 @@ from serveur.core.engine import CoreConfig
 from serveur.maps.navigation import demo_map_path, load_demo
 from serveur.robot_sim import start_simulation
 from tests.conftest import TIME_SCALE, Client, Restaurant
+from tests.web.conftest import CHROMIUM
 
 playwright_api = pytest.importorskip("playwright.async_api")
 Browser = playwright_api.Browser
 Page = playwright_api.Page
 expect = playwright_api.expect
 
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
 TABLET = {"width": 1280, "height": 800}  # a 10-inch tablet in landscape
 # Screenshots are always taken (that exercises rendering) but only land in docs/screenshots when
 # asked: `SERVEUR_SCREENSHOTS=docs/screenshots python3 -m pytest tests/web/test_ui.py`, so a test
@@ -62,16 +51,6 @@ pytestmark = [
     pytest.mark.asyncio(loop_scope="module"),
 ]
 expect.set_options(timeout=20_000)
-
-
-@pytest_asyncio.fixture(loop_scope="module", scope="module")
-async def browser() -> AsyncIterator[Any]:
-    async with playwright_api.async_playwright() as p:
-        b = await p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-        try:
-            yield b
-        finally:
-            await b.close()
 
 
 class Screens:
