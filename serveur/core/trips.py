@@ -153,13 +153,7 @@ class Trips:
         task = await self.current(robot)
         stop = task.stops[task.current_stop]
         task = await self._store.complete_stop(task.id, stop.seq, now=self._clock.epoch())
-        self._publisher.pub_task(task)
-        await self._publisher.pub_orders(stop.orders)
-        if task.current_stop >= len(task.stops):
-            task = await self._store.finish_task(task.id, now=self._clock.epoch())
-            self._robots[robot] = await self._store.get_robot(robot)
-            self._publisher.pub_task(task)
-        return task
+        return await self._left_stop(robot, task, stop.orders)
 
     async def skip_stop(self, robot: str, reason: str, by: str | None) -> Task:
         """The current stop left unserved, its dishes returned; the trip, finished (``done``)
@@ -169,8 +163,12 @@ class Trips:
         task = await self._store.skip_stop(
             task.id, stop.seq, now=self._clock.epoch(), reason=reason, by=by
         )
+        return await self._left_stop(robot, task, stop.orders)
+
+    async def _left_stop(self, robot: str, task: Task, orders: list[int]) -> Task:
+        """Publish a stop served or skipped; after the trip's last stop, finish the trip."""
         self._publisher.pub_task(task)
-        await self._publisher.pub_orders(stop.orders)
+        await self._publisher.pub_orders(orders)
         if task.current_stop >= len(task.stops):
             task = await self._store.finish_task(task.id, now=self._clock.epoch())
             self._robots[robot] = await self._store.get_robot(robot)
