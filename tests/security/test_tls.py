@@ -209,7 +209,7 @@ async def test_staff_console_over_https_opens_wss(tmp_path: Path, pki: Pki) -> N
     """The page chooses its socket's scheme from its own: loaded over https, it must use wss
     (a ws:// socket from an https page is blocked by browsers as mixed content)."""
     pw = pytest.importorskip("playwright.async_api")
-    from tests.web.test_ui import CHROMIUM, CHROMIUM_ARGS
+    from tests.web.conftest import CHROMIUM, CHROMIUM_ARGS
 
     if not CHROMIUM.exists():
         pytest.skip("needs Debian's chromium package")
