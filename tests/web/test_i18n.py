@@ -32,10 +32,12 @@ def _load(folder: Path) -> dict[str, dict[str, Any]]:
 
 
 MAIN = _load(SITE / "i18n")
-GUEST = _load(SITE / "i18n" / "guest")
-SETS = {"main": MAIN, "guest": GUEST}
-# What a page holds per language: the two sets merged (i18n.js), as the tests below read it.
-CATALOGS = {lang: {**MAIN[lang], **GUEST[lang]} for lang in LANGS}
+# The other sets, each in its folder and namespace (its keys start with "<folder>.").
+NAMED = ("guest", "owner", "stats")
+SETS = {"main": MAIN, **{name: _load(SITE / "i18n" / name) for name in NAMED}}
+GUEST = SETS["guest"]
+# What a page holds per language: the sets merged (i18n.js), as the tests below read it.
+CATALOGS = {lang: {k: v for c in SETS.values() for k, v in c[lang].items()} for lang in LANGS}
 EN = CATALOGS["en"]
 HTML_FILES = sorted(SITE.glob("*.html"))
 JS_FILES = sorted((SITE / "js").rglob("*.js"))
@@ -97,10 +99,11 @@ def test_every_catalog_has_the_same_keys_and_placeholders(name: str) -> None:
 
 def test_no_key_is_in_both_catalog_sets() -> None:
     # i18n.js merges the sets: a key in both would have one text silently replace the other.
-    assert sorted(set(MAIN["en"]) & set(GUEST["en"])) == []
-    # The guests' words have their own namespace, so it is plain which file holds a key.
-    assert all(key.startswith("guest.") for key in GUEST["en"])
-    assert not any(key.startswith("guest.") for key in MAIN["en"])
+    assert sum(len(c["en"]) for c in SETS.values()) == len(CATALOGS["en"])
+    # Each set has its own namespace, so it is plain which file holds a key.
+    for name in NAMED:
+        assert all(key.startswith(f"{name}.") for key in SETS[name]["en"]), name
+        assert not any(key.startswith(f"{name}.") for key in MAIN["en"]), name
 
 
 def keys_named_in_site() -> set[str]:
@@ -165,14 +168,14 @@ def test_html_files_hold_no_words_of_their_own(page: str) -> None:
 
 def test_catalogs_are_served_as_json() -> None:
     site = StaticSite.load(SITE)
-    for folder, catalogs in (("/i18n/", MAIN), ("/i18n/guest/", GUEST)):
+    for folder, catalogs in (("/i18n/", MAIN), *((f"/i18n/{n}/", SETS[n]) for n in NAMED)):
         for lang in LANGS:
             asset = site.resolve(f"{folder}{lang}.json")
             assert asset is not None and asset.content_type.startswith("application/json")
             assert json.loads(asset.body.decode("utf-8")) == catalogs[lang]
-    # i18n.js fetches both sets, by these very paths.
+    # i18n.js fetches every set, by these very paths.
     script = (SITE / "js" / "i18n.js").read_text("utf-8")
-    assert 'SETS = ["", "guest/"]' in script and "`/i18n/${set}${lang}.json`" in script
+    assert "SETS = " + json.dumps(["", *(n + "/" for n in NAMED)]) in script
 
 
 # --- in Chromium -----------------------------------------------------------------------------

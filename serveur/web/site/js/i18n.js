@@ -1,8 +1,11 @@
 // The pages' words, in the language of the person in front of the screen.
 //
-// Catalogs are /i18n/<lang>.json (the staff's and shared words) and /i18n/guest/<lang>.json (what
-// guests read on the robot and table screens), flat {"key": "text"} objects merged per language
-// into one; each set has the same keys in every language and no key is in both sets
+// Catalogs are /i18n/<lang>.json (the staff's and shared words), /i18n/guest/<lang>.json (what
+// guests read on the robot and table screens), /i18n/owner/<lang>.json (the owner's Restaurant
+// and Activity tabs) and /i18n/stats/<lang>.json (the Statistics tab): flat {"key": "text"}
+// objects merged per language into one; each set has the same keys in every language, a set's
+// keys start with its name (guest., owner., stats.; the main set with none of those), and no key
+// is in two sets
 // (tests/web/test_i18n.py checks). A text may hold {name} placeholders, and a plural
 // text is an object of Intl.PluralRules categories ({"one": "...", "other": "..."}), chosen by
 // the `count` parameter. All catalogs are fetched once at start from this page's own server
@@ -68,8 +71,8 @@ export function initialLang(loc = window.location) {
   return "en";
 }
 
-// The catalog sets merged for each language: main (staff and shared words), then guest.
-const SETS = ["", "guest/"];
+// The catalog sets merged for each language: main (staff and shared words), then the others.
+const SETS = ["", "guest/", "owner/", "stats/"];
 
 async function fetchCatalog(path) {
   try {

@@ -15,6 +15,9 @@ import { KitchenPanel } from "./kitchen.js";
 import { MenuPanel } from "./menu.js";
 import { AccountsPanel } from "./accounts.js";
 import { AlertsPanel } from "./alerts.js";
+import { RestaurantPanel } from "./restaurant.js";
+import { StatsPanel } from "./stats.js";
+import { LogPanel } from "./log.js";
 import { onLangChange, roleName, t } from "../i18n.js";
 
 const conn = new Connection();
@@ -32,7 +35,7 @@ const showWho = () => {
   who.textContent = s.user ? t("staff.who", { user: s.user, role: roleName(s.role) }) : roleName(s.role);
   // The menu and the accounts are the owner's: their tabs show only in an owner's session.
   const owner = s.role === "owner";
-  for (const id of ["tab-menu", "tab-accounts"]) {
+  for (const id of ["tab-menu", "tab-accounts", "tab-restaurant", "tab-stats", "tab-log"]) {
     const tab = document.getElementById(id);
     tab.hidden = !owner;
     if (!owner && tab.getAttribute("aria-selected") === "true") document.getElementById("tab-map").click();
@@ -81,6 +84,12 @@ new NewOrderPanel(document.getElementById("panel-order"), conn, live);
 new KitchenPanel(document.getElementById("panel-kitchen"), conn, live);
 new MenuPanel(document.getElementById("panel-menu"), conn, live);
 const accounts = new AccountsPanel(document.getElementById("panel-accounts"), conn, live);
+// The owner's other tabs: each has shown(), called when its tab is opened (they load on demand).
+const ownerPanels = {
+  "tab-restaurant": new RestaurantPanel(document.getElementById("panel-restaurant"), conn, live),
+  "tab-stats": new StatsPanel(document.getElementById("panel-stats"), conn, live),
+  "tab-log": new LogPanel(document.getElementById("panel-log"), conn, live),
+};
 new AlertsPanel(
   {
     banner: document.getElementById("alerts"),
@@ -132,6 +141,7 @@ function setupTabs() {
     }
     if (tab.id === "tab-map") view.requestDraw();
     if (tab.id === "tab-accounts") accounts.refresh();
+    if (ownerPanels[tab.id]) ownerPanels[tab.id].shown();
     tab.scrollIntoView({ block: "nearest", inline: "nearest" }); // a phone's tab row scrolls
   };
   tabs.forEach((t) => t.addEventListener("click", () => show(t)));
