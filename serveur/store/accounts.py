@@ -244,11 +244,14 @@ class AccountsMixin:
     ) -> TokenRecord:
         async def work(db: SqlTx) -> TokenRecord:
             if robot is not None and not await _one(
-                db, "SELECT name FROM robot_info WHERE name = ?", (robot,)
+                db, "SELECT name FROM robot_info WHERE removed_at IS NULL AND name = ?", (robot,)
             ):
                 raise NotFound(f"no robot named {robot!r}", robot=robot)
             if table is not None and not await _one(
-                db, "SELECT name FROM waypoints WHERE name = ? AND kind = 'table'", (table,)
+                db,
+                "SELECT name FROM waypoints"
+                " WHERE removed_at IS NULL AND name = ? AND kind = 'table'",
+                (table,),
             ):
                 raise NotFound(f"no table named {table!r}", table=table)
             tid = await db.insert(

@@ -47,7 +47,8 @@ from serveur.domain import (
 from serveur.errors import InvalidField
 from serveur.status import RobotMode, RobotStatus
 from serveur.store.accounts import SqlTx, TokenRecord, UserRecord
-from serveur.store.service import ServiceMixin, check_note, check_quantity
+from serveur.store.service import check_note, check_quantity
+from serveur.store.site import SiteMixin
 
 __all__ = [
     "SqlTx",
@@ -69,7 +70,7 @@ __all__ = [
 _E = TypeVar("_E", bound=StrEnum)
 
 
-class Store(ServiceMixin, ABC):
+class Store(SiteMixin, ABC):
     """The restaurant's persistent state. Use as ``async with open_store(url) as store:``.
 
     Errors: :class:`~serveur.errors.NotFound` for a missing robot/waypoint/order/task,

@@ -30,6 +30,7 @@ __all__ = ["ServiceMixin", "check_note", "check_quantity"]
 
 _MENU = "SELECT dish, category, price_cents, available, position FROM menu"
 _BLOCK = "SELECT waypoint, reason, robot, since FROM table_block"
+_LIVE_WAYPOINT = "SELECT 1 FROM waypoints WHERE removed_at IS NULL AND name = ?"
 
 
 def check_quantity(value: object) -> int:
@@ -138,7 +139,7 @@ class ServiceMixin(AccountsMixin):
         """Keep ``table`` out of every trip; a table already blocked keeps its first reason."""
 
         async def work(db: SqlTx) -> TableBlock:
-            if not await _one(db, "SELECT 1 FROM waypoints WHERE name = ?", (table,)):
+            if not await _one(db, _LIVE_WAYPOINT, (table,)):
                 raise NotFound(f"no waypoint named {table!r}", waypoint=table)
             row = await _one(db, f"{_BLOCK} WHERE waypoint = ?", (table,))
             if row is None:
@@ -211,7 +212,7 @@ class ServiceMixin(AccountsMixin):
                     params.append(note)
                     data["note"] = note
                 if table is not None and table != row["res_table"]:
-                    if not await _one(db, "SELECT 1 FROM waypoints WHERE name = ?", (table,)):
+                    if not await _one(db, _LIVE_WAYPOINT, (table,)):
                         raise NotFound(f"no waypoint named {table!r}", waypoint=table)
                     sets.append("res_table = ?")
                     params.append(table)

@@ -39,8 +39,9 @@ MAX_NAME = 255
 ROBOT = (
     "SELECT name, url, home, kinematics, link, mode, status, resume, current_task, battery,"
     " x, y, yaw, last_error, updated_at, status_since, trays FROM robot_info"
+    " WHERE removed_at IS NULL"
 )
-WAYPOINT = "SELECT name, x, y, yaw, kind FROM waypoints"
+WAYPOINT = "SELECT name, x, y, yaw, kind FROM waypoints WHERE removed_at IS NULL"
 ORDER = (
     "SELECT id, dish, res_table AS `table`, status, task_num AS task_id, `key`, ready_at,"
     " dispatched_at, delivered_at, quantity, note, ordered_at, returned_at, voided_at FROM orders"
@@ -61,6 +62,7 @@ TABLES = (
     "events",
     "menu",
     "table_block",
+    "settings",
 )
 # Every foreign key, as (table, its key, column, parent table, parent key), for the check.
 FOREIGN_KEYS = (
@@ -118,14 +120,14 @@ class MariaDBRows(Store):
 
     @staticmethod
     async def _robot(db: Tx, name: str, *, lock: bool = False) -> Robot:
-        row = await db.one(f"{ROBOT} WHERE name = %s{' FOR UPDATE' if lock else ''}", (name,))
+        row = await db.one(f"{ROBOT} AND name = %s{' FOR UPDATE' if lock else ''}", (name,))
         if row is None:
             raise NotFound(f"no robot named {name!r}", robot=name)
         return Robot(**row)
 
     @staticmethod
     async def _waypoint(db: Tx, name: str, *, lock: bool = False) -> WaypointRecord:
-        sql = f"{WAYPOINT} WHERE name = %s{' FOR UPDATE' if lock else ''}"
+        sql = f"{WAYPOINT} AND name = %s{' FOR UPDATE' if lock else ''}"
         row = await db.one(sql, (name,))
         if row is None:
             raise NotFound(f"no waypoint named {name!r}", waypoint=name)

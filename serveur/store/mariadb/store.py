@@ -51,6 +51,7 @@ from serveur.store.mariadb.rows import (
     sql_in,
 )
 from serveur.store.mariadb.tasks import MariaDBTasks
+from serveur.store.site import REVIVE_ROBOT, REVIVE_WAYPOINT
 
 __all__ = ["MAX_NAME", "MariaDBStore"]
 
@@ -130,7 +131,7 @@ class MariaDBStore(MariaDBTasks):
         check_name(kinematics, "kinematics")
 
         async def work(db: Tx) -> Robot:
-            row = await db.one(f"{ROBOT} WHERE name = %s FOR UPDATE", (name,))
+            row = await db.one(f"{ROBOT} AND name = %s FOR UPDATE", (name,))
             if row is not None:
                 robot = Robot(**row)
                 if (robot.url, robot.home, robot.kinematics, robot.link) == (
@@ -146,11 +147,13 @@ class MariaDBStore(MariaDBTasks):
                 )
             if home is not None:
                 await self._waypoint(db, home)
-            await db.run(
-                "INSERT INTO robot_info (name, url, home, kinematics, link, updated_at,"
-                " status_since) VALUES (%s, %s, %s, %s, %s, %s, %s)",
-                (name, url, home, kinematics, link_json(link), now, now),
-            )
+            revive = (url, home, kinematics, link_json(link), now, now, name)
+            if not await db.run(REVIVE_ROBOT.replace("?", "%s"), revive):
+                await db.run(
+                    "INSERT INTO robot_info (name, url, home, kinematics, link, updated_at,"
+                    " status_since) VALUES (%s, %s, %s, %s, %s, %s, %s)",
+                    (name, url, home, kinematics, link_json(link), now, now),
+                )
             data: dict[str, Any] = {"url": url, "home": home, "kinematics": kinematics}
             if link:
                 data["link"] = dict(link)
@@ -280,14 +283,15 @@ class MariaDBStore(MariaDBTasks):
             check_finite(getattr(wp, field), field)
 
         async def work(db: Tx) -> WaypointRecord:
-            row = await db.one(f"{WAYPOINT} WHERE name = %s FOR UPDATE", (wp.name,))
+            row = await db.one(f"{WAYPOINT} AND name = %s FOR UPDATE", (wp.name,))
             values = (wp.x, wp.y, wp.yaw, wp.kind.value, wp.name)
             if row is None:
-                await db.run(
-                    "INSERT INTO waypoints (x, y, yaw, kind, name, created_at)"
-                    " VALUES (%s, %s, %s, %s, %s, %s)",
-                    (*values, now),
-                )
+                if not await db.run(REVIVE_WAYPOINT.replace("?", "%s"), values):
+                    await db.run(
+                        "INSERT INTO waypoints (x, y, yaw, kind, name, created_at)"
+                        " VALUES (%s, %s, %s, %s, %s, %s)",
+                        (*values, now),
+                    )
             else:
                 existing = WaypointRecord(**row)
                 if existing == wp:

@@ -54,8 +54,9 @@ _FK_OFF = "-- serveur: foreign_keys off"
 ROBOT = (
     "SELECT name, url, home, kinematics, link, mode, status, resume, current_task, battery,"
     " x, y, yaw, last_error, updated_at, status_since, trays FROM robot_info"
+    " WHERE removed_at IS NULL"
 )
-WAYPOINT = "SELECT name, x, y, yaw, kind FROM waypoints"
+WAYPOINT = "SELECT name, x, y, yaw, kind FROM waypoints WHERE removed_at IS NULL"
 ORDER = (
     'SELECT id, dish, res_table AS "table", status, task_num AS task_id, key, ready_at,'
     " dispatched_at, delivered_at, quantity, note, ordered_at, returned_at, voided_at FROM orders"
@@ -336,14 +337,14 @@ class SQLiteRows(Store):
 
     @staticmethod
     async def _robot(db: aiosqlite.Connection, name: str) -> Robot:
-        row = await sql_one(db, f"{ROBOT} WHERE name = ?", (name,))
+        row = await sql_one(db, f"{ROBOT} AND name = ?", (name,))
         if row is None:
             raise NotFound(f"no robot named {name!r}", robot=name)
         return Robot(**dict(row))
 
     @staticmethod
     async def _waypoint(db: aiosqlite.Connection, name: str) -> WaypointRecord:
-        row = await sql_one(db, f"{WAYPOINT} WHERE name = ?", (name,))
+        row = await sql_one(db, f"{WAYPOINT} AND name = ?", (name,))
         if row is None:
             raise NotFound(f"no waypoint named {name!r}", waypoint=name)
         return WaypointRecord(**dict(row))

@@ -33,6 +33,7 @@ from serveur.store.base import (
     link_json,
     status_values,
 )
+from serveur.store.site import REVIVE_ROBOT, REVIVE_WAYPOINT
 from serveur.store.sqlite.rows import (
     BUSY_TIMEOUT_MS,
     EVENT,
@@ -79,7 +80,7 @@ class SQLiteStore(SQLiteTasks):
         check_text(url, "url")
         check_text(kinematics, "kinematics")
         async with self._tx("write") as db:
-            row = await sql_one(db, f"{ROBOT} WHERE name = ?", (name,))
+            row = await sql_one(db, f"{ROBOT} AND name = ?", (name,))
             if row is not None:
                 robot = Robot(**dict(row))
                 if (robot.url, robot.home, robot.kinematics, robot.link) == (
@@ -95,12 +96,14 @@ class SQLiteStore(SQLiteTasks):
                 )
             if home is not None:
                 await self._waypoint(db, home)
-            await sql_run(
-                db,
-                "INSERT INTO robot_info (name, url, home, kinematics, link, updated_at,"
-                " status_since) VALUES (?, ?, ?, ?, ?, ?, ?)",
-                (name, url, home, kinematics, link_json(link), now, now),
-            )
+            revive = (url, home, kinematics, link_json(link), now, now, name)
+            if not await sql_run(db, REVIVE_ROBOT, revive):
+                await sql_run(
+                    db,
+                    "INSERT INTO robot_info (name, url, home, kinematics, link, updated_at,"
+                    " status_since) VALUES (?, ?, ?, ?, ?, ?, ?)",
+                    (name, url, home, kinematics, link_json(link), now, now),
+                )
             data: dict[str, Any] = {"url": url, "home": home, "kinematics": kinematics}
             if link:
                 data["link"] = dict(link)
@@ -222,15 +225,16 @@ class SQLiteStore(SQLiteTasks):
         for field in ("x", "y", "yaw"):
             check_finite(getattr(wp, field), field)
         async with self._tx("write") as db:
-            row = await sql_one(db, f"{WAYPOINT} WHERE name = ?", (wp.name,))
+            row = await sql_one(db, f"{WAYPOINT} AND name = ?", (wp.name,))
             values = (wp.x, wp.y, wp.yaw, wp.kind.value, wp.name)
             if row is None:
-                await sql_run(
-                    db,
-                    "INSERT INTO waypoints (x, y, yaw, kind, name, created_at)"
-                    " VALUES (?, ?, ?, ?, ?, ?)",
-                    (*values, now),
-                )
+                if not await sql_run(db, REVIVE_WAYPOINT, values):
+                    await sql_run(
+                        db,
+                        "INSERT INTO waypoints (x, y, yaw, kind, name, created_at)"
+                        " VALUES (?, ?, ?, ?, ?, ?)",
+                        (*values, now),
+                    )
             else:
                 existing = WaypointRecord(**dict(row))
                 if existing == wp:
