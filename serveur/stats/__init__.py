@@ -8,7 +8,7 @@ command line), :mod:`~serveur.stats.load` (the events read from any store, page 
 :mod:`~serveur.stats.cli` (``serveur stats``: tables and CSV). There is no second
 bookkeeping: every figure comes from the ``events`` table (docs/statistics.md).
 
-May import: serveur.domain, serveur.store.
+May import: serveur.domain, serveur.store, serveur.protocol.
 """
 
 __all__: list[str] = []

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import csv
+import json
 import math
 import os
 import sys
@@ -22,7 +23,7 @@ from serveur.errors import ServeurError
 from serveur.stats.periods import BY, local, parse_offset, parse_when
 
 if TYPE_CHECKING:  # the computation is imported when the command runs
-    from serveur.stats.compute import Figures, ServiceLog, Trip
+    from serveur.stats.compute import Figures, ServiceLog
 
 __all__ = ["add_stats_parser", "render", "trip_rows", "write_csv"]
 
@@ -171,16 +172,12 @@ def _clock(ts: float | None, tz: tzinfo | None) -> str:
     return "-" if ts is None else local(ts, tz).strftime("%H:%M:%S")
 
 
-def _trips_in(log: ServiceLog, start: float | None, end: float | None) -> list[Trip]:
-    lo = -math.inf if start is None else start
-    hi = math.inf if end is None else end
-    return [t for t in log.trips.values() if lo <= (t.started or t.created) < hi]
-
-
 def render_trips(log: ServiceLog, tz: tzinfo | None, start: float | None, end: float | None) -> str:
     """The trip history: each trip, then each stop with its dishes."""
+    from serveur.stats.document import trips_in
+
     out: list[str] = []
-    for t in _trips_in(log, start, end):
+    for t in trips_in(log, start, end):
         who = t.robot or "-"
         if t.handed_over:
             who += f" (handed over from {', '.join(t.handed_over)})"
@@ -207,8 +204,10 @@ def trip_rows(
     log: ServiceLog, tz: tzinfo | None, start: float | None, end: float | None
 ) -> list[dict[str, object]]:
     """The trip history for a CSV: one row per stop."""
+    from serveur.stats.document import trips_in
+
     rows: list[dict[str, object]] = []
-    for t in _trips_in(log, start, end):
+    for t in trips_in(log, start, end):
         for i, s in enumerate(t.stops):
             rows.append(
                 {
@@ -305,6 +304,16 @@ def _cmd_stats(ns: argparse.Namespace) -> int:
     from serveur.stats.compute import read_events, table
 
     log = read_events(events)
+    if ns.json:
+        from serveur.stats.document import figures_document, trips_document
+
+        if ns.trips:
+            doc = trips_document(log, start, end)
+        else:
+            rows, total = table(log, ns.by, tz, start=start, end=end, day_start=ns.day_start)
+            doc = figures_document(rows, total)
+        json.dump(doc, sys.stdout, separators=(",", ":"))
+        return 0
     if ns.trips:
         text = render_trips(log, tz, start, end)
         csv_rows = trip_rows(log, tz, start, end)
@@ -366,6 +375,12 @@ def add_stats_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -
         "midnight stays in its day)",
     )
     p.add_argument("--csv", metavar="FILE", help="also write the figures as CSV ('-': stdout)")
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="print the figures (or with --trips the trip history) as JSON, as the"
+        " protocol's stats verb replies (docs/protocol.md)",
+    )
     p.add_argument(
         "--trips",
         action="store_true",

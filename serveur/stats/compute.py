@@ -198,6 +198,7 @@ class _Reader:
         self.log = ServiceLog()
         self.status: dict[str, tuple[str, float]] = {}  # robot -> (status, since)
         self.loading_trip: dict[str, int | None] = {}  # robot -> the trip it is loading
+        self.odometer: dict[str, float] = {}  # robot -> its last odometer reading
         self.robot_trip: dict[str, int] = {}
         self.last_ts: float | None = None  # the last event before a restart's
         self.facts: list[_Fact] = []
@@ -263,8 +264,22 @@ class _Reader:
 
     # dishes and trips ------------------------------------------------------------------
 
+    def distance(self, e: EventRecord, robot: str, odometer: float) -> None:
+        """The server's odometer of ``robot`` (metres driven since it started, in each status
+        event): the part since the last reading is a distance fact. It counts from 0 again
+        after a restart, so a reading below the last one is all new."""
+        last = self.odometer.get(robot, 0.0)
+        self.odometer[robot] = odometer
+        driven = odometer - last if odometer >= last else odometer
+        if driven > 0:
+            self.fact(e.ts, "distance", robot=robot, value=driven)
+
     def on_event(self, e: EventRecord) -> None:
         kind, data, ts = e.kind, e.data, e.ts
+        if kind.startswith("robot.") and e.robot is not None:
+            odometer = _num(data.get("odometer"))
+            if odometer is not None:
+                self.distance(e, e.robot, odometer)
         if kind.startswith("robot.") and e.robot is not None and "status" in data:
             self.robot_status(e, e.robot, str(data["status"]))
         elif kind == "order.created" and e.order_id is not None:
@@ -409,6 +424,7 @@ class RobotFigures:
     trips: int = 0
     errors: int = 0
     link_drops: int = 0
+    distance_m: float = 0.0
 
     @property
     def busy_share(self) -> float:
@@ -440,6 +456,7 @@ class Figures:
     dishes_per_trip: float = math.nan
     errors: int = 0
     link_drops: int = 0
+    distance_m: float = 0.0
     robots: list[RobotFigures] = field(default_factory=list)
 
     @property
@@ -468,6 +485,7 @@ class Figures:
             out[f"loading_s:{name}"] = r.loading_s
             out[f"trips:{name}"] = r.trips
             out[f"errors:{name}"] = r.errors
+            out[f"distance_m:{name}"] = r.distance_m
         return out
 
 
@@ -495,6 +513,7 @@ FIELDS = (
     "busy_share",
     "errors",
     "link_drops",
+    "distance_m",
 )
 
 
@@ -555,7 +574,9 @@ def figures(log: ServiceLog, period: Period) -> Figures:
         rf.trips = sum(1 for t in done if t.robot == robot)
         rf.errors = sum(1 for x in facts if x.what == "error" and x.robot == robot)
         rf.link_drops = sum(1 for x in facts if x.what == "link_drop" and x.robot == robot)
+        rf.distance_m = sum(x.value for x in facts if x.what == "distance" and x.robot == robot)
         f.loading_s += rf.loading_s
+        f.distance_m += rf.distance_m
         f.robots.append(rf)
     return f
 
