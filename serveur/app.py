@@ -21,6 +21,7 @@ from serveur.errors import Conflict
 from serveur.robots.names import OPTION_KEYS, RosNames
 from serveur.security.sessions import SecurityConfig, Sessions
 from serveur.server import Server
+from serveur.stats.remote import StatsService
 from serveur.store.base import Store
 from serveur.store.factory import open_store
 
@@ -101,6 +102,7 @@ class App:
     ) -> None:
         self.clock = clock or ScaledClock(1.0)
         self.store: Store = open_store(str(db))
+        self._db = str(db)
         self._map_path = map_path
         self._nav_map = nav_map
         self._waypoints = waypoints
@@ -154,7 +156,12 @@ class App:
             self.first_owner_password = await self.sessions.ensure_owner()
         self.sessions.start()
         self.server = Server(
-            self.core, self.sessions, host=self._host, port=self._port, ssl=self._ssl
+            self.core,
+            self.sessions,
+            host=self._host,
+            port=self._port,
+            ssl=self._ssl,
+            stats=StatsService(self.store, self._db),
         )
         await self.server.start()
         return self

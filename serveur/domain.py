@@ -131,6 +131,14 @@ class Robot(_Record):
     trays: int | None = Field(default=None, description="tables per trip; None: the site's")
     updated_at: float = 0.0
     status_since: float = Field(default=0.0, description="when it entered its status (epoch s)")
+    link_error: str | None = Field(
+        default=None,
+        description="why the server cannot reach the robot (its last connection failure),"
+        " while Offline; not stored",
+    )
+    removed: bool = Field(
+        default=False, description="true only in the update saying the owner removed it"
+    )
 
     @field_validator("link", mode="before")
     @classmethod
@@ -191,6 +199,9 @@ class WaypointRecord(_Record):
     y: float
     yaw: float = 0.0
     kind: WaypointKind = WaypointKind.OTHER
+    removed: bool = Field(
+        default=False, description="true only in the update saying it was removed or renamed"
+    )
 
 
 class Order(_Record):

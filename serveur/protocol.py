@@ -88,8 +88,24 @@ from serveur.wire.frames import (
     ok_frame,
     update_frame,
 )
+from serveur.wire.owner import (
+    LANGUAGES,
+    SiteAudit,
+    SiteDependents,
+    SiteEditRobot,
+    SiteMessage,
+    SiteRemoveRobot,
+    SiteRemoveWaypoint,
+    SiteRenameWaypoint,
+    SiteSetSettings,
+    SiteSettings,
+    StatsFigures,
+    StatsMessage,
+    StatsTrips,
+)
 
 __all__ = [
+    "LANGUAGES",
     "MAX_ANGULAR",
     "MAX_COORD",
     "MAX_DEPTH",
@@ -148,8 +164,20 @@ __all__ = [
     "ScanData",
     "ServerMessage",
     "Session",
+    "SiteAudit",
+    "SiteDependents",
+    "SiteEditRobot",
+    "SiteMessage",
+    "SiteRemoveRobot",
+    "SiteRemoveWaypoint",
+    "SiteRenameWaypoint",
+    "SiteSetSettings",
+    "SiteSettings",
     "SkipMsg",
     "Snapshot",
+    "StatsFigures",
+    "StatsMessage",
+    "StatsTrips",
     "StopMsg",
     "TargetMsg",
     "TokenInfo",
@@ -643,7 +671,9 @@ ClientMessage: TypeAlias = Annotated[
     | AckMsg
     | ClearMsg
     | OrderMsg
-    | AccountMessage,
+    | AccountMessage
+    | SiteMessage
+    | StatsMessage,
     Field(discriminator="clientmsg"),
 ]
 _CLIENT: TypeAdapter[ClientMessage] = TypeAdapter(ClientMessage)
@@ -665,6 +695,20 @@ _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
             "revoke_token",
         ),
     ),
+    "site": (
+        "action",
+        (
+            "edit_robot",
+            "remove_robot",
+            "dependents",
+            "rename_waypoint",
+            "remove_waypoint",
+            "settings",
+            "set_settings",
+            "audit",
+        ),
+    ),
+    "stats": ("action", ("figures", "trips")),
 }
 
 _ACTIONS: Final[dict[type[BaseModel], Action]] = {

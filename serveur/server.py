@@ -33,6 +33,8 @@ from serveur.errors import InvalidField, NotFound, RateLimited, ServeurError, Un
 from serveur.security.accounts import handle_account
 from serveur.security.auth import Principal, RateLimiter, Role, authorize, visible
 from serveur.security.sessions import CLOSE_AUTH, Sessions
+from serveur.stats.remote import StatsService
+from serveur.store.site import AuditQuery
 from serveur.web.static import default_site
 
 __all__ = ["CLOSE_IDLE", "MAX_FRAME", "Server"]
@@ -118,9 +120,12 @@ class Server:
         host: str = "127.0.0.1",
         port: int = 8765,
         ssl: ssl_module.SSLContext | None = None,
+        stats: StatsService | None = None,
     ) -> None:
         self.core = core
         self.sessions = sessions
+        #: The ``stats`` verb (in-process unless the app says which database a child may open).
+        self.stats = stats or StatsService(core.store, None)
         self.security = sessions.config
         self.host = host
         self.port = port
@@ -336,8 +341,29 @@ class Server:
             return {"time": self.core.clock.epoch()}
         if msg.clientmsg == "account":
             return await handle_account(self.sessions, p, msg)
+        if isinstance(msg, P.SiteAudit):
+            return await self._search_audit(msg)
+        if msg.clientmsg == "stats":
+            return await self.stats.handle(msg)
         table = p.table if p is not None and p.role is Role.TABLE_SCREEN else None
-        return await self.core.handle(msg, actor=p.actor if p else None, table=table)
+        reply = await self.core.handle(msg, actor=p.actor if p else None, table=table)
+        if msg.clientmsg == "site" and reply.get("revoked"):
+            # A removed robot's or table's screens: their tokens are revoked, close them now.
+            self.sessions.end(reply["revoked"], "its robot or table was removed")
+        return reply
+
+    async def _search_audit(self, msg: P.SiteAudit) -> dict[str, Any]:
+        q = AuditQuery(
+            actor=msg.actor,
+            verb=msg.verb,
+            outcome=msg.outcome,
+            target=msg.target,
+            since=msg.since,
+            until=msg.until,
+            before_id=msg.before,
+            limit=msg.limit,
+        )
+        return {"audit": await self.core.store.search_audit(q)}
 
     async def _login(self, conn: _Conn, msg: P.LoginMsg) -> dict[str, Any]:
         p, token = await self.sessions.login(msg, conn.peer)

@@ -49,6 +49,7 @@ from serveur.core.places import Places
 from serveur.core.publisher import Publisher
 from serveur.core.runtime import CoreConfig, Destination, Runtime, pose_dict
 from serveur.core.service import Service
+from serveur.core.site import SiteActions
 from serveur.core.trips import Trips
 from serveur.domain import (
     DishAction,
@@ -79,7 +80,7 @@ log = logging.getLogger(__name__)
 S = RobotStatus
 
 
-class Core(RobotMoves):
+class Core(RobotMoves, SiteActions):
     """Owns robots' runtime state and carries out every instruction.
 
     Collaborators it owns: :class:`~serveur.core.places.Places` (waypoints, map, path distances),
@@ -113,6 +114,8 @@ class Core(RobotMoves):
         self._rt: dict[str, Runtime] = {}
         self._halted = False  # halt_robots ran: shutting down, robots stopped
         self._robots: dict[str, Robot] = {}
+        self.languages = list(self.config.languages)
+        self.language = self.config.language
         self.places = Places(
             self.hub,
             robot_radius=self.config.robot_radius,
@@ -169,6 +172,7 @@ class Core(RobotMoves):
 
     async def start(self) -> None:
         await self.publisher.skip_stored_events()
+        await self.load_settings()
         # Path distances between all waypoints are planned before any robot is driven.
         await self.places.load(await self.store.list_waypoints())
         for robot in await self.store.list_robots():
@@ -273,6 +277,18 @@ class Core(RobotMoves):
         )
         rt.link.start()
 
+    def _kick(self) -> None:
+        self.dispatcher.kick()
+
+    async def _stop_robot_runtime(self, rt: Runtime) -> None:
+        """A removed robot: its link closed (the robot stopped), its worker ended, forgotten."""
+        self.reports.disarm_handover(rt)
+        await self.reports.stop_worker(rt)
+        if rt.link is not None:
+            await rt.link.close()
+        self._rt.pop(rt.name, None)
+        self._robots.pop(rt.name, None)
+
     def _on_watch(self, topic: str, on: bool) -> None:
         self.reports.on_watch(topic, on)
 
@@ -289,7 +305,7 @@ class Core(RobotMoves):
 
     def _robot_view(self, name: str) -> Robot:
         rt = self._rt[name]
-        upd: dict[str, Any] = {"battery": rt.battery}
+        upd: dict[str, Any] = {"battery": rt.battery, "link_error": rt.link_error}
         if rt.pose is not None:
             upd.update(x=rt.pose[0], y=rt.pose[1], yaw=rt.pose[2])
         return self._robots[name].model_copy(update=upd)
@@ -337,7 +353,7 @@ class Core(RobotMoves):
             last_error=last_error,
             now=self.clock.epoch(),
             event=event,
-            data=data,
+            data={**(data or {}), "odometer": round(rt.odometer, 2)},
         )
         rt.state = st
         self._robots[name] = robot
@@ -428,6 +444,8 @@ class Core(RobotMoves):
             return await self.store.list_menu()
         if topic == "blocks":
             return list(self.service.blocks.values())
+        if topic == "settings":
+            return self.settings()
         kind, _, robot = topic.partition(":")
         rt = self._runtime(robot)
         if kind == "pose":
@@ -480,6 +498,8 @@ class Core(RobotMoves):
             return {"alert": await self.service.ack(msg.alert, actor or "unknown")}
         if isinstance(msg, P.ClearMsg):
             return await self.service.clear(msg.table, actor)
+        if verb == "site":
+            return await self._site(msg, actor)
         robot = P.robot_of(msg)
         action = P.action_of(msg)
         if robot is None or action is None:
@@ -626,6 +646,23 @@ class Core(RobotMoves):
             return {"robot": self._robot_view(robot.name)}
         raise InvalidField(f"cannot create {kind!r}")
 
+    async def _site(self, msg: Any, actor: str | None) -> dict[str, Any]:
+        if isinstance(msg, P.SiteEditRobot):
+            return await self.edit_robot(msg, actor)
+        if isinstance(msg, P.SiteRemoveRobot):
+            return await self.remove_robot(msg, actor)
+        if isinstance(msg, P.SiteDependents):
+            return await self.dependents(msg)
+        if isinstance(msg, P.SiteRenameWaypoint):
+            return await self.rename_waypoint(msg, actor)
+        if isinstance(msg, P.SiteRemoveWaypoint):
+            return await self.remove_waypoint(msg, actor)
+        if isinstance(msg, P.SiteSetSettings):
+            return await self.set_settings(msg, actor)
+        if isinstance(msg, P.SiteSettings):
+            return {"settings": self.settings()}
+        raise InvalidField(f"site {msg.action!r} is not the core's")
+
     async def _order(self, msg: Any) -> dict[str, Any]:
         if getattr(msg, "table", None):
             self.places.waypoint(msg.table)
@@ -718,11 +755,17 @@ class Core(RobotMoves):
     async def on_report(self, rt: Runtime, kind: str, args: tuple[Any, ...]) -> None:
         """One queued link report, under the robot's lock."""
         if kind == "up":
+            rt.link_error = None
             await self._event(rt, Event.LINK_UP)
             if rt.state.status is S.AWAITING:
                 await self._go_home_if_away(rt)
             else:
                 await self._resume_move(rt)
+        elif kind == "failed":
+            # The link cannot connect (a wrong address, a robot switched off): shown to staff
+            # with the robot, once per distinct reason.
+            rt.link_error = args[0]
+            self.publish_robot(rt.name)
         elif kind == "down":
             rt.goal_id = None
             if rt.state.status is not S.OFFLINE:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import math
 from collections.abc import Mapping
 from typing import Any, Protocol
 
@@ -37,13 +38,16 @@ from serveur.errors import StoreError
 from serveur.robots import rosbridge as rb
 from serveur.scheduler import MIN_BATTERY
 
-__all__ = ["HANDOVER_GRACE", "LinkReports", "ReportHandler"]
+__all__ = ["HANDOVER_GRACE", "ODOMETER_JUMP", "LinkReports", "ReportHandler"]
 
 log = logging.getLogger(__name__)
 
 #: Seconds a robot restored Offline at start is given to connect before a hand-over, however
 #: long it was away before the restart (its link needs a connection and a first status).
 HANDOVER_GRACE = 10.0
+#: A pose this far (m) from the last one is a relocalisation (AMCL, a calibration), not
+#: driving: it does not count in the odometer.
+ODOMETER_JUMP = 1.0
 #: Wall seconds between tries of a report the store could not write (disk full, I/O error),
 #: doubling from the first to the last.
 STORE_RETRY = (0.5, 10.0)
@@ -184,6 +188,9 @@ class LinkReports:
     def link_down(self, robot: str, reason: str) -> None:
         self.post(robot, "down", reason)
 
+    def link_failed(self, robot: str, reason: str) -> None:
+        self.post(robot, "failed", reason)
+
     def goal_done(self, robot: str, goal_id: str, status: rb.GoalStatus, text: str) -> None:
         self.post(robot, "goal", goal_id, status, text)
 
@@ -194,6 +201,10 @@ class LinkReports:
         rt = self._rt.get(robot)
         if rt is None:
             return
+        if rt.pose is not None:
+            step = math.hypot(x - rt.pose[0], y - rt.pose[1])
+            if step < ODOMETER_JUMP:
+                rt.odometer += step
         rt.pose = (x, y, yaw)
         if self._hub.watched(f"pose:{robot}"):
             self._poses.offer(robot, rt.pose, stamp)

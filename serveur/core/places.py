@@ -99,6 +99,12 @@ class Places:
         if self.map is not None:
             self._plan_later([wp.name])
 
+    def remove(self, name: str) -> None:
+        """A waypoint removed (or renamed away from): no longer a destination. Its planned
+        distances are left: they are only read for waypoints that exist, and a waypoint
+        saved again under this name is planned afresh (its spot changed or not)."""
+        self.waypoints.pop(name, None)
+
     def adopt_map(self, robot: str, msg: Mapping[str, Any]) -> None:
         """A robot's ``/map``, used if the server was started without one."""
         if self.map is not None:

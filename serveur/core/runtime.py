@@ -55,6 +55,9 @@ class CoreConfig:
     alert_low_battery: float = 0.20
     alert_wait_at_table: float = 90.0
     alert_dish_at_pass: float = 120.0
+    #: The pages' languages (the owner's settings change them): offered, and the default.
+    languages: tuple[str, ...] = ("en", "zh", "ms")
+    language: str = "en"
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,6 +94,8 @@ class Runtime:
     handover: asyncio.Task[None] | None = None  # the hand-over timer while Offline with a trip
     offline_since: float | None = None  # epoch (clock) the robot was last seen, while Offline
     timed_out: float | None = None  # the arrival (status_since) a table timeout was posted for
+    link_error: str | None = None  # the link's last connection failure, until it connects
+    odometer: float = 0.0  # metres driven since this server started (in each status event)
 
 
 def pose_dict(pose: tuple[float, float, float], stamp: float) -> dict[str, float]:

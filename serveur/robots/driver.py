@@ -16,12 +16,13 @@ CANCELED is PREEMPTED, a goal that never got an answer is LOST).
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping
 from typing import Any, Protocol
 
 from serveur.robots import rosbridge as rb
 
-__all__ = ["LinkListener", "RobotDriver"]
+__all__ = ["LinkListener", "RobotDriver", "connect_failed"]
 
 
 class LinkListener(Protocol):
@@ -30,6 +31,10 @@ class LinkListener(Protocol):
     def link_up(self, robot: str) -> None: ...
 
     def link_down(self, robot: str, reason: str) -> None: ...
+
+    def link_failed(self, robot: str, reason: str) -> None:
+        """Connecting failed for a new reason (a wrong address, a robot switched off): said
+        once per distinct reason in a row, for staff to see why the robot stays Offline."""
 
     def pose(self, robot: str, x: float, y: float, yaw: float, stamp: float) -> None: ...
 
@@ -113,3 +118,18 @@ class RobotDriver(Protocol):
     def heartbeat_timeout(self) -> float:
         """Clock seconds of silence after which the robot is declared down."""
         ...
+
+
+def connect_failed(
+    driver: RobotDriver, listener: LinkListener, reason: str, log: logging.Logger
+) -> str:
+    """A driver's connection attempt failed: tell the operator (on the driver's ``log``) and
+    the listener once per distinct reason in a row (kept in ``last_failure`` until the next
+    connection), not once per retry. Returns ``reason``."""
+    if reason != driver.last_failure:
+        driver.last_failure = reason
+        log.warning("%s: cannot connect to %s: %s", driver.name, driver.url, reason)
+        listener.link_failed(driver.name, reason)
+    else:
+        log.debug("%s: cannot connect to %s: %s", driver.name, driver.url, reason)
+    return reason

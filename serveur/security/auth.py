@@ -80,6 +80,8 @@ class Scope(StrEnum):
     AUDIT = "audit"  # read the audit trail
     MENU = "menu"  # edit the menu
     ACCOUNTS = "accounts"  # people and screen tokens (owners only: never a token's scope)
+    SITE = "site"  # edit or remove robots and waypoints, the site's settings
+    STATS = "stats"  # statistics and trip history
 
 
 STAFF_SCOPES: Final = frozenset(
@@ -165,6 +167,10 @@ def required_scope(msg: Any) -> Scope:
         return Scope.TASKS
     if verb == "account":
         return Scope.ACCOUNTS
+    if verb == "site":
+        return Scope.AUDIT if msg.action == "audit" else Scope.SITE
+    if verb == "stats":
+        return Scope.STATS
     raise Forbidden(f"no rule for {verb!r}")  # a new verb must get a rule before anyone uses it
 
 
@@ -172,9 +178,11 @@ def topic_allowed(p: Principal, topic: str) -> bool:
     """May ``p`` subscribe to ``topic``? Screens see filtered views of a few topics."""
     kind, _, robot = topic.partition(":")
     if p.role is Role.ROBOT_SCREEN:
-        return topic in ("robots", "tasks", "orders") or (kind == "pose" and robot == p.robot)
+        return topic in ("robots", "tasks", "orders", "settings") or (
+            kind == "pose" and robot == p.robot
+        )
     if p.role is Role.TABLE_SCREEN:
-        return topic in ("orders", "tasks", "menu")
+        return topic in ("orders", "tasks", "menu", "settings")
     if topic == "audit":
         return Scope.AUDIT in p.scopes
     return Scope.READ in p.scopes
@@ -243,7 +251,7 @@ def visible(p: Principal, topic: str, record: Any, task_robot: Callable[[int], s
     if p.role is Role.TABLE_SCREEN:
         if topic == "tasks":
             return any(s.table == p.table for s in getattr(record, "stops", ()))
-        if topic == "menu":
+        if topic in ("menu", "settings"):
             return True
         return topic == "orders" and getattr(record, "table", None) == p.table
     return True

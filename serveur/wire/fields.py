@@ -72,6 +72,7 @@ STATE_TOPICS: Final = (
     "alerts",
     "menu",
     "blocks",
+    "settings",
 )
 #: Per-robot topic prefixes: ``pose:<robot>`` and ``scan:<robot>``.
 ROBOT_TOPICS: Final = ("pose", "scan")
@@ -95,6 +96,8 @@ VERBS: Final = (
     "ack",
     "clear",
     "account",
+    "site",
+    "stats",
 )
 
 #: Limits of the work area: far beyond any restaurant, close enough to catch unit mistakes.

@@ -31,6 +31,7 @@ from serveur.wire.fields import RequestId, Topic
 
 __all__ = [
     "SERVER_ADAPTER",
+    "Dependents",
     "ErrorCode",
     "ErrorReply",
     "MapSnapshot",
@@ -39,6 +40,7 @@ __all__ = [
     "ScanData",
     "ServerMessage",
     "Session",
+    "Settings",
     "Snapshot",
     "TokenInfo",
     "UpdateData",
@@ -53,6 +55,28 @@ __all__ = [
 
 class _ServerModel(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Settings(_ServerModel):
+    """The site's settings as they apply now (the ``settings`` topic, ``site settings``)."""
+
+    table_timeout: float | None = Field(
+        description="seconds a robot waits at a table before it goes on; null: for ever"
+    )
+    trays: int = Field(description="tables one trip may serve, for robots without their own")
+    auto_depart: bool = Field(description="trips leave the pass at once, without Go")
+    languages: list[Literal["en", "zh", "ms"]] = Field(description="the languages offered")
+    language: Literal["en", "zh", "ms"] = Field(description="for a device without a choice")
+
+
+class Dependents(_ServerModel):
+    """What depends on a waypoint now (``site dependents``; a ``conflict``'s details)."""
+
+    homes: list[str] = Field(description="robots whose home it is")
+    orders: list[int] = Field(description="open dishes for the table")
+    trips: list[int] = Field(description="queued or active trips stopping there")
+    tokens: list[int] = Field(description="table-screen tokens bound to it")
+    blocked: bool = Field(description="the table is blocked (unreachable)")
 
 
 class PoseData(_ServerModel):
@@ -109,6 +133,7 @@ Snapshot: TypeAlias = (
     | list[Alert]
     | list[MenuItem]
     | list[TableBlock]
+    | Settings
     | MapSnapshot
     | PoseData
     | ScanData
@@ -126,6 +151,7 @@ UpdateData: TypeAlias = (
     | Alert
     | MenuItem
     | TableBlock
+    | Settings
     | MapSnapshot
     | PoseData
     | ScanData
@@ -188,6 +214,21 @@ class OkReply(_ServerModel):
         default=None, description="account create_token: the screen's setup path, token included"
     )
     qr: str | None = Field(default=None, description="account create_token: SVG of the QR code")
+    revoked: list[int] | None = Field(
+        default=None, description="site remove_robot, remove_waypoint: screen tokens revoked"
+    )
+    renamed: str | None = Field(default=None, description="site rename_waypoint: the old name")
+    dependents: Dependents | None = Field(
+        default=None, description="site dependents, rename_waypoint: what depends on it"
+    )
+    settings: Settings | None = Field(default=None, description="site settings, set_settings")
+    audit: list[AuditRecord] | None = Field(
+        default=None, description="site audit: the records found, newest first"
+    )
+    stats: dict[str, Any] | None = Field(
+        default=None,
+        description="stats: figures ({periods, total}) or the trip history ({trips, more})",
+    )
 
 
 class UserInfo(_ServerModel):

@@ -59,7 +59,7 @@ from serveur.clock import Clock
 from serveur.errors import LinkError, RosbridgeError
 from serveur.robots import rosbridge as rb
 from serveur.robots.deadman import DeadManSwitch
-from serveur.robots.driver import LinkListener
+from serveur.robots.driver import LinkListener, connect_failed
 from serveur.robots.names import RosNames
 
 __all__ = ["LinkListener", "RobotLink"]
@@ -244,14 +244,7 @@ class RobotLink:
             delay = min(delay * 2, self._backoff[1])
 
     def _connect_failed(self, reason: str) -> str:
-        """Tell the operator why connecting failed, once per distinct reason in a row (kept in
-        ``last_failure`` until the next connection), not once per retry. Returns ``reason``."""
-        if reason != self.last_failure:
-            self.last_failure = reason
-            log.warning("%s: cannot connect to %s: %s", self.name, self.url, reason)
-        else:
-            log.debug("%s: cannot connect to %s: %s", self.name, self.url, reason)
-        return reason
+        return connect_failed(self, self._listener, reason, log)
 
     async def _session(self, ws: ClientConnection) -> None:
         self._have_status = self._have_pose = False

@@ -53,7 +53,7 @@ from serveur.clock import Clock
 from serveur.errors import LinkError, RosbridgeError
 from serveur.robots import rosbridge as rb
 from serveur.robots.deadman import DeadManSwitch
-from serveur.robots.driver import LinkListener
+from serveur.robots.driver import LinkListener, connect_failed
 from serveur.robots.names import RosNames
 from serveur.robots.ros2 import messages as m2
 
@@ -213,10 +213,7 @@ class Nav2Link:
             delay = min(delay * 2, self._backoff[1])
 
     def _connect_failed(self, reason: str) -> str:
-        if reason != self.last_failure:
-            self.last_failure = reason
-            log.warning("%s: cannot connect to %s: %s", self.name, self.url, reason)
-        return reason
+        return connect_failed(self, self._listener, reason, log)
 
     async def _session(self, ctl: ClientConnection, nav: ClientConnection) -> None:
         self._have_pose = self._have_ping = False

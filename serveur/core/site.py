@@ -1,0 +1,198 @@
+"""The owner's changes to the site, carried out on the live server: robots edited or removed,
+waypoints renamed or removed, the site's settings.
+
+A mixin of :class:`~serveur.core.engine.Core`, like :mod:`serveur.core.moves`: each change is
+stored first (:mod:`serveur.store.site`, which re-checks what depends on its target in the
+same transaction), then applied to the running server — a robot's link restarted or closed,
+the places' waypoints, the dispatcher's tables, the screens' topics — and published, so every
+console sees it at once. A change the store refuses leaves the running server untouched.
+
+Settings the owner saves win over the command line's values from then on, across restarts;
+settings never saved keep the command line's (``serveur serve --table-timeout`` is the
+factory default, the console the restaurant's choice).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from serveur import protocol as P
+from serveur.clock import Clock
+from serveur.core.places import Places
+from serveur.core.publisher import Publisher
+from serveur.core.runtime import CoreConfig, Runtime
+from serveur.core.service import Service
+from serveur.domain import Robot, WaypointRecord
+from serveur.errors import Conflict, InvalidField
+from serveur.robots.names import RosNames
+from serveur.store.base import Store
+
+__all__ = ["SiteActions"]
+
+log = logging.getLogger("serveur.core.engine")
+
+#: A robot's fields whose change means connecting to it anew.
+_RELINK = ("url", "kinematics", "link")
+
+
+class SiteActions:
+    """The ``site`` verb's changes (all but the audit search); mixed into the core."""
+
+    store: Store
+    clock: Clock
+    config: CoreConfig
+    places: Places
+    publisher: Publisher
+    service: Service
+    _rt: dict[str, Runtime]
+    _robots: dict[str, Robot]
+    #: The pages' languages: those offered, and the one a device without a choice gets.
+    languages: list[str]
+    language: str
+
+    # Provided by the core.
+    def _runtime(self, name: str) -> Runtime:
+        raise NotImplementedError
+
+    def _start_link(self, rt: Runtime) -> None:
+        raise NotImplementedError
+
+    def publish_robot(self, name: str) -> None:
+        raise NotImplementedError
+
+    def _kick(self) -> None:
+        raise NotImplementedError
+
+    async def _stop_robot_runtime(self, rt: Runtime) -> None:
+        raise NotImplementedError
+
+    # -- settings ---------------------------------------------------------------------------
+
+    def settings(self) -> dict[str, Any]:
+        """The settings as they apply now (the ``settings`` topic's record)."""
+        return {
+            "table_timeout": self.config.table_timeout,
+            "trays": self.config.capacity,
+            "auto_depart": self.config.auto_depart,
+            "languages": list(self.languages),
+            "language": self.language,
+        }
+
+    async def load_settings(self) -> None:
+        """Apply the settings the owner saved (at start; unknown names are ignored)."""
+        self._apply_settings(await self.store.get_settings())
+
+    def _apply_settings(self, values: dict[str, Any]) -> None:
+        if "table_timeout" in values:
+            self.config.table_timeout = values["table_timeout"]
+        if "trays" in values:
+            self.config.capacity = int(values["trays"])
+        if "auto_depart" in values:
+            self.config.auto_depart = bool(values["auto_depart"])
+        if "languages" in values:
+            self.languages = [x for x in values["languages"] if x in P.LANGUAGES] or ["en"]
+        if "language" in values and values["language"] in self.languages:
+            self.language = values["language"]
+        elif self.language not in self.languages:
+            self.language = self.languages[0]
+
+    async def set_settings(self, msg: P.SiteSetSettings, actor: str | None) -> dict[str, Any]:
+        changes = msg.changes()
+        langs = changes.get("languages", self.languages)
+        lang = changes.get("language", self.language if self.language in langs else langs[0])
+        if lang not in langs:
+            raise InvalidField(f"{lang} is not among the languages offered", field="language")
+        changes["language"] = lang
+        await self.store.put_settings(changes, now=self.clock.epoch(), by=actor)
+        self._apply_settings(changes)
+        self.publisher.pub("settings", self.settings())
+        self._kick()  # more trays, no table timeout...: what is queued may go now
+        return {"settings": self.settings()}
+
+    # -- robots -----------------------------------------------------------------------------
+
+    async def edit_robot(self, msg: P.SiteEditRobot, actor: str | None) -> dict[str, Any]:
+        rt = self._runtime(msg.robot)
+        changes = msg.changes()
+        if "link" in changes:
+            try:
+                RosNames.from_options(changes["link"])
+            except ValueError as exc:
+                raise InvalidField(str(exc), field="link") from None
+        if changes.get("home") is not None:
+            self.places.waypoint(changes["home"])
+        async with rt.lock:
+            old = self._robots[rt.name]
+            relink = any(k in changes and changes[k] != getattr(old, k) for k in _RELINK)
+            if relink and old.current_task is not None:
+                raise Conflict(
+                    f"robot {rt.name} is on trip {old.current_task}: change its address, drive"
+                    " or ROS options when it is back",
+                    robot=rt.name,
+                    trip=old.current_task,
+                )
+            robot = await self.store.edit_robot(rt.name, changes, now=self.clock.epoch(), by=actor)
+            # Keep the live status fields: the core's record is the one the links update.
+            self._robots[rt.name] = old.model_copy(
+                update={k: getattr(robot, k) for k in (*_RELINK, "home", "trays")}
+            )
+            if relink and rt.link is not None:
+                log.info("%s: reconnecting to %s (edited by %s)", rt.name, robot.url, actor)
+                await rt.link.close()
+                rt.link_error = None
+                self._start_link(rt)
+        self.publish_robot(rt.name)
+        self._kick()
+        return {"robot": self._robots[rt.name]}
+
+    async def remove_robot(self, msg: P.SiteRemoveRobot, actor: str | None) -> dict[str, Any]:
+        rt = self._runtime(msg.robot)
+        async with rt.lock:
+            revoked = await self.store.remove_robot(rt.name, now=self.clock.epoch(), by=actor)
+            robot = self._robots[rt.name]
+        await self._stop_robot_runtime(rt)
+        self.publisher.pub("robots", robot.model_copy(update={"removed": True}))
+        log.info("%s: removed by %s", rt.name, actor)
+        return {"robot": robot.model_copy(update={"removed": True}), "revoked": revoked}
+
+    # -- waypoints --------------------------------------------------------------------------
+
+    async def dependents(self, msg: P.SiteDependents) -> dict[str, Any]:
+        wp = self.places.waypoint(msg.waypoint)
+        deps = await self.store.waypoint_dependents(wp.name)
+        return {"waypoint": wp, "dependents": deps.as_dict()}
+
+    async def rename_waypoint(self, msg: P.SiteRenameWaypoint, actor: str | None) -> dict[str, Any]:
+        old = self.places.waypoint(msg.waypoint)
+        wp, deps = await self.store.rename_waypoint(
+            old.name, msg.name, now=self.clock.epoch(), by=actor
+        )
+        self._waypoint_gone(old)
+        self.places.put(wp)
+        self.publisher.pub("waypoints", wp)
+        for robot in deps.homes:
+            if robot in self._robots:
+                self._robots[robot] = self._robots[robot].model_copy(update={"home": wp.name})
+                self.publish_robot(robot)
+        block = self.service.blocks.pop(old.name, None)
+        if block is not None:
+            self.publisher.pub("blocks", block.model_copy(update={"reason": ""}))
+            moved = block.model_copy(update={"table": wp.name})
+            self.service.blocks[wp.name] = moved
+            self.publisher.pub("blocks", moved)
+        await self.publisher.pub_orders(deps.orders)
+        return {"waypoint": wp, "renamed": old.name, "dependents": deps.as_dict()}
+
+    async def remove_waypoint(self, msg: P.SiteRemoveWaypoint, actor: str | None) -> dict[str, Any]:
+        wp = self.places.waypoint(msg.waypoint)
+        deps = await self.store.remove_waypoint(wp.name, now=self.clock.epoch(), by=actor)
+        self._waypoint_gone(wp)
+        block = self.service.blocks.pop(wp.name, None)
+        if block is not None:
+            self.publisher.pub("blocks", block.model_copy(update={"reason": ""}))
+        return {"waypoint": wp.model_copy(update={"removed": True}), "revoked": deps.tokens}
+
+    def _waypoint_gone(self, wp: WaypointRecord) -> None:
+        self.places.remove(wp.name)
+        self.publisher.pub("waypoints", wp.model_copy(update={"removed": True}))

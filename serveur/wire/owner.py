@@ -1,0 +1,215 @@
+"""The owner's messages of the ``/ws`` protocol: ``site`` (robots, waypoints, settings, the audit
+trail) and ``stats`` (figures and trip history of past services).
+
+Part of :mod:`serveur.protocol` (which puts them in the client-message union and re-exports
+them); kept apart because they are the owner's console, not the dinner service's verbs.
+Every field is checked here, so a request that reaches the core is well formed: an edit names
+at least one field, a setting is within its range, a period is a day or a time.
+
+May import: serveur.wire.fields
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal, TypeAlias
+
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, model_validator
+from pydantic_core import PydanticCustomError
+
+from serveur.wire.fields import Name, OrderId, RequestId, WsUrl
+
+__all__ = [
+    "LANGUAGES",
+    "SETTINGS",
+    "SiteAudit",
+    "SiteDependents",
+    "SiteEditRobot",
+    "SiteMessage",
+    "SiteRemoveRobot",
+    "SiteRemoveWaypoint",
+    "SiteRenameWaypoint",
+    "SiteSetSettings",
+    "SiteSettings",
+    "StatsFigures",
+    "StatsMessage",
+    "StatsTrips",
+]
+
+#: The languages the pages speak (serveur/web/site/i18n).
+LANGUAGES = ("en", "zh", "ms")
+Language: TypeAlias = Literal["en", "zh", "ms"]
+#: The settings the owner may change, as ``set_settings`` names them.
+SETTINGS = ("table_timeout", "trays", "auto_depart", "languages", "language")
+
+_Epoch = Annotated[float, Field(ge=0, le=1e11)]
+#: A day (``2026-11-24``: the service day starting at 04:00) or a time (``2026-11-24T19:30``).
+_When = Annotated[str, Field(pattern=r"^\d{4}-\d{2}-\d{2}(T\d{2}:\d{2}(:\d{2})?)?$")]
+_Offset = Annotated[str, Field(pattern=r"^[+-]\d{2}:\d{2}$")]
+
+
+class _Msg(BaseModel):
+    # As protocol._ClientMsg: strict types, unknown fields refused, immutable once parsed.
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, hide_input_in_errors=True)
+
+    id: RequestId | None = Field(
+        default=None, description="Echoed in the reply so the client can match it"
+    )
+
+
+class _SiteMsg(_Msg):
+    clientmsg: Literal["site"]
+
+
+class SiteEditRobot(_SiteMsg):
+    """Change a robot's address, home, drive, ROS options or trays; omitted fields are kept.
+
+    A new address, drive or ROS options reconnect the robot, so they are refused while it
+    has a trip; home and trays may change at any time (they count from its next trip)."""
+
+    action: Literal["edit_robot"]
+    robot: Name
+    url: WsUrl | None = None
+    home: Name | None = Field(default=None, description="null (given): no home")
+    kinematics: Literal["omni", "diff"] | None = None
+    link: dict[Name, Annotated[str, Field(max_length=128)]] | None = Field(
+        default=None, max_length=16
+    )
+    trays: Annotated[int, Field(ge=1, le=12)] | None = Field(
+        default=None, description="null (given): the site's"
+    )
+
+    @model_validator(mode="after")
+    def _something(self) -> SiteEditRobot:
+        if not self.changes():
+            raise PydanticCustomError("nothing_to_edit", "name at least one field to change")
+        for key in ("url", "kinematics", "link"):
+            if key in self.model_fields_set and getattr(self, key) is None:
+                raise PydanticCustomError("not_null", f"{key} cannot be null")
+        return self
+
+    def changes(self) -> dict[str, Any]:
+        """The fields given, with their new values (``home``/``trays`` may be None)."""
+        keys = ("url", "home", "kinematics", "link", "trays")
+        return {k: getattr(self, k) for k in keys if k in self.model_fields_set}
+
+
+class SiteRemoveRobot(_SiteMsg):
+    """Remove a robot with no trip: its link is closed, its screens' tokens revoked."""
+
+    action: Literal["remove_robot"]
+    robot: Name
+
+
+class SiteDependents(_SiteMsg):
+    """What depends on a waypoint: robots parked there, open orders, trips, table screens."""
+
+    action: Literal["dependents"]
+    waypoint: Name
+
+
+class SiteRenameWaypoint(_SiteMsg):
+    """Rename a waypoint; homes, open orders, its block and its screens follow."""
+
+    action: Literal["rename_waypoint"]
+    waypoint: Name
+    name: Name
+
+
+class SiteRemoveWaypoint(_SiteMsg):
+    """Remove a waypoint nothing open depends on (``conflict`` names what does)."""
+
+    action: Literal["remove_waypoint"]
+    waypoint: Name
+
+
+class SiteSettings(_SiteMsg):
+    """The site's settings as they apply now."""
+
+    action: Literal["settings"]
+
+
+class SiteSetSettings(_SiteMsg):
+    """Change some of the site's settings; they apply at once and survive a restart."""
+
+    action: Literal["set_settings"]
+    table_timeout: Annotated[float, Field(ge=10, le=3600)] | None = Field(
+        default=None, description="seconds a robot waits at a table; null (given): for ever"
+    )
+    trays: Annotated[int, Field(ge=1, le=12)] | None = None
+    auto_depart: StrictBool | None = None
+    languages: Annotated[list[Language], Field(min_length=1, max_length=3)] | None = Field(
+        default=None, description="the languages the pages offer"
+    )
+    language: Language | None = Field(
+        default=None, description="the pages' language where the device has no choice"
+    )
+
+    @model_validator(mode="after")
+    def _something(self) -> SiteSetSettings:
+        if not self.changes():
+            raise PydanticCustomError("nothing_to_set", "name at least one setting")
+        for key in ("trays", "auto_depart", "languages", "language"):
+            if key in self.model_fields_set and getattr(self, key) is None:
+                raise PydanticCustomError("not_null", f"{key} cannot be null")
+        if self.languages is not None and len(set(self.languages)) != len(self.languages):
+            raise PydanticCustomError("duplicate", "a language is named twice")
+        return self
+
+    def changes(self) -> dict[str, Any]:
+        return {k: getattr(self, k) for k in SETTINGS if k in self.model_fields_set}
+
+
+class SiteAudit(_SiteMsg):
+    """Search the audit trail, newest first; ``before`` pages on (the last id seen)."""
+
+    action: Literal["audit"]
+    actor: Annotated[str, Field(max_length=255)] | None = Field(
+        default=None, description="user:alice or token:7"
+    )
+    verb: Annotated[str, Field(max_length=32)] | None = None
+    outcome: Annotated[str, Field(max_length=32)] | None = Field(
+        default=None, description="ok or an error code"
+    )
+    target: Name | None = None
+    since: _Epoch | None = None
+    until: _Epoch | None = None
+    before: OrderId | None = None
+    limit: Annotated[int, Field(ge=1, le=500)] = 100
+
+
+SiteMessage: TypeAlias = Annotated[
+    SiteEditRobot
+    | SiteRemoveRobot
+    | SiteDependents
+    | SiteRenameWaypoint
+    | SiteRemoveWaypoint
+    | SiteSettings
+    | SiteSetSettings
+    | SiteAudit,
+    Field(discriminator="action"),
+]
+
+
+class _StatsMsg(_Msg):
+    clientmsg: Literal["stats"]
+    start: _When | None = Field(default=None, description="from this day or time (local)")
+    end: _When | None = Field(default=None, description="to this day (inclusive) or time")
+    utc_offset: _Offset | None = Field(
+        default=None, description="the restaurant's offset (+08:00); default: the server's"
+    )
+
+
+class StatsFigures(_StatsMsg):
+    """The figures of each hour or service day of a range, and of the whole range."""
+
+    action: Literal["figures"]
+    by: Literal["hour", "day"] = "day"
+
+
+class StatsTrips(_StatsMsg):
+    """The trips of a range, each with its stops, newest last."""
+
+    action: Literal["trips"]
+
+
+StatsMessage: TypeAlias = Annotated[StatsFigures | StatsTrips, Field(discriminator="action")]
