@@ -53,8 +53,8 @@ def test_by_hour_to_csv(db: Path, tmp_path: Path, capsys: pytest.CaptureFixture[
     assert rows[0]["start"] == "2026-01-01 00:00:00"
     # A column per figure, then the robots'.
     assert list(rows[0])[:5] == ["period", "start", "end", "delivered", "wait_mean"]
-    assert list(rows[0])[-5:] == [
-        "busy_s:r2", "busy_share:r2", "loading_s:r2", "trips:r2", "errors:r2",
+    assert list(rows[0])[-6:] == [
+        "busy_s:r2", "busy_share:r2", "loading_s:r2", "trips:r2", "errors:r2", "distance_m:r2",
     ]  # fmt: skip
 
 
