@@ -66,7 +66,7 @@ class StatsService:
         return {"stats": doc}
 
     async def _child(self, msg: P.StatsFigures | P.StatsTrips) -> dict[str, Any]:
-        args = [sys.executable, "-m", "serveur", "stats", "--json"]
+        args = [sys.executable, "-m", "serveur.cli", "stats", "--json"]
         if isinstance(msg, P.StatsTrips):
             args.append("--trips")
         else:
