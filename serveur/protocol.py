@@ -72,6 +72,7 @@ from serveur.wire.frames import (
     SERVER_ADAPTER,
     ErrorCode,
     ErrorReply,
+    ForecastInfo,
     MapSnapshot,
     OkReply,
     PoseData,
@@ -100,6 +101,8 @@ from serveur.wire.owner import (
     SiteSetSettings,
     SiteSettings,
     StatsFigures,
+    StatsForecast,
+    StatsForecastCancel,
     StatsMessage,
     StatsTrips,
 )
@@ -150,6 +153,7 @@ __all__ = [
     "DishMsg",
     "ErrorCode",
     "ErrorReply",
+    "ForecastInfo",
     "GoMsg",
     "LoginMsg",
     "LogoutMsg",
@@ -176,6 +180,8 @@ __all__ = [
     "SkipMsg",
     "Snapshot",
     "StatsFigures",
+    "StatsForecast",
+    "StatsForecastCancel",
     "StatsMessage",
     "StatsTrips",
     "StopMsg",
@@ -708,7 +714,7 @@ _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
             "audit",
         ),
     ),
-    "stats": ("action", ("figures", "trips")),
+    "stats": ("action", ("figures", "trips", "forecast", "forecast_cancel")),
 }
 
 _ACTIONS: Final[dict[type[BaseModel], Action]] = {

@@ -30,9 +30,11 @@ from serveur import protocol as P
 from serveur.core.engine import Core
 from serveur.core.hub import Subscriber
 from serveur.errors import InvalidField, NotFound, RateLimited, ServeurError, Unauthorized
+from serveur.replay.forecast import Forecaster, SiteFiles
 from serveur.security.accounts import handle_account
 from serveur.security.auth import Principal, RateLimiter, Role, authorize, visible
 from serveur.security.sessions import CLOSE_AUTH, Sessions
+from serveur.stats.periods import parse_offset, parse_when
 from serveur.stats.remote import StatsService
 from serveur.store.site import AuditQuery
 from serveur.web.static import default_site
@@ -126,6 +128,12 @@ class Server:
         self.sessions = sessions
         #: The ``stats`` verb (in-process unless the app says which database a child may open).
         self.stats = stats or StatsService(core.store, None)
+        #: ``stats forecast``: a recorded day replayed with other fleets, in child processes.
+        self.forecaster = Forecaster(
+            core.store.list_orders,
+            lambda folder: SiteFiles(*core.write_site(folder)),
+            lambda rec: core.publisher.pub("forecast", _forecast_info(rec)),
+        )
         self.security = sessions.config
         self.host = host
         self.port = port
@@ -162,6 +170,7 @@ class Server:
         return f"{scheme}://{self.host}:{self.port}/ws"
 
     async def close(self) -> None:
+        await self.forecaster.close()
         if self._idle_task is not None:
             self._idle_task.cancel()
             self._idle_task = None
@@ -343,6 +352,10 @@ class Server:
             return await handle_account(self.sessions, p, msg)
         if isinstance(msg, P.SiteAudit):
             return await self._search_audit(msg)
+        if isinstance(msg, P.StatsForecast):
+            return await self._forecast(msg)
+        if isinstance(msg, P.StatsForecastCancel):
+            return {"forecast": _forecast_info((await self.forecaster.cancel()).as_dict())}
         if msg.clientmsg == "stats":
             return await self.stats.handle(msg)
         table = p.table if p is not None and p.role is Role.TABLE_SCREEN else None
@@ -351,6 +364,15 @@ class Server:
             # A removed robot's or table's screens: their tokens are revoked, close them now.
             self.sessions.end(reply["revoked"], "its robot or table was removed")
         return reply
+
+    async def _forecast(self, msg: P.StatsForecast) -> dict[str, Any]:
+        try:
+            tz = None if msg.utc_offset is None else parse_offset(msg.utc_offset)
+            start, end = parse_when(msg.day, tz), parse_when(msg.day, tz, end=True)
+        except ValueError as exc:
+            raise InvalidField(str(exc), field="day") from None
+        fc = await self.forecaster.start(msg.day, start, end, list(msg.robots), msg.policy)
+        return {"forecast": _forecast_info(fc.as_dict())}
 
     async def _search_audit(self, msg: P.SiteAudit) -> dict[str, Any]:
         q = AuditQuery(
@@ -432,7 +454,14 @@ class Server:
     async def _snapshot(self, topic: str) -> Any:
         if topic == "audit":
             return await self.core.store.recent_audit(100)
+        if topic == "forecast":
+            fc = self.forecaster.current
+            return None if fc is None else _forecast_info(fc.as_dict())
         return await self.core.snapshot(topic)
+
+
+def _forecast_info(rec: dict[str, Any]) -> P.ForecastInfo:
+    return P.ForecastInfo.model_validate(rec)
 
 
 def _writer_now(ws: ServerConnection) -> Callable[[str], bool]:

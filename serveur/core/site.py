@@ -15,6 +15,7 @@ factory default, the console the restaurant's choice).
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 from typing import Any
 
 from serveur import protocol as P
@@ -192,6 +193,28 @@ class SiteActions:
         if block is not None:
             self.publisher.pub("blocks", block.model_copy(update={"reason": ""}))
         return {"waypoint": wp.model_copy(update={"removed": True}), "revoked": deps.tokens}
+
+    # -- the site as files (a replay of it) ---------------------------------------------
+
+    def write_site(self, folder: Path) -> tuple[Path, float | None, int]:
+        """The site's map and waypoints as ``serveur replay --map`` reads them, written into
+        ``folder``; returns the map YAML's path, the table timeout and the trays."""
+        import numpy as np
+
+        from serveur.maps.mapio import OccupancyMap, Waypoint, save_map, save_waypoints
+
+        m = self.places.map
+        if m is None:
+            raise Conflict("the server has no map yet: a replay needs the restaurant's map")
+        grid = np.frombuffer(m.data, dtype=np.int8).reshape(m.height, m.width)
+        yaml_path = folder / "site.yaml"
+        save_map(OccupancyMap(grid, m.resolution, m.origin), yaml_path)
+        wps = {
+            w.name: Waypoint(w.name, w.x, w.y, w.yaw, w.kind.value)
+            for w in self.places.waypoints.values()
+        }
+        save_waypoints(wps, folder / "site_waypoints.json")
+        return yaml_path, self.config.table_timeout, self.config.capacity
 
     def _waypoint_gone(self, wp: WaypointRecord) -> None:
         self.places.remove(wp.name)

@@ -185,6 +185,8 @@ def topic_allowed(p: Principal, topic: str) -> bool:
         return topic in ("orders", "tasks", "menu", "settings")
     if topic == "audit":
         return Scope.AUDIT in p.scopes
+    if topic == "forecast":
+        return Scope.STATS in p.scopes
     return Scope.READ in p.scopes
 
 

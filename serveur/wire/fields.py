@@ -73,6 +73,7 @@ STATE_TOPICS: Final = (
     "menu",
     "blocks",
     "settings",
+    "forecast",
 )
 #: Per-robot topic prefixes: ``pose:<robot>`` and ``scan:<robot>``.
 ROBOT_TOPICS: Final = ("pose", "scan")

@@ -34,6 +34,8 @@ __all__ = [
     "Dependents",
     "ErrorCode",
     "ErrorReply",
+    "FleetForecast",
+    "ForecastInfo",
     "MapSnapshot",
     "OkReply",
     "PoseData",
@@ -77,6 +79,31 @@ class Dependents(_ServerModel):
     trips: list[int] = Field(description="queued or active trips stopping there")
     tokens: list[int] = Field(description="table-screen tokens bound to it")
     blocked: bool = Field(description="the table is blocked (unreachable)")
+
+
+class FleetForecast(_ServerModel):
+    """One fleet size in a forecast: the replayed day's waits (s) with that many robots."""
+
+    robots: int
+    state: Literal["waiting", "running", "done", "failed", "cancelled"]
+    delivered: int | None = None
+    undelivered: int | None = None
+    wait_mean: float | None = None
+    wait_p95: float | None = None
+    wait_max: float | None = None
+    trips: int | None = None
+
+
+class ForecastInfo(_ServerModel):
+    """A forecast ("how many robots?"): a recorded day replayed with each fleet size."""
+
+    id: int
+    day: str
+    policy: Literal["serveur", "baseline"]
+    dishes: int = Field(description="plates that were ready at the pass that day")
+    state: Literal["running", "done", "failed", "cancelled"]
+    error: str | None = None
+    fleets: list[FleetForecast]
 
 
 class PoseData(_ServerModel):
@@ -134,6 +161,7 @@ Snapshot: TypeAlias = (
     | list[MenuItem]
     | list[TableBlock]
     | Settings
+    | ForecastInfo
     | MapSnapshot
     | PoseData
     | ScanData
@@ -152,6 +180,7 @@ UpdateData: TypeAlias = (
     | MenuItem
     | TableBlock
     | Settings
+    | ForecastInfo
     | MapSnapshot
     | PoseData
     | ScanData
@@ -224,6 +253,9 @@ class OkReply(_ServerModel):
     settings: Settings | None = Field(default=None, description="site settings, set_settings")
     audit: list[AuditRecord] | None = Field(
         default=None, description="site audit: the records found, newest first"
+    )
+    forecast: ForecastInfo | None = Field(
+        default=None, description="stats forecast, forecast_cancel: the forecast"
     )
     stats: dict[str, Any] | None = Field(
         default=None,

@@ -31,6 +31,8 @@ __all__ = [
     "SiteSetSettings",
     "SiteSettings",
     "StatsFigures",
+    "StatsForecast",
+    "StatsForecastCancel",
     "StatsMessage",
     "StatsTrips",
 ]
@@ -212,4 +214,34 @@ class StatsTrips(_StatsMsg):
     action: Literal["trips"]
 
 
-StatsMessage: TypeAlias = Annotated[StatsFigures | StatsTrips, Field(discriminator="action")]
+class StatsForecast(_Msg):
+    """Replay a recorded service day with other fleet sizes ("how many robots do I need?"):
+    each fleet's waits arrive on the ``forecast`` topic as its replay finishes."""
+
+    clientmsg: Literal["stats"]
+    action: Literal["forecast"]
+    day: Annotated[str, Field(pattern=r"^\d{4}-\d{2}-\d{2}$")] = Field(
+        description="the service day (from 04:00 local time) whose dishes are replayed"
+    )
+    robots: Annotated[list[Annotated[int, Field(ge=1, le=12)]], Field(min_length=1, max_length=6)]
+    policy: Literal["serveur", "baseline"] = "serveur"
+    utc_offset: _Offset | None = None
+
+    @model_validator(mode="after")
+    def _distinct(self) -> StatsForecast:
+        if len(set(self.robots)) != len(self.robots):
+            raise PydanticCustomError("duplicate", "a fleet size is named twice")
+        return self
+
+
+class StatsForecastCancel(_Msg):
+    """Stop the forecast under way."""
+
+    clientmsg: Literal["stats"]
+    action: Literal["forecast_cancel"]
+
+
+StatsMessage: TypeAlias = Annotated[
+    StatsFigures | StatsTrips | StatsForecast | StatsForecastCancel,
+    Field(discriminator="action"),
+]
