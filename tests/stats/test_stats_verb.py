@@ -230,12 +230,6 @@ async def test_the_verb_on_an_in_memory_server_gives_the_commands_figures(
             await c.close()
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="server bug: StatsService._child runs `python -m serveur stats --json`, but the "
-    "package has no serveur/__main__.py, so the verb on a database file answers "
-    "internal_error 'No module named serveur.__main__'",
-)
 async def test_the_verb_on_a_database_file_runs_the_command(
     replayed: tuple[PolicyResult, Path],  # noqa: F811
     tmp_path: Path,
@@ -254,6 +248,10 @@ async def test_the_verb_on_a_database_file_runs_the_command(
                 # command itself and by the computation here.
                 assert reply["stats"] == await _command(db, *_cli_args(msg)), msg
                 assert reply["stats"] == _computed(await _events(db), msg), msg
+            msg = _trips_msg(None, None)
+            got = await _stats(c, msg)
+            assert got == await _command(db, *_cli_args(msg)) == _computed(events, msg)
+            assert [t["id"] for t in got["trips"]] == list(range(1, 9))
         finally:
             await c.close()
 
@@ -261,8 +259,8 @@ async def test_the_verb_on_a_database_file_runs_the_command(
 # -- (c): refusals -------------------------------------------------------------------------------
 
 
-async def test_bad_ranges_are_invalid_and_staff_are_forbidden() -> None:
-    async with _server(":memory:", []) as app:  # in-process (the xfail above)
+async def test_bad_ranges_are_invalid_and_staff_are_forbidden(tmp_path: Path) -> None:
+    async with _server(tmp_path / "s.db", []) as app:
         c = await _owner(app)
         staff_token = await app.issue_token("staff", label="tablet")
         s = Client(
@@ -298,8 +296,7 @@ async def test_bad_ranges_are_invalid_and_staff_are_forbidden() -> None:
 
 
 async def test_a_robot_reports_the_distance_it_drove(tmp_path: Path) -> None:
-    # A database with no file: the verb is computed in-process (see the xfail above).
-    async with restaurant(tmp_path, robots=1, db_url=":memory:") as r:
+    async with restaurant(tmp_path, robots=1) as r:  # on a database file: the child command
         robot = r.sim.robots[0]
         driven = 0.0
 
