@@ -70,7 +70,7 @@ async def test_calibrate_and_move_here_from_the_keyboard(tmp_path: Path, browser
             await staff.keyboard.press("[")  # 6 x 15 degrees to the left
         x1, y1, yaw1 = p0["x"] + 0.5, p0["y"], p0["yaw"] + math.pi / 2
         # The hint (a live region) says where the mark is, for a screen reader.
-        where = re.compile(r"\(\d+\.\d\d, \d+\.\d\d\) heading -?\d+°")
+        where = re.compile(r"\(\d+\.\d\d, \d+\.\d\d\) facing -?\d+°")
         await expect(staff.locator("#tool-hint")).to_contain_text(where)
         await staff.keyboard.press("Enter")
         await c.until(

@@ -3,8 +3,9 @@
 
 import { statusColour } from "../status.js";
 
-const WAYPOINT_COLOURS = { table: "#8b5a2b", home: "#2f6fdb", pass: "#138a5b", other: "#666" };
+export const WAYPOINT_COLOURS = { table: "#8b5a2b", home: "#2f6fdb", pass: "#138a5b", other: "#666" };
 const ROBOT_RADIUS_M = 0.25;
+const BLOCKED_COLOUR = "#dc2626";
 
 /** The occupancy grid, drawn in world units (see grid.js for why no row flip is needed). */
 export function drawGrid(ctx, view, map, image) {
@@ -136,7 +137,48 @@ export function drawScan(ctx, view, scan) {
   ctx.restore();
 }
 
-/** A dashed line from the robot to where it is going, and a flag there. */
+/**
+ * A trip's later tables, faint: a thin dashed line from the current stop (wps[0]) on through
+ * each later one, and a small ring on each. The current stop itself is drawGoal's.
+ */
+export function drawLaterStops(ctx, view, wps, colour) {
+  if (wps.length < 2) return;
+  const pts = wps.map((w) => view.toScreen(w.x, w.y));
+  ctx.save();
+  ctx.globalAlpha = 0.45;
+  ctx.strokeStyle = colour;
+  ctx.lineWidth = 1.5;
+  ctx.setLineDash([3, 4]);
+  ctx.beginPath();
+  pts.forEach(([x, y], i) => (i ? ctx.lineTo(x, y) : ctx.moveTo(x, y)));
+  ctx.stroke();
+  ctx.setLineDash([]);
+  for (const [x, y] of pts.slice(1)) {
+    ctx.beginPath();
+    ctx.arc(x, y, 7, 0, 2 * Math.PI);
+    ctx.stroke();
+  }
+  ctx.restore();
+}
+
+/** A table robots cannot reach (a block): a red ring crossed over its marker. */
+export function drawBlocked(ctx, view, wp) {
+  const [x, y] = view.toScreen(wp.x, wp.y);
+  const r = 9;
+  ctx.save();
+  ctx.strokeStyle = BLOCKED_COLOUR;
+  ctx.lineWidth = 2.5;
+  ctx.beginPath();
+  ctx.arc(x, y, r, 0, 2 * Math.PI);
+  ctx.moveTo(x - r * 0.7, y - r * 0.7);
+  ctx.lineTo(x + r * 0.7, y + r * 0.7);
+  ctx.moveTo(x + r * 0.7, y - r * 0.7);
+  ctx.lineTo(x - r * 0.7, y + r * 0.7);
+  ctx.stroke();
+  ctx.restore();
+}
+
+/** A dashed line from the robot to where it is going, and that place ringed (tinted inside). */
 export function drawGoal(ctx, view, from, goal, colour, labels) {
   const [x0, y0] = view.toScreen(from.x, from.y);
   const [x1, y1] = view.toScreen(goal.x, goal.y);
@@ -150,10 +192,15 @@ export function drawGoal(ctx, view, from, goal, colour, labels) {
   ctx.stroke();
   ctx.setLineDash([]);
   ctx.beginPath();
-  ctx.arc(x1, y1, 9, 0, 2 * Math.PI);
+  ctx.arc(x1, y1, 10, 0, 2 * Math.PI);
+  ctx.globalAlpha = 0.18;
+  ctx.fillStyle = colour;
+  ctx.fill();
+  ctx.globalAlpha = 1;
+  ctx.lineWidth = 3;
   ctx.stroke();
   if (goal.yaw !== undefined && goal.yaw !== null) arrow(ctx, x1, y1, goal.yaw, 18, colour);
-  if (goal.label) labels.push({ text: goal.label, x: x1, y: y1, r: 10, colour, font: "bold 12px system-ui, sans-serif", prio: 1 });
+  if (goal.label) labels.push({ text: goal.label, x: x1, y: y1, r: 12, colour, font: "bold 12px system-ui, sans-serif", prio: 1 });
   ctx.restore();
 }
 

@@ -13,9 +13,28 @@
 // The keyboard: the canvas takes focus; arrow keys pan, + and - zoom. With a pose tool on
 // (Calibrate, Move here), a cursor starts on the selected robot: arrow keys move it (Shift: in
 // bigger steps), [ and ] turn its heading, Enter confirms, Escape cancels.
+//
+// Follow (setFollow): each frame drawn puts the selected robot in the middle, the zoom kept.
+// A frame is drawn when the robot's pose changes, as for everything else: no frame loop. Any
+// pan or zoom by hand turns following off (the canvas fires "followchange"), as does Escape
+// (maptools.js). data-follow says whether it is on.
+//
+// Each robot on a trip: a dashed line to the table it is going to (or waiting at), that table
+// ringed, and faint lines on to its later tables; data-routes publishes what was drawn
+// ({robot: [current table, later tables...]}). Tables robots cannot reach (blocks) are crossed.
 
 import { decodeGrid } from "./grid.js";
-import { arrow, drawGoal, drawGrid, drawLabels, drawRobot, drawScan, drawWaypoints } from "./draw.js";
+import {
+  arrow,
+  drawBlocked,
+  drawGoal,
+  drawGrid,
+  drawLabels,
+  drawLaterStops,
+  drawRobot,
+  drawScan,
+  drawWaypoints,
+} from "./draw.js";
 import { statusColour } from "../status.js";
 import { t } from "../i18n.js";
 
@@ -23,6 +42,7 @@ const MIN_SCALE = 5;
 const MAX_SCALE = 400;
 const CLICK_SLOP_PX = 6;
 const TOOL_COLOURS = { initialpose: "#15803d", goal: "#7c3aed" };
+export const CONSOLE_GOAL_COLOUR = TOOL_COLOURS.goal; // a goal sent from this console (Move here)
 const KEY_STEP_M = 0.1; // a cursor step; Shift: five
 const KEY_TURN = Math.PI / 12; // 15 degrees
 const KEY_PAN_PX = 40;
@@ -56,6 +76,8 @@ export class MapView {
     this._dirty = true;
     this._draws = 0;
     this._cursor = null; // the keyboard's pose cursor: {x, y, yaw}
+    this.following = false; // keep the selected robot in the middle (setFollow)
+    canvas.dataset.follow = "off";
     this._listen();
     new ResizeObserver(() => this._resize()).observe(canvas);
     this._resize();
@@ -100,7 +122,33 @@ export class MapView {
     if (this.opts.onCursor) this.opts.onCursor(c); // said aloud: the hint is a live region
   }
 
+  /** Keep the selected robot in the middle of the view (each frame drawn), or stop. */
+  setFollow(on) {
+    on = Boolean(on);
+    if (on === this.following) return;
+    this.following = on;
+    this.canvas.dataset.follow = on ? "on" : "off";
+    if (on) {
+      this.userMoved = true; // a resize or a new map must not fit the whole map over it
+      this.requestDraw();
+    }
+    this.canvas.dispatchEvent(new CustomEvent("followchange", { detail: { on } }));
+  }
+
+  /** Following: the view's origin such that the selected robot is in the middle. */
+  _centreOnFollowed() {
+    const name = this.opts.selected();
+    const p = name && this.live.pose(name);
+    const w = this.canvas.clientWidth;
+    const h = this.canvas.clientHeight;
+    if (!p || !w || !h) return;
+    this.ox = w / 2 - p.x * this.scale;
+    this.oy = h / 2 + p.y * this.scale;
+    this._publishView();
+  }
+
   zoomBy(factor, sx = this.canvas.clientWidth / 2, sy = this.canvas.clientHeight / 2) {
+    this.setFollow(false); // zoomed by hand: the person looks somewhere else
     const next = Math.min(MAX_SCALE, Math.max(MIN_SCALE, this.scale * factor));
     const [wx, wy] = this.toWorld(sx, sy);
     this.scale = next;
@@ -112,6 +160,7 @@ export class MapView {
   }
 
   panBy(dx, dy) {
+    this.setFollow(false);
     this.ox += dx;
     this.oy += dy;
     this.userMoved = true;
@@ -124,6 +173,7 @@ export class MapView {
     const w = this.canvas.clientWidth;
     const h = this.canvas.clientHeight;
     if (!map || !w || !h) return;
+    this.setFollow(false);
     const mw = map.width * map.resolution;
     const mh = map.height * map.resolution;
     const margin = 16;
@@ -147,11 +197,15 @@ export class MapView {
   }
 
   _viewChanged() {
+    this._publishView();
+    this.requestDraw();
+  }
+
+  _publishView() {
     const d = this.canvas.dataset;
     d.scale = String(this.scale);
     d.originX = String(this.ox);
     d.originY = String(this.oy);
-    this.requestDraw();
   }
 
   _resize() {
@@ -170,6 +224,7 @@ export class MapView {
     if (this._frame) cancelAnimationFrame(this._frame);
     this._frame = 0;
     this._dirty = false;
+    if (this.following) this._centreOnFollowed();
     this._draw();
     this.canvas.dataset.draws = String(++this._draws);
   }
@@ -199,18 +254,29 @@ export class MapView {
     const selected = this.opts.selected();
     const scan = selected && live.scans.get(selected);
     if (scan) drawScan(ctx, this, scan);
+    for (const table of live.blocks.keys()) {
+      const wp = live.waypoints.get(table);
+      if (wp) drawBlocked(ctx, this, wp);
+    }
     const goals = this.opts.goals();
+    const routes = {};
     for (const [name, robot] of live.robots) {
       const pose = live.pose(name);
       if (!pose) continue;
       const colour = statusColour(robot.status);
-      const table = live.destination(name);
-      const wp = table && live.waypoints.get(table);
-      if (wp) drawGoal(ctx, this, pose, { ...wp, label: `${name} → ${table}` }, colour, labels);
-      else if (goals.has(name)) {
-        drawGoal(ctx, this, pose, { ...goals.get(name), label: `${name} → ${t("map.goalLabel")}` }, colour, labels);
+      const stops = this.route(name).filter((s) => live.waypoints.has(s));
+      if (stops.length) {
+        const wps = stops.map((s) => live.waypoints.get(s));
+        drawLaterStops(ctx, this, wps, colour);
+        drawGoal(ctx, this, pose, { ...wps[0], label: `${name} → ${stops[0]}` }, colour, labels);
+        routes[name] = stops;
+      } else if (goals.has(name)) {
+        const label = `${name} → ${t("map.goalLabel")}`;
+        drawGoal(ctx, this, pose, { ...goals.get(name), label }, CONSOLE_GOAL_COLOUR, labels);
+        routes[name] = ["goal"];
       }
     }
+    this.canvas.dataset.routes = JSON.stringify(routes);
     for (const [name, robot] of live.robots) {
       const pose = live.pose(name);
       if (pose) drawRobot(ctx, this, name, pose, robot.status, name === selected, labels);
@@ -228,6 +294,20 @@ export class MapView {
     }
     const placed = drawLabels(ctx, labels);
     this.canvas.dataset.labels = JSON.stringify(placed.map((b) => [b.x0, b.y0, b.x1, b.y1].map(Math.round)));
+  }
+
+  /**
+   * The tables robot `name` still has to visit on its trip: the one it is going to or waiting
+   * at (live.destination), then the later stops not served yet, in visiting order.
+   */
+  route(name) {
+    const { live } = this;
+    const r = live.robots.get(name);
+    const task = r && r.current_task !== null && r.current_task !== undefined ? live.tasks.get(r.current_task) : null;
+    const now = task && task.stops[task.current_stop];
+    if (!now) return [];
+    const later = task.stops.slice(task.current_stop + 1).filter((s) => s.status === "pending");
+    return [now.table, ...later.map((s) => s.table)];
   }
 
   _local(ev) {

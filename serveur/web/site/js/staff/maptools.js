@@ -2,9 +2,14 @@
 // tools like RViz's 2D Pose Estimate / 2D Nav Goal, and zoom buttons. From the keyboard, a tool
 // button pressed with Enter or Space puts a cursor on the map (view.js: arrow keys move it, [ and
 // ] turn it, Enter confirms, Escape cancels); focus then returns to the tool's button.
+// Follow robot (aria-pressed) keeps the selected robot in the middle of the map (view.js
+// setFollow); a pan or zoom by hand, or Escape anywhere, turns it off.
+// The map's legend (staff.html #map-legend) takes its swatches' colours from the drawing code
+// and is kept no taller than the map.
 
 import { act, toast } from "../ui.js";
-import { allowed } from "../status.js";
+import { allowed, statusColour } from "../status.js";
+import { WAYPOINT_COLOURS } from "../map/draw.js";
 import { onLangChange, t } from "../i18n.js";
 
 // hint: a catalog key.
@@ -29,8 +34,13 @@ export class MapTools {
         if (e.detail === 0 && this.view.tool === tool) this.view.startKeyboardTool();
       });
     }
-    // Escape turns a tool off wherever the focus is (the map handles its own, with the mark).
+    this.follow = document.getElementById("tool-follow");
+    this.follow.addEventListener("click", () => this.view.setFollow(!this.view.following));
+    view.canvas.addEventListener("followchange", (e) => this.follow.setAttribute("aria-pressed", String(e.detail.on)));
+    // Escape stops following, and turns a tool off, wherever the focus is (the map handles its
+    // own tool's Escape, with the mark).
     document.addEventListener("keydown", (e) => {
+      if (e.key === "Escape" && this.view.following && !document.querySelector("dialog[open]")) this.view.setFollow(false);
       if (e.key !== "Escape" || e.defaultPrevented || this.view.tool === "pan") return;
       if (e.target === this.view.canvas || document.querySelector("dialog[open]")) return;
       this.cancel();
@@ -40,12 +50,15 @@ export class MapTools {
     document.getElementById("zoom-fit").addEventListener("click", () => view.fit());
     live.addEventListener("change", (e) => {
       if (e.detail.topic === "robots") this._refresh();
+      if (e.detail.topic === "blocks") view.requestDraw(); // blocked tables are drawn crossed
       if (e.detail.topic.startsWith("pose:") || e.detail.topic === "robots") this._forgetReachedGoals();
     });
     selection.onChange(() => {
       this._setTool("pan");
       this._refresh();
+      view.requestDraw(); // following: the newly selected robot comes to the middle
     });
+    this._legend();
     onLangChange(() => {
       this._refresh();
       this._showHint(this.view.tool);
@@ -84,7 +97,21 @@ export class MapTools {
     this.hint.textContent = hint ? t("map.hintFor", { robot: this.selection.name, hint: t(hint) }) : "";
   }
 
+  /** The legend's swatches in the colours the map draws with; never taller than the map. */
+  _legend() {
+    const legend = document.getElementById("map-legend");
+    for (const sw of legend.querySelectorAll("[data-status]")) sw.style.background = statusColour(sw.dataset.status);
+    for (const sw of legend.querySelectorAll("[data-kind]")) sw.style.background = WAYPOINT_COLOURS[sw.dataset.kind];
+    const fit = () => {
+      const h = this.view.canvas.clientHeight;
+      legend.style.maxHeight = h > 0 ? `${Math.max(44, h - 16)}px` : "";
+    };
+    new ResizeObserver(fit).observe(this.view.canvas);
+    legend.addEventListener("toggle", fit);
+  }
+
   _refresh() {
+    this.follow.disabled = !this.selection.name;
     const robot = this.live.robots.get(this.selection.name);
     for (const [tool, { button }] of Object.entries(TOOLS)) {
       const ok = Boolean(robot && allowed(robot.status, tool));
