@@ -12,7 +12,9 @@
 // (no CDN: restaurants are offline), so switching language later needs no network at all.
 //
 // The language: `?lang=zh` in the address, else the choice saved on this device for this kind
-// of page (staff, robot, table), else the browser's language, else English.
+// of page (staff, robot, table), else the site's default language (the owner's settings, once a
+// page that subscribed to them calls applySiteLanguages), else the browser's language, else
+// English. The site's settings also narrow the picker to the languages the restaurant offers.
 //
 // Markup: an element with data-i18n="key" gets its text from the catalog, data-i18n-aria-label,
 // data-i18n-title and data-i18n-placeholder set those attributes, data-i18n-args (JSON) gives
@@ -59,11 +61,14 @@ function save(lang) {
   }
 }
 
+/** The language this device asked for: `?lang=` in the address, else its saved choice. */
+function chosenLang(loc = window.location) {
+  return supported(new URLSearchParams(loc.search).get("lang")) || supported(saved());
+}
+
 export function initialLang(loc = window.location) {
-  const fromAddress = supported(new URLSearchParams(loc.search).get("lang"));
-  if (fromAddress) return fromAddress;
-  const fromDevice = supported(saved());
-  if (fromDevice) return fromDevice;
+  const chosen = chosenLang(loc);
+  if (chosen) return chosen;
   for (const tag of navigator.languages || [navigator.language]) {
     const lang = supported(tag);
     if (lang) return lang;
@@ -189,20 +194,48 @@ export function setLang(next, { remember = false } = {}) {
   }
 }
 
-/** Fill every <select class="lang-picker"> with the languages, each named in itself. */
-function setupPickers() {
+// The languages the site offers (its settings; all of them until told).
+let offered = [...LANGS];
+
+/** The pickers' options: the languages offered, and the current one if the device chose another. */
+function fillPickers() {
+  const shown = LANGS.filter((l) => offered.includes(l) || l === current);
   for (const picker of document.querySelectorAll("select.lang-picker")) {
     picker.replaceChildren(
-      ...LANGS.map((l) => {
+      ...shown.map((l) => {
         const option = document.createElement("option");
         option.value = l;
         option.lang = HTML_LANG[l];
         option.setAttribute("data-i18n", `lang.${l}`);
+        translateNode(option);
         return option;
       }),
     );
+    picker.value = current;
+  }
+}
+
+/** Fill every <select class="lang-picker"> with the languages, each named in itself. */
+function setupPickers() {
+  fillPickers();
+  for (const picker of document.querySelectorAll("select.lang-picker")) {
     picker.addEventListener("change", () => setLang(picker.value, { remember: true }));
   }
+}
+
+/**
+ * Obey the site's settings (the `settings` topic's record): the pickers offer only its
+ * `languages`, and a device that chose nothing (no `?lang=`, nothing saved) speaks its
+ * `language`. A device's own choice still wins.
+ */
+export function applySiteLanguages(settings) {
+  if (!settings || !Array.isArray(settings.languages)) return;
+  const langs = settings.languages.filter((l) => LANGS.includes(l));
+  offered = langs.length ? langs : [...LANGS];
+  const fallback = supported(settings.language) || offered[0];
+  const next = chosenLang() || (offered.includes(fallback) ? fallback : offered[0]);
+  if (next !== current) setLang(next);
+  fillPickers();
 }
 
 await Promise.all(LANGS.map(loadCatalog));

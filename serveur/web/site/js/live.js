@@ -1,7 +1,8 @@
 // The page's copy of the server's state, kept from snapshots and updates (docs/protocol.md,
 // "Topics"). State topics are upserts keyed by name or id; streams keep the latest value.
 // Emits "change" {topic, record} after every change (record: the updated record, or null after a
-// snapshot), so views redraw only what they show.
+// snapshot), so views redraw only what they show. A robot or waypoint update with `removed: true`
+// (the owner removed or renamed it) drops that record. `settings` keeps the site's settings.
 
 const KEYS = {
   robots: "name", waypoints: "name", orders: "id", tasks: "id", events: "id",
@@ -22,6 +23,7 @@ export class Live extends EventTarget {
     this.menu = new Map(); // dish name -> menu item
     this.blocks = new Map(); // table -> why no robot is sent there
     this.map = null;
+    this.settings = null; // the site's settings, if the page subscribed to them
     this.poses = new Map(); // robot -> {x, y, yaw, stamp}
     this.scans = new Map(); // robot -> scan
     this.clock = new ServerClock();
@@ -51,8 +53,10 @@ export class Live extends EventTarget {
   _put(topic, rec) {
     // An alert whose cause ended, a block whose reason is gone: over, not shown any more.
     const over = (topic === "alerts" && rec.cleared_at !== null && rec.cleared_at !== undefined) || (topic === "blocks" && !rec.reason);
-    if (over) this[topic].delete(rec[KEYS[topic]]);
+    const removed = (topic === "robots" || topic === "waypoints") && rec.removed === true;
+    if (over || removed) this[topic].delete(rec[KEYS[topic]]);
     else this[topic].set(rec[KEYS[topic]], rec);
+    if (removed && topic === "robots") [this.poses, this.scans].forEach((m) => m.delete(rec.name));
     if (topic === "events" && this.events.size > MAX_EVENTS) {
       this.events.delete(this.events.keys().next().value);
     }
@@ -62,6 +66,10 @@ export class Live extends EventTarget {
   _stream(topic, data) {
     if (topic === "map") {
       this.map = data;
+      return;
+    }
+    if (topic === "settings") {
+      this.settings = data;
       return;
     }
     const [kind, robot] = splitTopic(topic);
