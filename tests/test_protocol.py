@@ -56,6 +56,15 @@ def _blocks(lang: str, tag: str | None = None) -> list[str]:
 _PARSE_CODES = frozenset({"bad_json", "unknown_message", "invalid_field"})
 
 
+def _parser_refusal(reply: dict[str, Any]) -> bool:
+    """Is ``reply`` the parser's error? An ``invalid_field`` is the parser's when it lists
+    ``details.errors``; one with ``details.field`` is the server's check of a well-formed
+    request against its state (a language not offered, a range ending before it starts)."""
+    if reply.get("servermsg") != "error" or reply["code"] not in _PARSE_CODES:
+        return False
+    return reply["code"] != "invalid_field" or "errors" in reply.get("details", {})
+
+
 def _refused_examples() -> dict[str, str]:
     """Client example blocks (their text) whose documented reply is a parser error: its code."""
     out: dict[str, str] = {}
@@ -66,7 +75,7 @@ def _refused_examples() -> dict[str, str]:
     )
     for m in pairs:
         reply = json.loads(m.group(2))
-        if reply.get("servermsg") == "error" and reply["code"] in _PARSE_CODES:
+        if _parser_refusal(reply):
             out[m.group(1)] = reply["code"]
     return out
 
@@ -185,7 +194,12 @@ def test_doc_status_error_example_is_what_the_server_sends() -> None:
 
 
 def test_doc_invalid_field_example_is_what_the_parser_sends() -> None:
-    (doc,) = [ex for ex in _server_examples() if ex.get("code") == "invalid_field"]
+    (doc,) = [
+        ex
+        for ex in _server_examples()
+        if ex.get("code") == "invalid_field"
+        and [e["loc"] for e in ex["details"].get("errors", [])] == [["vx"]]
+    ]
     exc = _raises(
         json.dumps(
             {"clientmsg": "control", "robot": "r1", "action": "teleop", "vx": 3.0, "wz": 0.0}
@@ -359,6 +373,42 @@ def test_defaults() -> None:
     assert isinstance(robot, P.CreateRobot) and robot.kinematics == "omni" and robot.home is None
 
 
+def test_owner_messages_parse_with_their_defaults() -> None:
+    edit = P.parse_client(json.dumps(EDIT | {"home": None, "trays": 3, "link": {"ns": "/r1"}}))
+    assert isinstance(edit, P.SiteEditRobot)
+    assert edit.changes() == {"home": None, "link": {"ns": "/r1"}, "trays": 3}  # no url: kept
+    for action, fields in (
+        ("remove_robot", {"robot": "r1"}),
+        ("dependents", {"waypoint": "T3"}),
+        ("rename_waypoint", {"waypoint": " T3 ", "name": "Patio 3"}),
+        ("remove_waypoint", {"waypoint": "T3"}),
+        ("settings", {}),
+    ):
+        msg = P.parse_client(json.dumps({"clientmsg": "site", "action": action, **fields}))
+        assert msg.action == action and P.action_of(msg) is None
+    renamed = P.parse_client(
+        '{"clientmsg":"site","action":"rename_waypoint","waypoint":" T3 ","name":"Patio 3"}'
+    )
+    assert isinstance(renamed, P.SiteRenameWaypoint) and renamed.waypoint == "T3"  # trimmed
+    settings = P.parse_client(json.dumps(SETTINGS | {"table_timeout": None, "auto_depart": True}))
+    assert isinstance(settings, P.SiteSetSettings)
+    assert settings.changes() == {"table_timeout": None, "auto_depart": True}
+    langs = P.parse_client(json.dumps(SETTINGS | {"languages": ["ms", "en"], "language": "ms"}))
+    assert isinstance(langs, P.SiteSetSettings) and langs.languages == ["ms", "en"]
+    audit = P.parse_client(json.dumps(AUDIT))
+    assert isinstance(audit, P.SiteAudit)
+    assert (audit.limit, audit.actor, audit.before) == (100, None, None)
+    figures = P.parse_client(json.dumps(FIGURES))
+    assert isinstance(figures, P.StatsFigures)
+    assert (figures.by, figures.start, figures.end, figures.utc_offset) == ("day", None, None, None)
+    trips = P.parse_client('{"clientmsg":"stats","action":"trips","start":"2026-11-24"}')
+    assert isinstance(trips, P.StatsTrips) and trips.start == "2026-11-24"
+    forecast = P.parse_client(json.dumps(FORECAST))
+    assert isinstance(forecast, P.StatsForecast) and forecast.policy == "serveur"
+    cancel = P.parse_client('{"clientmsg":"stats","action":"forecast_cancel","id":3}')
+    assert isinstance(cancel, P.StatsForecastCancel) and cancel.id == 3
+
+
 @pytest.mark.parametrize(
     ("yaw", "expected"),
     [
@@ -418,6 +468,16 @@ def test_action_of_and_robot_of() -> None:
         "clear": (None, None),
         # people and screen tokens (owners): no robot's status either
         **{f"account {a}": (None, None) for a in P._SUBTAGS["account"][1]},
+        # the owner's site and statistics: a robot edited or removed is named (it must
+        # exist), but no status allows or forbids it (a trip does: the core says conflict)
+        "site edit_robot": (None, "r2"),
+        "site remove_robot": (None, "r2"),
+        **{
+            f"site {a}": (None, None)
+            for a in P._SUBTAGS["site"][1]
+            if a not in ("edit_robot", "remove_robot")
+        },
+        **{f"stats {a}": (None, None) for a in P._SUBTAGS["stats"][1]},
     }
     seen = {}
     for ex in _client_examples():
@@ -505,6 +565,11 @@ WAYPOINT = {"clientmsg": "create", "type": "waypoint", "name": "T1", "x": 1.0, "
 TASK = {"clientmsg": "create", "type": "task", "orders": [1, 2]}
 ROBOT = {"clientmsg": "create", "type": "robot", "name": "r1", "url": "ws://10.0.0.2:9090"}
 DATA = {"clientmsg": "data", "topics": ["robots"]}
+EDIT = {"clientmsg": "site", "action": "edit_robot", "robot": "r1"}
+SETTINGS = {"clientmsg": "site", "action": "set_settings"}
+AUDIT = {"clientmsg": "site", "action": "audit"}
+FIGURES = {"clientmsg": "stats", "action": "figures"}
+FORECAST = {"clientmsg": "stats", "action": "forecast", "day": "2026-11-20", "robots": [2]}
 
 
 @pytest.mark.parametrize(
@@ -600,6 +665,72 @@ DATA = {"clientmsg": "data", "topics": ["robots"]}
         ({"clientmsg": "create", "type": "waypoint", "name": "T1", "robot": "r1", "yaw": 0}, []),
         ({"clientmsg": "order"}, []),
         ({"clientmsg": "order", "table": "T3", "robot": "r1"}, []),
+        # site (owners): an edit names something to change, and never nulls what has no null
+        (EDIT, []),
+        (EDIT | {"url": None}, []),
+        (EDIT | {"kinematics": None}, []),
+        (EDIT | {"link": None}, []),
+        (EDIT | {"url": "http://10.0.0.2:9090"}, ["url"]),
+        (EDIT | {"trays": 0}, ["trays"]),
+        (EDIT | {"trays": 13}, ["trays"]),
+        (EDIT | {"home": ""}, ["home"]),
+        (EDIT | {"name": "r2"}, ["name"]),
+        (EDIT | {"home": None}, None),  # no home: valid
+        (EDIT | {"trays": None}, None),  # the site's trays: valid
+        ({"clientmsg": "site", "action": "remove_robot"}, ["robot"]),
+        ({"clientmsg": "site", "action": "dependents", "waypoint": " "}, ["waypoint"]),
+        ({"clientmsg": "site", "action": "rename_waypoint", "waypoint": "T3"}, ["name"]),
+        ({"clientmsg": "site", "action": "remove_waypoint", "robot": "r1"}, ["waypoint"]),
+        ({"clientmsg": "site", "action": "settings", "trays": 2}, ["trays"]),
+        ({"clientmsg": "site", "action": "tidy"}, ["action"]),
+        (SETTINGS, []),
+        (SETTINGS | {"table_timeout": 1}, ["table_timeout"]),
+        (SETTINGS | {"table_timeout": 9.9}, ["table_timeout"]),
+        (SETTINGS | {"table_timeout": 3601}, ["table_timeout"]),
+        (SETTINGS | {"table_timeout": "180"}, ["table_timeout"]),
+        (SETTINGS | {"table_timeout": None}, None),  # wait for ever: valid
+        (SETTINGS | {"trays": 13}, ["trays"]),
+        (SETTINGS | {"trays": None}, []),
+        (SETTINGS | {"auto_depart": 1}, ["auto_depart"]),
+        (SETTINGS | {"auto_depart": None}, []),
+        (SETTINGS | {"languages": ["en", "en"]}, []),
+        (SETTINGS | {"languages": []}, ["languages"]),
+        (SETTINGS | {"languages": ["en", "zh", "ms", "en"]}, ["languages"]),
+        (SETTINGS | {"languages": ["fr"]}, ["languages", 0]),
+        (SETTINGS | {"languages": None}, []),
+        (SETTINGS | {"language": "EN"}, ["language"]),
+        (SETTINGS | {"language": None}, []),
+        # a language offered or not is the server's check (invalid_field with details.field)
+        (SETTINGS | {"languages": ["en"], "language": "ms"}, None),
+        (AUDIT | {"limit": 0}, ["limit"]),
+        (AUDIT | {"limit": 501}, ["limit"]),
+        (AUDIT | {"limit": 500}, None),
+        (AUDIT | {"before": 0}, ["before"]),
+        (AUDIT | {"since": -1.0}, ["since"]),
+        (AUDIT | {"until": math.inf}, ["until"]),
+        (AUDIT | {"verb": "v" * 33}, ["verb"]),
+        (AUDIT | {"target": "t" * 65}, ["target"]),
+        # stats (owners): days and times, one pattern
+        (FIGURES | {"start": "24/11/2026"}, ["start"]),
+        (FIGURES | {"start": "2026-11-24 19:30"}, ["start"]),  # a T between day and time
+        (FIGURES | {"end": "2026-11-24T19"}, ["end"]),
+        (FIGURES | {"start": 20261124}, ["start"]),
+        (FIGURES | {"utc_offset": "+8"}, ["utc_offset"]),
+        (FIGURES | {"utc_offset": "UTC"}, ["utc_offset"]),
+        (FIGURES | {"by": "week"}, ["by"]),
+        (FIGURES | {"start": "2026-11-24T19:30:05", "utc_offset": "-05:30"}, None),
+        # a date that does not exist, or an end before the start: the server's check
+        (FIGURES | {"start": "2026-02-30"}, None),
+        ({"clientmsg": "stats", "action": "trips", "by": "day"}, ["by"]),
+        ({"clientmsg": "stats", "action": "chart"}, ["action"]),
+        (FORECAST | {"day": "2026-11-20T19:00"}, ["day"]),
+        (FORECAST | {"robots": []}, ["robots"]),
+        (FORECAST | {"robots": [0]}, ["robots", 0]),
+        (FORECAST | {"robots": [13]}, ["robots", 0]),
+        (FORECAST | {"robots": [1, 2, 3, 4, 5, 6, 7]}, ["robots"]),
+        (FORECAST | {"robots": [2, 2]}, []),
+        (FORECAST | {"policy": "fifo"}, ["policy"]),
+        ({"clientmsg": "stats", "action": "forecast_cancel", "day": "2026-11-20"}, ["day"]),
     ],
 )
 def test_field_errors(msg: dict[str, Any], loc: list[Any] | None) -> None:
@@ -922,7 +1053,7 @@ def test_schema_covers_every_message() -> None:
     assert _consts(s["client"], "type") == set(P._SUBTAGS["create"][1])
     assert _consts(s["client"], "action") == {
         a.value for a in Action if a.value in P._SUBTAGS["control"][1]
-    } | set(P._SUBTAGS["account"][1])
+    } | set(P._SUBTAGS["account"][1]) | set(P._SUBTAGS["site"][1]) | set(P._SUBTAGS["stats"][1])
     assert _consts(s["server"], "servermsg") == {"ok", "error", "update"}
     for part in s.values():
         for ref in _refs(part):

@@ -14,14 +14,15 @@ test sends them. One restaurant (a real server on a SQLite file, one simulated r
   be equal.
 * An ``update`` block is a pushed update: the test waits (up to ``UPDATE_WAIT`` s) until one of
   its watching connections, subscribed to every topic since the restaurant started (the owner's
-  to ``audit``), has received an update on that topic that matches.
+  to ``audit`` and ``forecast``), has received an update on that topic that matches.
 
 Matching, field by field: the same set of keys in every object, recursively; lists of the same
 length, element by element; every value equal — except *volatile* values, which depend on the
-run (ids the server assigns, times, ``seq``, the simulator's port and poses, tokens). A volatile
-value is matched by its JSON type (number, string, boolean, list, object), and ``null`` versus
-a value always matters. Volatile are the keys in ``VOLATILE`` below, the integers in the id
-lists ``ORDER_ID_LISTS``, and the keys a block's hint adds with ``loose=``.
+run (ids the server assigns, times, ``seq``, the simulator's port and poses, a robot's
+odometer, tokens). A volatile value is matched by its JSON type (number, string, boolean,
+list, object), and ``null`` versus a value always matters. Volatile are the keys in
+``VOLATILE`` below, the integers in the id lists ``ORDER_ID_LISTS``, and the keys a block's
+hint adds with ``loose=``.
 
 Hints: an HTML comment ``<!-- doctest: ... -->`` (invisible to a reader) before a block applies
 to that block. Its space-separated words:
@@ -40,14 +41,18 @@ to that block. Its space-separated words:
   ``order`` (the newest order; ``order:S``: the newest in status ``S``), ``orders`` (the
   orders the ``orders=`` hint just created), ``task`` and ``stop`` (``r1``'s current trip and
   stop), ``alert`` (the active alert of the documented reply's kind and subject), ``device``
-  (the id of the token the latest ``account`` ``create_token`` made, into ``token``).
+  (the id of the token the latest ``account`` ``create_token`` made, into ``token``), ``day``
+  (the run's service day, at the request's ``utc_offset``: a ``stats`` ``forecast`` needs a
+  day with dishes).
 * ``token=ROLE:ROBOT``: replace the request's ``token`` by a fresh token of that role.
 * ``loose=a,b``: more volatile keys for this block. ``sample=k``: under key ``k`` the example
   lists some of the records (each must match one record the server sent; the real list may be
   longer).
 * ``snapshot``: an ``update`` block compared with the topic's snapshot instead of a pushed update
   (the map is pushed only when it changes, which a server started with its map never sees).
-* ``skip=reason``: not replayed (none today).
+* ``skip=reason``: not replayed. Today the two ``stats`` examples of a new restaurant, whose
+  database is empty (the replay's is not by then): ``test_stats_examples_on_an_empty_database``
+  sends them to a server of their own.
 
 The restaurant runs as shipped (``CoreConfig.auto_depart`` False): a trip given to ``r1`` waits
 at the pass, Loading, until a ``go``.
@@ -62,6 +67,7 @@ import asyncio
 import json
 import re
 from collections.abc import AsyncIterator
+from datetime import datetime, timedelta
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -72,6 +78,7 @@ from websockets.exceptions import ConnectionClosed
 
 from serveur.core.runtime import CoreConfig
 from serveur.security import auth
+from serveur.stats.periods import parse_offset
 from tests.conftest import Client, Restaurant, restaurant
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "protocol.md"
@@ -112,6 +119,7 @@ VOLATILE = frozenset(
         "y",
         "yaw",
         "battery",
+        "odometer",
         "url",
         "peer",
         "angle_min",
@@ -134,6 +142,7 @@ ALL_TOPICS = [
     "alerts",
     "menu",
     "blocks",
+    "settings",
     f"pose:{ROBOT}",
 ]
 #: The site of the doc's restaurant: as shipped (trips wait at the pass for Go).
@@ -358,7 +367,7 @@ async def world(tmp_path: Path) -> AsyncIterator[World]:
         owner = Client(await connect(r.app.url, max_size=2**24))
         r.clients.append(owner)
         await owner.ok("login", username="olga", password="olga's pw")
-        await owner.subscribe("audit")
+        await owner.subscribe("audit", "forecast")
         staff = Raw(await connect(r.app.url, max_size=2**24, additional_headers=r.auth_headers()))
         login = Raw(await connect(r.app.url))
         owner_raw = Raw(await connect(r.app.url))
@@ -577,6 +586,11 @@ async def _fill(w: World, msg: dict[str, Any], fill: str, reply: Block | None) -
         elif name == "device":
             assert w.device is not None, "fill=device before any create_token"
             msg["token"] = w.device
+        elif name == "day":
+            # The run's own service day (it starts at 04:00), at the request's utc_offset.
+            tz = parse_offset(msg.get("utc_offset") or "+00:00")
+            local = datetime.fromtimestamp(w.r.clock.epoch(), tz) - timedelta(hours=4)
+            msg["day"] = local.date().isoformat()
         else:
             raise AssertionError(f"fill: unknown {name!r}")
 
@@ -693,6 +707,65 @@ def test_a_drifted_example_fails() -> None:
     assert mismatches(step.reply.msg, sent, Rules())
 
 
+# --------------------------------------------------------------------------- stats on a new site
+
+
+def _stats_steps() -> list[Step]:
+    """The ``stats`` examples the replay skips: they show a new restaurant's figures."""
+    steps = read_steps(DOC.read_text(encoding="utf-8"))
+    return [
+        s
+        for s in steps
+        if s.request is not None
+        and s.request.msg["clientmsg"] == "stats"
+        and "skip" in s.request.hints
+    ]
+
+
+async def _replay_stats(db: str) -> None:
+    """Send the skipped ``stats`` examples as written, as the owner, to a real server on a new
+    (empty) database ``db``, and compare the replies as the replay does."""
+    from serveur.app import App
+    from serveur.clock import FakeClock
+    from serveur.maps.navigation import load_demo
+    from serveur.security.sessions import SecurityConfig
+
+    steps = _stats_steps()
+    assert [s.request.msg["action"] for s in steps if s.request] == ["figures", "trips"]
+    _, waypoints = load_demo()
+    app = App(db, port=0, clock=FakeClock(), waypoints=waypoints, security=SecurityConfig())
+    await app.start()
+    try:
+        async with connect(app.url) as ws:
+            raw = Raw(ws)
+            pw = app.first_owner_password
+            got = await raw.request({"clientmsg": "login", "username": "owner", "password": pw})
+            assert got["servermsg"] == "ok", got
+            for step in steps:
+                assert step.request is not None and step.reply is not None
+                got = await raw.request(step.request.msg)
+                problems = mismatches(step.reply.msg, got, Rules.of(step.reply))
+                if problems:
+                    _fail(step, f"the reply to {json.dumps(step.request.msg)} differs", problems)
+    finally:
+        await app.close()
+
+
+async def test_stats_examples_on_an_empty_database() -> None:
+    """The replay's database holds a service by the time it reaches ``stats``, so its two
+    examples (a new restaurant: nothing recorded) are replayed here, on a server whose
+    database is in memory: its statistics are computed in a worker thread, by the same code
+    ``serveur stats --json`` runs."""
+    await _replay_stats(":memory:")
+
+
+async def test_stats_examples_on_an_empty_database_file(tmp_path: Path) -> None:
+    """The same on a SQLite file: the figures come from ``serveur stats --json`` in a child
+    process (docs/protocol.md, ``stats``). (It failed with ``internal_error`` while the child
+    was ``python -m serveur``, which has no ``__main__``: fixed in 3b004d2.)"""
+    await _replay_stats(str(tmp_path / "new.db"))
+
+
 # --------------------------------------------------------------------------- events
 
 
@@ -712,7 +785,7 @@ def _event_rows() -> dict[str, set[str]]:
 #: Event kinds the store can write that no request or robot report leads to (no verb deletes a
 #: waypoint): not in the doc's table.
 UNREACHED_KINDS = frozenset({"waypoint.deleted"})
-_KIND = re.compile(r'"((?:robot|waypoint|order|task|stop|table|alert|menu)\.[a-z_]+)"')
+_KIND = re.compile(r'"((?:robot|waypoint|order|task|stop|table|alert|menu|settings)\.[a-z_]+)"')
 
 
 def test_the_event_table_lists_every_kind_the_server_records() -> None:
