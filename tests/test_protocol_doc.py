@@ -67,8 +67,8 @@ import asyncio
 import json
 import re
 from collections.abc import AsyncIterator
-from datetime import datetime, timedelta
 from dataclasses import dataclass, field
+from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -731,7 +731,8 @@ async def _replay_stats(db: str) -> None:
     from serveur.security.sessions import SecurityConfig
 
     steps = _stats_steps()
-    assert [s.request.msg["action"] for s in steps if s.request] == ["figures", "trips"]
+    requests = [s.request for s in steps]
+    assert [b.msg["action"] for b in requests if b is not None] == ["figures", "trips"]
     _, waypoints = load_demo()
     app = App(db, port=0, clock=FakeClock(), waypoints=waypoints, security=SecurityConfig())
     await app.start()

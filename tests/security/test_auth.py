@@ -52,7 +52,34 @@ MESSAGES: dict[str, dict[str, Any]] = {
     "ack": {"clientmsg": "ack", "alert": 1},
     "clear": {"clientmsg": "clear", "table": "T1"},
     "create dish": {"clientmsg": "create", "type": "dish", "name": "Laksa"},
+    # The owner's console: the site (scope site; its audit search, scope audit) and the
+    # statistics (scope stats).
+    "site edit_robot": {"clientmsg": "site", "action": "edit_robot", "trays": 2, **ROBOT},
+    "site remove_robot": {"clientmsg": "site", "action": "remove_robot", **ROBOT},
+    "site dependents": {"clientmsg": "site", "action": "dependents", "waypoint": "T1"},
+    "site rename_waypoint": {
+        "clientmsg": "site",
+        "action": "rename_waypoint",
+        "waypoint": "T1",
+        "name": "Patio 1",
+    },
+    "site remove_waypoint": {"clientmsg": "site", "action": "remove_waypoint", "waypoint": "T1"},
+    "site settings": {"clientmsg": "site", "action": "settings"},
+    "site set_settings": {"clientmsg": "site", "action": "set_settings", "table_timeout": 60},
+    "site audit": {"clientmsg": "site", "action": "audit", "verb": "site"},
+    "stats figures": {"clientmsg": "stats", "action": "figures", "by": "hour"},
+    "stats trips": {"clientmsg": "stats", "action": "trips", "start": "2026-11-24"},
+    "stats forecast": {
+        "clientmsg": "stats",
+        "action": "forecast",
+        "day": "2026-11-20",
+        "robots": [2],
+    },
+    "stats forecast_cancel": {"clientmsg": "stats", "action": "forecast_cancel"},
 }
+#: The owner's console messages: never staff's, never a screen's.
+SITE = {k for k in MESSAGES if k.startswith("site ")}
+STATS = {k for k in MESSAGES if k.startswith("stats ")}
 
 OWNER = Principal(Role.OWNER, 1, user="o", scopes=auth.OWNER_SCOPES)
 STAFF = Principal(Role.STAFF, 2, user="s", scopes=auth.STAFF_SCOPES)
@@ -61,11 +88,16 @@ R2_SCREEN = Principal(Role.ROBOT_SCREEN, 4, robot="r2")
 T1_SCREEN = Principal(Role.TABLE_SCREEN, 5, table="T1")
 T2_SCREEN = Principal(Role.TABLE_SCREEN, 6, table="T2")
 POS = Principal(Role.INTEGRATION, 7, scopes=frozenset({Scope.ORDERS, Scope.READ}))
+# Scripts given the owner's console scopes, one each.
+SITE_SCRIPT = Principal(Role.INTEGRATION, 8, scopes=frozenset({Scope.SITE}))
+AUDIT_SCRIPT = Principal(Role.INTEGRATION, 9, scopes=frozenset({Scope.AUDIT}))
+STATS_SCRIPT = Principal(Role.INTEGRATION, 10, scopes=frozenset({Scope.STATS}))
 
 # Who may send what. Anything not listed for a principal must be refused.
 ALLOWED: dict[str, set[str]] = {
     "owner": set(MESSAGES),
-    "staff": set(MESSAGES) - {"create robot", "create dish"},  # the menu is the owner's
+    # The menu, the site and the statistics are the owner's.
+    "staff": set(MESSAGES) - {"create robot", "create dish"} - SITE - STATS,
     "r1 screen": {"next", "stop", "continue", "cancel", "go", "skip", "order robot", "data"},
     "r2 screen": {"data"},  # its own robot's view of the robots topic
     # "Food collected" on the table's own screen: the core checks the robot is at T1.
@@ -73,6 +105,11 @@ ALLOWED: dict[str, set[str]] = {
     "T2 screen": {"next"},
     # A POS or kitchen display script: dishes in, dishes ready.
     "pos": {"create order", "dish", "data", "order table", "order robot"},
+    # Every site action but the audit search, which needs the audit scope (and no topic:
+    # ``data`` needs read).
+    "site script": SITE - {"site audit"},
+    "audit script": {"site audit"},
+    "stats script": STATS,
 }
 PRINCIPALS = {
     "owner": OWNER,
@@ -82,6 +119,9 @@ PRINCIPALS = {
     "T1 screen": T1_SCREEN,
     "T2 screen": T2_SCREEN,
     "pos": POS,
+    "site script": SITE_SCRIPT,
+    "audit script": AUDIT_SCRIPT,
+    "stats script": STATS_SCRIPT,
 }
 
 
@@ -104,6 +144,27 @@ def test_anonymous_may_only_log_in() -> None:
     auth.authorize(None, parse({"clientmsg": "login", "token": "srv_x"}))
 
 
+def test_every_verb_and_action_is_in_the_table() -> None:
+    names = {" ".join(k.split()[:2]) for k in MESSAGES}
+    for verb, (_, subs) in P._SUBTAGS.items():
+        if verb in ("site", "stats"):
+            assert {f"{verb} {s}" for s in subs} <= names, verb
+
+
+def test_the_owners_console_scopes() -> None:
+    for what in SITE | STATS:
+        need = auth.required_scope(parse(MESSAGES[what]))
+        if what == "site audit":
+            assert need is Scope.AUDIT
+        else:
+            assert need is (Scope.SITE if what in SITE else Scope.STATS), what
+        assert need in auth.OWNER_SCOPES and need not in auth.STAFF_SCOPES
+    with pytest.raises(Forbidden) as refused:
+        auth.authorize(STAFF, parse(MESSAGES["site audit"]))
+    assert refused.value.details == {"scope": "audit"}
+    assert auth.parse_scopes("site,stats") == {Scope.SITE, Scope.STATS}
+
+
 def test_topics_per_role() -> None:
     assert auth.topic_allowed(STAFF, "events") and not auth.topic_allowed(STAFF, "audit")
     assert auth.topic_allowed(OWNER, "audit")
@@ -113,6 +174,20 @@ def test_topics_per_role() -> None:
     for who in (T1_SCREEN, R1_SCREEN):
         with pytest.raises(Forbidden):
             auth.authorize(who, parse({"clientmsg": "data", "topics": ["waypoints"]}))
+    # The site's settings (the pages' languages): every role reads them, the screens too.
+    for who in (OWNER, STAFF, R1_SCREEN, R2_SCREEN, T1_SCREEN, T2_SCREEN, POS):
+        assert auth.topic_allowed(who, "settings"), who
+        auth.authorize(who, parse({"clientmsg": "data", "topics": ["settings"]}))
+    settings = _Rec(table_timeout=180.0, trays=4)
+    for who in (R1_SCREEN, T1_SCREEN):
+        assert auth.visible(who, "settings", settings, lambda task: None)
+    for who in (SITE_SCRIPT, STATS_SCRIPT):  # without read, no topic but their scope's
+        assert not auth.topic_allowed(who, "settings")
+    # A forecast is the owner's (scope stats): not staff's, not a screen's.
+    assert auth.topic_allowed(OWNER, "forecast") and auth.topic_allowed(STATS_SCRIPT, "forecast")
+    for who in (STAFF, R1_SCREEN, T1_SCREEN, POS, SITE_SCRIPT):
+        assert not auth.topic_allowed(who, "forecast"), who
+    assert auth.topic_allowed(AUDIT_SCRIPT, "audit") and not auth.topic_allowed(STAFF, "audit")
 
 
 class _Rec:
