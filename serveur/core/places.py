@@ -185,6 +185,21 @@ class Places:
             return 1e6
         return math.hypot(wa.x - wb.x, wa.y - wb.y)
 
+    def path(self, a: str, b: str) -> list[tuple[float, float]]:
+        """The planned path from waypoint ``a`` to ``b``; the straight line until planned."""
+        planned = self.distances.path(a, b)
+        if planned is not None:
+            return planned
+        wa, wb = self.waypoint(a), self.waypoint(b)
+        return [(wa.x, wa.y), (wb.x, wb.y)]
+
+    def nearest(self, x: float, y: float) -> str | None:
+        """The waypoint closest to ``(x, y)`` (a robot's leg starts near one)."""
+        best = min(
+            self.waypoints.values(), key=lambda w: math.hypot(w.x - x, w.y - y), default=None
+        )
+        return None if best is None else best.name
+
     def origin(self, homes: Iterable[str | None]) -> str:
         """Where trips start: the pass, else a home waypoint, else a robot's home, else any."""
         for kind in (WaypointKind.PASS, WaypointKind.HOME):

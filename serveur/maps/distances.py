@@ -191,17 +191,28 @@ class PlanResult:
 
     map: MapData
     pairs: dict[tuple[str, str], float | None]
+    #: The planned path of each reachable pair, from its first name to its second (the zones
+    #: a leg crosses are read off it: serveur.core.leases).
+    paths: dict[tuple[str, str], list[tuple[float, float]]] = field(default_factory=dict)
 
     def to_json(self) -> str:
         return json.dumps(
-            {"map": self.map.snapshot(), "pairs": [[a, b, d] for (a, b), d in self.pairs.items()]}
+            {
+                "map": self.map.snapshot(),
+                "pairs": [[a, b, d] for (a, b), d in self.pairs.items()],
+                "paths": [[a, b, [list(p) for p in pts]] for (a, b), pts in self.paths.items()],
+            }
         )
 
     @classmethod
     def from_json(cls, text: str) -> PlanResult:
         d = json.loads(text)
         pairs = {(str(a), str(b)): (None if v is None else float(v)) for a, b, v in d["pairs"]}
-        return cls(MapData.from_snapshot(d["map"]), pairs)
+        paths = {
+            (str(a), str(b)): [(float(x), float(y)) for x, y in pts]
+            for a, b, pts in d.get("paths", [])
+        }
+        return cls(MapData.from_snapshot(d["map"]), pairs, paths)
 
 
 def plan(req: PlanRequest) -> PlanResult:
@@ -222,6 +233,7 @@ def plan(req: PlanRequest) -> PlanResult:
     names = sorted(spots)
     wanted = set(req.sources) if req.sources is not None else None
     pairs: dict[tuple[str, str], float | None] = {}
+    paths: dict[tuple[str, str], list[tuple[float, float]]] = {}
     for i, a in enumerate(names):
         for b in names[i + 1 :]:
             if wanted is not None and a not in wanted and b not in wanted:
@@ -230,7 +242,11 @@ def plan(req: PlanRequest) -> PlanResult:
                 pairs[(a, b)] = table.distance(a, b)
             except NavigationError:
                 pairs[(a, b)] = None
-    return PlanResult(data, pairs)
+                continue
+            pts = table.path(a, b)
+            if pts is not None:
+                paths[(a, b)] = [(round(x, 3), round(y, 3)) for x, y in pts]
+    return PlanResult(data, pairs, paths)
 
 
 #: The last few plans made in this process, by request: the demo, the replay (one server per
@@ -325,6 +341,7 @@ class Distances:
         self._spots: dict[str, tuple[float, float]] = {}
         self._pairs: dict[tuple[str, str], float | None] = {}
         self._planned_at: dict[str, tuple[float, float]] = {}
+        self._paths: dict[tuple[str, str], list[tuple[float, float]]] = {}
 
     def set_spots(self, spots: Iterable[Spot]) -> None:
         for name, x, y in spots:
@@ -332,6 +349,7 @@ class Distances:
             self._spots[name] = (x, y)
             if old is not None and old != (x, y):
                 self._pairs = {k: v for k, v in self._pairs.items() if name not in k}
+                self._paths = {k: v for k, v in self._paths.items() if name not in k}
 
     def merge(self, req: PlanRequest, result: PlanResult) -> None:
         """Keep the planned pairs whose two ends are still where they were planned."""
@@ -339,6 +357,15 @@ class Distances:
         for (a, b), d in result.pairs.items():
             if self._spots.get(a) == at.get(a) and self._spots.get(b) == at.get(b):
                 self._pairs[(a, b)] = d
+                if (a, b) in result.paths:
+                    self._paths[(a, b)] = result.paths[(a, b)]
+
+    def path(self, a: str, b: str) -> list[tuple[float, float]] | None:
+        """The planned path from ``a`` to ``b``, None until planned (or unreachable)."""
+        if (a, b) in self._paths:
+            return list(self._paths[(a, b)])
+        back = self._paths.get((b, a))
+        return None if back is None else back[::-1]
 
     def planned(self, a: str, b: str) -> float | None:
         """Metres of path if planned and reachable, else None."""

@@ -533,6 +533,7 @@ class DistanceTable:
         self.planner = planner
         self._waypoints: dict[str, Waypoint] = dict(waypoints)
         self._cache: dict[tuple[str, str], float | str] = {}  # metres, or why unreachable
+        self._paths: dict[tuple[str, str], list[tuple[float, float]]] = {}  # as planned
         # Guards the dicts, not the planning: matrix() typically runs in a worker thread while
         # the event loop asks for single distances and adds waypoints.
         self._lock = threading.Lock()
@@ -568,9 +569,21 @@ class DistanceTable:
             except Unreachable as exc:
                 return f"waypoint {wp.name!r}: {exc.message}"
         try:
-            return self.planner.path_length((start.x, start.y), (goal.x, goal.y))
+            pts = self.planner.plan((start.x, start.y), (goal.x, goal.y))
         except Unreachable as exc:
             return f"{start.name} -> {goal.name}: {exc.message}"
+        with self._lock:
+            self._paths[(start.name, goal.name)] = pts
+        return float(sum(math.dist(p, q) for p, q in itertools.pairwise(pts)))
+
+    def path(self, a: str, b: str) -> list[tuple[float, float]] | None:
+        """The planned path from ``a`` to ``b`` (after :meth:`distance` computed the pair),
+        None if unreachable or not planned."""
+        with self._lock:
+            if (a, b) in self._paths:
+                return list(self._paths[(a, b)])
+            back = self._paths.get((b, a))
+        return None if back is None else back[::-1]
 
     def matrix(self, names: Sequence[str]) -> np.ndarray:
         """(n, n) distances in metres for ``names`` in order; np.inf for unreachable pairs
@@ -599,6 +612,8 @@ class DistanceTable:
             if old is not None and (old.x, old.y) != (wp.x, wp.y):
                 for key in [k for k in self._cache if wp.name in k]:
                     del self._cache[key]
+                for key in [k for k in self._paths if wp.name in k]:
+                    del self._paths[key]
 
     def __contains__(self, name: object) -> bool:
         with self._lock:

@@ -459,13 +459,15 @@ def test_distance_field_converges_in_a_serpentine() -> None:
 def test_distance_table_symmetric_cached_and_invalidated() -> None:
     p = Planner(wall_room())
     calls: list[tuple[object, object]] = []
-    real = p.path_length
+    real, real_plan = Planner(wall_room()).path_length, p.plan  # the reference: a 2nd planner
 
-    def counting(start: tuple[float, float], goal: tuple[float, float]) -> float:
+    def counting(
+        start: tuple[float, float], goal: tuple[float, float]
+    ) -> list[tuple[float, float]]:
         calls.append((start, goal))
-        return real(start, goal)
+        return real_plan(start, goal)
 
-    p.path_length = counting  # type: ignore[method-assign]
+    p.plan = counting  # type: ignore[method-assign]
     wps = {
         "A": Waypoint("A", 0.0, 1.5, 0.0, "table"),
         "B": Waypoint("B", 4.0, 1.5, 0.0, "table"),
@@ -476,6 +478,10 @@ def test_distance_table_symmetric_cached_and_invalidated() -> None:
     ab = table.distance("A", "B")
     assert ab == table.distance("B", "A") == pytest.approx(real((0.0, 1.5), (4.0, 1.5)))
     assert len(calls) == 1
+    # The planned path is kept, either way round.
+    path = table.path("A", "B")
+    assert path is not None and path[0] == (0.0, 1.5) and path[-1] == (4.0, 1.5)
+    assert table.path("B", "A") == path[::-1]
     assert table.distance("A", "A") == 0.0
     with pytest.raises(NotFound):
         table.distance("A", "Z")
