@@ -5,7 +5,8 @@ page's language, its swatches in the colours the map draws with, inside the map 
 a tablet's size without covering the toolbar. Follow robot keeps the selected robot in the middle
 as it drives (the zoom kept, no frame drawn while it is parked) and stops when the map is moved by
 hand, zoomed, or on Escape. A robot on a trip has its current table and its later ones drawn, in
-visiting order (the canvas publishes what it drew as data-routes).
+visiting order (the canvas publishes what it drew as data-routes), and a blocked table is drawn
+crossed (data-blocked).
 """
 
 from __future__ import annotations
@@ -41,7 +42,8 @@ CENTRE = """() => {
   const c = document.getElementById("map");
   const d = c.dataset;
   const s = Number(d.scale);
-  return [(c.clientWidth / 2 - Number(d.originX)) / s, (Number(d.originY) - c.clientHeight / 2) / s, s];
+  const x = (c.clientWidth / 2 - Number(d.originX)) / s;
+  return [x, (Number(d.originY) - c.clientHeight / 2) / s, s];
 }"""
 CENTRED_NEAR = f"""([x, y, tol]) => {{
   const [cx, cy] = ({CENTRE})();
@@ -51,10 +53,16 @@ ROUTE_IS = """([robot, want]) => {
   const routes = JSON.parse(document.getElementById("map").dataset.routes || "{}");
   return JSON.stringify(routes[robot] || []) === JSON.stringify(want);
 }"""
-BOX = """(e) => { const r = e.getBoundingClientRect(); return [r.left, r.top, r.right, r.bottom]; }"""
+BOX = """(e) => {
+  const r = e.getBoundingClientRect();
+  return [r.left, r.top, r.right, r.bottom];
+}"""
 TOOLBAR_BOXES = """() => [...document.querySelectorAll(".map-toolbar button")]
   .filter((b) => b.offsetParent !== null)
-  .map((b) => { const r = b.getBoundingClientRect(); return [b.id, [r.left, r.top, r.right, r.bottom]]; })"""
+  .map((b) => {
+    const r = b.getBoundingClientRect();
+    return [b.id, [r.left, r.top, r.right, r.bottom]];
+  })"""
 
 
 def rgb(hex_colour: str) -> str:
@@ -166,7 +174,8 @@ async def test_follow_robot(tmp_path: Path, browser: Any) -> None:
         draws = int(await canvas.get_attribute("data-draws") or 0)
         await c.ok("control", robot="r1", action="goal", x=p0["x"], y=p0["y"], yaw=p0["yaw"])
         await c.until(lambda: near(c.streams.get("pose:r1"), p0["x"], p0["y"], 0.3), what="back")
-        await staff.wait_for_function(f"() => Number(document.getElementById('map').dataset.draws) > {draws}")
+        drew = f"() => Number(document.getElementById('map').dataset.draws) > {draws}"
+        await staff.wait_for_function(drew)
         await staff.evaluate(DRAWS_OVER_FRAMES, 5)
         assert await staff.evaluate(CENTRE) == after_pan
         assert math.hypot(after_pan[0] - p0["x"], after_pan[1] - p0["y"]) > 0.5
@@ -197,6 +206,11 @@ async def test_a_trip_draws_its_tables_in_order(tmp_path: Path, browser: Any) ->
         screens = Screens(browser, http_base(r), r.token)
         staff = await screens.open("/")
         await expect(staff.locator("#map")).to_have_attribute("data-routes", "{}")
+        # A table robots cannot reach is drawn crossed (as the core records it).
+        await expect(staff.locator("#map")).to_have_attribute("data-blocked", "[]")
+        assert r.app.core is not None
+        await r.app.core.service.block("T9", "r1 could not reach T9", "r1")
+        await expect(staff.locator("#map")).to_have_attribute("data-blocked", '["T9"]')
         [task] = (await c.ok("create", type="task", orders=ids))["tasks"]
         tables = [s["table"] for s in task["stops"]]
         assert sorted(tables) == ["T3", "T7"]

@@ -21,7 +21,8 @@
 //
 // Each robot on a trip: a dashed line to the table it is going to (or waiting at), that table
 // ringed, and faint lines on to its later tables; data-routes publishes what was drawn
-// ({robot: [current table, later tables...]}). Tables robots cannot reach (blocks) are crossed.
+// ({robot: [current table, later tables...]}). Tables robots cannot reach (blocks) are crossed
+// (data-blocked lists them).
 
 import { decodeGrid } from "./grid.js";
 import {
@@ -254,10 +255,9 @@ export class MapView {
     const selected = this.opts.selected();
     const scan = selected && live.scans.get(selected);
     if (scan) drawScan(ctx, this, scan);
-    for (const table of live.blocks.keys()) {
-      const wp = live.waypoints.get(table);
-      if (wp) drawBlocked(ctx, this, wp);
-    }
+    const blocked = [...live.blocks.keys()].filter((table) => live.waypoints.has(table));
+    for (const table of blocked) drawBlocked(ctx, this, live.waypoints.get(table));
+    this.canvas.dataset.blocked = JSON.stringify(blocked.sort());
     const goals = this.opts.goals();
     const routes = {};
     for (const [name, robot] of live.robots) {
