@@ -223,6 +223,7 @@ async def test_the_owner_reads_the_statistics_and_downloads_them(
         await expect(panel.get_by_test_id("stats-delivered")).to_have_text("6")
         await expect(panel.get_by_role("img", name=re.compile("^柱状图"))).to_be_visible()
         await expect(panel.locator("svg.chart-bars rect.bar")).to_have_count(len(rows))
+        await expect(panel.locator("details.trip-row[open]")).to_contain_text("第 1 趟")
         await page.locator("#lang-picker").select_option("en")
 
         # A 390 px phone: nothing wider than the screen, every control a finger's size.

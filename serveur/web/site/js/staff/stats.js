@@ -19,6 +19,7 @@ const SVG = "http://www.w3.org/2000/svg";
 const DAY_START = 4; // a service day runs from 04:00 to 04:00 (serveur stats --day-start)
 const RELOAD_AFTER_MS = 60_000; // the tab opened again later than this: the figures are fetched anew
 const STATS_TIMEOUT_MS = 130_000; // the server gives a computation up to 120 s
+const TRIPS_PAGE = 50; // trips listed at first, and more at each "Show more"
 const HTML_LANG = { en: "en", zh: "zh-Hans", ms: "ms" };
 
 // The CSV's columns, as serveur/stats/cli.py writes them (figure_rows, trip_rows).
@@ -256,6 +257,13 @@ function svg(tag, attrs = {}, ...children) {
   return node;
 }
 
+/** About how wide `text` is at 12 px (CJK characters are about twice as wide). */
+function textWidth(text) {
+  let w = 0;
+  for (const ch of text) w += /[\u2e80-\uffef]/.test(ch) ? 12 : 7;
+  return w;
+}
+
 /** A round top for an axis: 1, 2, 5 times a power of ten, at least `max`. */
 function niceTop(max) {
   if (!(max > 0)) return 1;
@@ -274,7 +282,7 @@ function chart({ kind, values, labels, tick, width, label }) {
   // The middle line only where it is a round value (no "2.5 dishes").
   const ticks = kind === "bars" && !Number.isInteger(top_ / 2) ? [0, top_] : [0, top_ / 2, top_];
   const tickText = ticks.map((v) => tick(v));
-  const left = 12 + 7 * Math.max(...tickText.map((s) => s.length)); // room for the longest
+  const left = 12 + Math.max(...tickText.map(textWidth)); // room for the longest
   const right = 10;
   const top = 18;
   const bottom = 34;
@@ -293,11 +301,18 @@ function chart({ kind, values, labels, tick, width, label }) {
   });
   root.append(grid);
   // Period names under the plot, thinned so that they do not overlap.
-  const every = Math.max(1, Math.ceil(values.length / Math.max(1, Math.floor(plotW / 64))));
+  const room = Math.max(1, ...labels.map(textWidth)) + 12;
+  const every = Math.max(1, Math.ceil(values.length / Math.max(1, Math.floor(plotW / room))));
   const axis = svg("g", { class: "chart-axis", "aria-hidden": "true" });
   labels.forEach((text, i) => {
     if (i % every) return;
-    axis.append(svg("text", { x: left + band * (i + 0.5), y: height - bottom + 18, "text-anchor": "middle" }, text));
+    // Centred under its period, kept inside the picture at either end.
+    let x = left + band * (i + 0.5);
+    let anchor = "middle";
+    const half = textWidth(text) / 2;
+    if (x - half < 2) [x, anchor] = [2, "start"];
+    else if (x + half > w - 2) [x, anchor] = [w - 2, "end"];
+    axis.append(svg("text", { x, y: height - bottom + 18, "text-anchor": anchor }, text));
   });
   root.append(axis);
   const marks = svg("g", { class: "chart-marks" });
@@ -394,6 +409,16 @@ export class StatsPanel {
     this.robotTable = el("div", { class: "table-scroll" });
     this.tripList = el("ul", { class: "stats-trips", "data-i18n-aria-label": "stats.trips.title" });
     this.tripNote = el("p", { class: "muted stats-trip-note" });
+    this.tripsShown = TRIPS_PAGE;
+    this.moreTrips = el("button", {
+      type: "button",
+      class: "secondary",
+      hidden: true,
+      onclick: () => {
+        this.tripsShown += TRIPS_PAGE;
+        this._trips();
+      },
+    });
     this.figuresCsvBtn = el("button", { type: "button", class: "secondary", "data-i18n": "stats.csv.figures", onclick: () => this._download("figures") });
     this.tripsCsvBtn = el("button", { type: "button", class: "secondary", "data-i18n": "stats.csv.trips", onclick: () => this._download("trips") });
     const deliveredTitle = id("delivered-title");
@@ -425,7 +450,7 @@ export class StatsPanel {
       ),
       el("details", { class: "card stats-table-details" }, el("summary", { "data-i18n": "stats.table.show" }), this.periodTable),
       el("section", { class: "card", "aria-labelledby": robotsTitle }, el("h3", { id: robotsTitle, "data-i18n": "stats.robots.title" }), this.robotTable),
-      el("section", { class: "card", "aria-labelledby": tripsTitle }, el("h3", { id: tripsTitle, "data-i18n": "stats.trips.title" }), el("p", { class: "muted", "data-i18n": "stats.trips.hint" }), this.tripNote, this.tripList),
+      el("section", { class: "card", "aria-labelledby": tripsTitle }, el("h3", { id: tripsTitle, "data-i18n": "stats.trips.title" }), el("p", { class: "muted", "data-i18n": "stats.trips.hint" }), this.tripNote, this.tripList, el("div", { class: "form-buttons stats-more" }, this.moreTrips)),
     );
     root.append(el("div", { class: "stats-wrap" }, this.form, this.state, this.results));
 
@@ -486,6 +511,10 @@ export class StatsPanel {
         this.conn.request({ clientmsg: "stats", action: "trips", ...range }, opts),
       ]);
       if (seq !== this.seq) return;
+      if (!this.asked || this.asked.start !== ask.start || this.asked.end !== ask.end) {
+        this.tripsShown = TRIPS_PAGE; // another range: its latest trips first
+        this.tripList.replaceChildren();
+      }
       this.asked = ask;
       this.figures = figures.stats;
       this.trips = trips.stats;
@@ -664,12 +693,17 @@ export class StatsPanel {
     const several = new Set(doc.trips.map((tr) => csvTime(tr.started ?? tr.created, offset).slice(0, 10))).size > 1;
     this.tripNote.textContent = doc.more ? t("stats.trips.more", { count: doc.trips.length }) : doc.trips.length ? "" : t("stats.trips.none");
     this.tripNote.hidden = !this.tripNote.textContent;
-    // Newest first: the trip an owner asks about is usually a recent one.
+    // Newest first: the trip an owner asks about is usually a recent one. Opened ones stay open.
+    const open = new Set([...this.tripList.querySelectorAll("details[open]")].map((d) => d.dataset.trip));
     const trips = [...doc.trips].reverse();
-    this.tripList.replaceChildren(...trips.map((trip) => this._trip(trip, offset, several)));
+    const shown = trips.slice(0, this.tripsShown);
+    this.tripList.replaceChildren(...shown.map((trip) => this._trip(trip, offset, several, open.has(String(trip.id)))));
+    const left = trips.length - shown.length;
+    this.moreTrips.hidden = left <= 0;
+    this.moreTrips.textContent = t("stats.trips.showMore", { count: Math.min(left, TRIPS_PAGE) });
   }
 
-  _trip(trip, offset, several) {
+  _trip(trip, offset, several, open) {
     const when = trip.started ?? trip.created;
     const whenText = several ? `${dayName(when, offset)} ${clock(when, offset)}` : clock(when, offset);
     const robot = trip.robot || t("stats.trip.noRobot");
@@ -711,7 +745,7 @@ export class StatsPanel {
       {},
       el(
         "details",
-        { class: "trip-row" },
+        { class: "trip-row", "data-trip": trip.id, open },
         summary,
         el("dl", { class: "trip-facts" }, ...facts.map(([k, v]) => el("div", {}, el("dt", {}, k), el("dd", {}, v)))),
         stops,
