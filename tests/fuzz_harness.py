@@ -75,7 +75,23 @@ PAYLOAD = {
     "account create_token": "token",
     "account list_tokens": "tokens",
     "account revoke_token": "device",
+    "site edit_robot": "robot",
+    "site remove_robot": "robot",
+    "site dependents": "dependents",
+    "site rename_waypoint": "renamed",
+    "site remove_waypoint": "waypoint",
+    "site settings": "settings",
+    "site set_settings": "settings",
+    "site audit": "audit",
+    "stats figures": "stats",
+    "stats trips": "stats",
+    "stats forecast": "forecast",
+    "stats forecast_cancel": "forecast",
 }
+#: The owner's verbs: a fuzz connection (staff) sending one well formed is always refused
+#: ``forbidden`` (or ``rate_limited``), so no robot or table is ever edited or removed, and no
+#: statistics child process or forecast replay runs.
+OWNER_VERBS = frozenset({"account", "site", "stats"})
 REPLY_TIMEOUT = 30.0  # wall seconds; generous for a loaded 2-core box
 MAX_QUEUED = 6  # trips waiting for a robot kept by housekeeping
 MAX_PENDING = 40  # dishes waiting at the pass kept by housekeeping
@@ -663,6 +679,9 @@ class LiveRestaurant:
             raise fail(f"a valid frame was refused as malformed ({code})")
         if expect.valid is False and code == "ok":
             raise fail("a malformed frame was accepted")
+        owners = expect.verb.split(" ")[0] in OWNER_VERBS and expect.code is None
+        if owners and expect.valid is True and code not in ("forbidden", "rate_limited"):
+            raise fail(f"staff sent the owner's {expect.verb} and got {code}, not forbidden")
         if code == "ok" and expect.valid is True:
             self.stats.labels[expect.label] += 1
             want = PAYLOAD.get(expect.verb, "robot")

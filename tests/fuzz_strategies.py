@@ -21,6 +21,7 @@ import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from datetime import date
 from typing import Any, TypeAlias, TypeVar
 
 from hypothesis import strategies as st
@@ -555,6 +556,76 @@ def account_create_token(draw: st.DrawFn) -> Obj:
     )
 
 
+def _site(action: str, **fields: st.SearchStrategy[Node]) -> st.SearchStrategy[Obj]:
+    """An owner's ``site`` request: the fuzz connections are staff, so ``forbidden`` (no robot
+    or table of the fuzz restaurant is ever edited or removed)."""
+    return st.fixed_dictionaries(fields).map(
+        lambda f: obj(clientmsg="site", id=IdSlot(), action=action, **f)
+    )
+
+
+_TRAYS = st.none() | st.integers(1, 12)
+_LANGUAGES = st.lists(st.sampled_from(P.LANGUAGES), min_size=1, max_size=3, unique=True)
+_EDIT_ROBOT: dict[str, st.SearchStrategy[Any]] = {
+    "url": st.sampled_from((DEAD_URL, "ws://10.0.0.21:9090", "wss://robot.local")),
+    "home": st.none() | st.sampled_from((*OTHER_WAYPOINTS, "T3", "T17")),
+    "kinematics": st.sampled_from(("omni", "diff")),
+    "link": st.sampled_from((Obj(()), obj(ns="/r1"), obj(ros="2"))),
+    "trays": _TRAYS,
+}
+_SET_SETTINGS: dict[str, st.SearchStrategy[Any]] = {
+    "table_timeout": st.none() | st.floats(10, 3600),
+    "trays": st.integers(1, 12),
+    "auto_depart": st.booleans(),
+    "languages": _LANGUAGES,
+    "language": st.sampled_from(P.LANGUAGES),
+}
+
+
+def _some_of(fields: dict[str, st.SearchStrategy[Any]]) -> st.SearchStrategy[dict[str, Any]]:
+    """At least one of ``fields``, each drawn (an edit names something to change)."""
+    return st.lists(st.sampled_from(sorted(fields)), min_size=1, unique=True).flatmap(
+        lambda keys: st.fixed_dictionaries({k: fields[k] for k in keys})
+    )
+
+
+def _site_some(action: str, fields: dict[str, st.SearchStrategy[Any]]) -> st.SearchStrategy[Obj]:
+    extra: dict[str, st.SearchStrategy[Any]] = (
+        {"robot": _any_robot} if action == "edit_robot" else {}
+    )
+    return st.tuples(st.fixed_dictionaries(extra), _some_of(fields)).map(
+        lambda kv: obj(clientmsg="site", id=IdSlot(), action=action, **kv[0], **kv[1])
+    )
+
+
+_DAY = st.dates(min_value=date(2025, 1, 1), max_value=date(2027, 12, 31)).map(date.isoformat)
+_WHEN = st.one_of(
+    _DAY,
+    st.builds(lambda d, h, m: f"{d}T{h:02d}:{m:02d}", _DAY, st.integers(0, 23), st.integers(0, 59)),
+)
+_OFFSET = st.sampled_from(("+08:00", "+00:00", "-05:30", "+14:00"))
+
+
+_RANGE: dict[str, st.SearchStrategy[Any]] = {"start": _WHEN, "end": _WHEN, "utc_offset": _OFFSET}
+
+
+def _stats(
+    action: str,
+    optional: dict[str, st.SearchStrategy[Any]] | None = None,
+    **fields: st.SearchStrategy[Node],
+) -> st.SearchStrategy[Obj]:
+    """An owner's ``stats`` request: ``forbidden`` for the fuzz connections (staff), so no
+    statistics child process or forecast replay ever runs during a fuzz run. ``fields`` are
+    always there, each of ``optional`` may be."""
+
+    @st.composite
+    def build(draw: st.DrawFn) -> Obj:
+        given = {k: draw(v) for k, v in fields.items()}
+        return _with(draw, {"clientmsg": "stats", "action": action, **given}, optional or {})
+
+    return build()
+
+
 #: verb (or "verb sub-type") -> strategy of valid messages. One line per verb.
 VERB_STRATEGIES: dict[str, st.SearchStrategy[Obj]] = {
     "login": login_msgs(),
@@ -590,6 +661,27 @@ VERB_STRATEGIES: dict[str, st.SearchStrategy[Obj]] = {
     "account create_token": account_create_token(),
     "account list_tokens": _account("list_tokens", all=st.booleans()),
     "account revoke_token": _account("revoke_token", token=st.integers(1, 30)),
+    "site edit_robot": _site_some("edit_robot", _EDIT_ROBOT),
+    "site remove_robot": _site("remove_robot", robot=_any_robot),
+    "site dependents": _site("dependents", waypoint=_table),
+    "site rename_waypoint": _site(
+        "rename_waypoint", waypoint=_table, name=st.sampled_from(NEW_WAYPOINTS)
+    ),
+    "site remove_waypoint": _site("remove_waypoint", waypoint=_table),
+    "site settings": _site("settings"),
+    "site set_settings": _site_some("set_settings", _SET_SETTINGS),
+    "site audit": _site(
+        "audit", verb=st.sampled_from(("site", "create", "next")), limit=st.integers(1, 500)
+    ),
+    "stats figures": _stats("figures", {**_RANGE, "by": st.sampled_from(("day", "hour"))}),
+    "stats trips": _stats("trips", _RANGE),
+    "stats forecast": _stats(
+        "forecast",
+        {"policy": st.sampled_from(("serveur", "baseline")), "utc_offset": _OFFSET},
+        day=_DAY,
+        robots=st.lists(st.integers(1, 12), min_size=1, max_size=6, unique=True),
+    ),
+    "stats forecast_cancel": _stats("forecast_cancel"),
 }
 
 
@@ -664,7 +756,13 @@ _EXTRA_KEYS = st.sampled_from(
 def _model(msg: Obj) -> type[Any] | None:
     verb = msg.get("clientmsg")
     sub = (
-        {"create": "type", "control": "action", "account": "action"}.get(verb)
+        {
+            "create": "type",
+            "control": "action",
+            "account": "action",
+            "site": "action",
+            "stats": "action",
+        }.get(verb)
         if isinstance(verb, str)
         else None
     )
@@ -706,6 +804,18 @@ _MODELS: dict[str, type[Any]] = {
     "account create_token": P.AccountCreateToken,
     "account list_tokens": P.AccountListTokens,
     "account revoke_token": P.AccountRevokeToken,
+    "site edit_robot": P.SiteEditRobot,
+    "site remove_robot": P.SiteRemoveRobot,
+    "site dependents": P.SiteDependents,
+    "site rename_waypoint": P.SiteRenameWaypoint,
+    "site remove_waypoint": P.SiteRemoveWaypoint,
+    "site settings": P.SiteSettings,
+    "site set_settings": P.SiteSetSettings,
+    "site audit": P.SiteAudit,
+    "stats figures": P.StatsFigures,
+    "stats trips": P.StatsTrips,
+    "stats forecast": P.StatsForecast,
+    "stats forecast_cancel": P.StatsForecastCancel,
 }
 
 
