@@ -405,8 +405,10 @@ export class StatsPanel {
     this.tiles = el("dl", { class: "stats-tiles" });
     this.deliveredChart = el("div", { class: "chart-box" });
     this.waitChart = el("div", { class: "chart-box" });
-    this.periodTable = el("div", { class: "table-scroll" });
-    this.robotTable = el("div", { class: "table-scroll" });
+    // On a phone the tables scroll sideways inside their box: a keyboard can scroll it too.
+    const scroller = (key) => el("div", { class: "table-scroll", tabindex: "0", role: "region", "data-i18n-aria-label": key });
+    this.periodTable = scroller("stats.table.caption");
+    this.robotTable = scroller("stats.robots.title");
     this.tripList = el("ul", { class: "stats-trips", "data-i18n-aria-label": "stats.trips.title" });
     this.tripNote = el("p", { class: "muted stats-trip-note" });
     this.tripsShown = TRIPS_PAGE;
@@ -532,9 +534,12 @@ export class StatsPanel {
     }
   }
 
-  _say(text) {
+  /** The line that says what is happening (read out by screen readers); `quiet`: read out
+   *  only, the figures on screen say it already. */
+  _say(text, { quiet = false } = {}) {
     this.state.textContent = text;
     this.state.hidden = !text;
+    this.state.classList.toggle("visually-hidden", quiet);
   }
 
   _render() {
@@ -557,7 +562,7 @@ export class StatsPanel {
       this.results.hidden = true;
       return;
     }
-    this._say("");
+    this._say(t("stats.state.shown", { what: this.heading.textContent, count: doc.total.delivered }), { quiet: true });
     this.results.hidden = false;
     this._tiles(doc.total);
     this._charts();
