@@ -230,6 +230,15 @@ async def test_the_owner_edits_the_restaurant_and_reads_the_activity(
         await expect(page.locator("html")).to_have_attribute("lang", "zh-Hans")
         await expect(page.get_by_role("tab", name="餐厅")).to_be_visible()
         assert r.app.core.config.table_timeout is None
+        # Another tablet (staff) with nothing chosen: Chinese too; one whose address names Malay
+        # keeps Malay although the site no longer offers it.
+        fresh = await screens.open("/", token=r.token)
+        await expect(fresh.locator("html")).to_have_attribute("lang", "zh-Hans")
+        await expect(fresh.locator("#lang-picker option")).to_have_count(2)
+        malay = await screens.open("/?lang=ms", token=r.token)
+        await expect(malay.locator("html")).to_have_attribute("data-site-langs", "en zh")
+        await expect(malay.get_by_role("tab", name="Peta & robot")).to_be_visible()
+        await expect(malay.locator("html")).to_have_attribute("lang", "ms")
         await page.locator("#lang-picker").select_option("en")
         await expect(page.locator("html")).to_have_attribute("lang", "en")
         await page.reload()

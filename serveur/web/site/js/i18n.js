@@ -232,6 +232,7 @@ export function applySiteLanguages(settings) {
   if (!settings || !Array.isArray(settings.languages)) return;
   const langs = settings.languages.filter((l) => LANGS.includes(l));
   offered = langs.length ? langs : [...LANGS];
+  document.documentElement.dataset.siteLangs = offered.join(" "); // the site's word is in
   const fallback = supported(settings.language) || offered[0];
   const next = chosenLang() || (offered.includes(fallback) ? fallback : offered[0]);
   if (next !== current) setLang(next);
