@@ -56,7 +56,11 @@ export class Live extends EventTarget {
     const removed = (topic === "robots" || topic === "waypoints") && rec.removed === true;
     if (over || removed) this[topic].delete(rec[KEYS[topic]]);
     else this[topic].set(rec[KEYS[topic]], rec);
-    if (removed && topic === "robots") [this.poses, this.scans].forEach((m) => m.delete(rec.name));
+    if (removed && topic === "robots") {
+      [this.poses, this.scans].forEach((m) => m.delete(rec.name));
+      // Its streams ended with it: not asked for again on the next reconnect.
+      for (const stream of [`pose:${rec.name}`, `scan:${rec.name}`]) this.conn.topics?.delete(stream);
+    }
     if (topic === "events" && this.events.size > MAX_EVENTS) {
       this.events.delete(this.events.keys().next().value);
     }
