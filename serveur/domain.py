@@ -47,6 +47,8 @@ __all__ = [
     "TaskStatus",
     "WaypointKind",
     "WaypointRecord",
+    "ZoneLease",
+    "ZoneRecord",
 ]
 
 
@@ -139,6 +141,11 @@ class Robot(_Record):
     removed: bool = Field(
         default=False, description="true only in the update saying the owner removed it"
     )
+    waiting_for: list[str] | None = Field(
+        default=None,
+        description="the zones it waits to be leased before it drives on (null: not waiting);"
+        " not stored",
+    )
 
     @field_validator("link", mode="before")
     @classmethod
@@ -189,6 +196,31 @@ class TableBlock(_Record):
     reason: str
     robot: str | None = None
     since: float
+
+
+class ZoneRecord(_Record):
+    """A part of the room leased to at most ``capacity`` robots at a time (an aisle, a
+    doorway, the pass): a polygon of map points, in metres (serveur.core.leases)."""
+
+    name: str
+    points: list[tuple[float, float]]
+    capacity: int = 1
+    updated_at: float = 0.0
+    removed: bool = Field(default=False, description="true only in the update saying so")
+
+    @field_validator("points", mode="before")
+    @classmethod
+    def _points_from_json(cls, v: Any) -> Any:
+        return json.loads(v) if isinstance(v, str) else v
+
+
+class ZoneLease(_Record):
+    """A zone's leases now (the ``leases`` topic): who holds it, who waits for it."""
+
+    zone: str
+    capacity: int
+    holders: list[str]
+    waiting: list[str]
 
 
 class WaypointRecord(_Record):

@@ -97,6 +97,7 @@ from serveur.wire.owner import (
     SiteMessage,
     SiteRemoveRobot,
     SiteRemoveWaypoint,
+    SiteRemoveZone,
     SiteRenameWaypoint,
     SiteSetSettings,
     SiteSettings,
@@ -149,6 +150,7 @@ __all__ = [
     "CreateRobot",
     "CreateTask",
     "CreateWaypoint",
+    "CreateZone",
     "DataMsg",
     "DishMsg",
     "ErrorCode",
@@ -164,6 +166,7 @@ __all__ = [
     "PingMsg",
     "PoseData",
     "ReadyMsg",
+    "ReleaseMsg",
     "RequestId",
     "ScanData",
     "ServerMessage",
@@ -174,6 +177,7 @@ __all__ = [
     "SiteMessage",
     "SiteRemoveRobot",
     "SiteRemoveWaypoint",
+    "SiteRemoveZone",
     "SiteRenameWaypoint",
     "SiteSetSettings",
     "SiteSettings",
@@ -379,8 +383,23 @@ class CreateRobot(_ClientMsg):
     )
 
 
+class CreateZone(_ClientMsg):
+    """Draw a zone robots take turns through: a polygon of map points (metres) and how many
+    robots may be in it at once."""
+
+    clientmsg: Literal["create"]
+    type: Literal["zone"]
+    name: Name
+    points: Annotated[
+        list[Annotated[list[Coord], Field(min_length=2, max_length=2)]],
+        Field(min_length=3, max_length=32, description="[[x, y], ...] in map metres"),
+    ]
+    capacity: Annotated[int, Field(ge=1, le=8)] = 1
+    replace: bool = Field(default=False, description="Change an existing zone of this name")
+
+
 CreateMessage: TypeAlias = Annotated[
-    CreateWaypoint | CreateOrder | CreateTask | CreateRobot | CreateDish,
+    CreateWaypoint | CreateOrder | CreateTask | CreateRobot | CreateDish | CreateZone,
     Field(discriminator="type"),
 ]
 
@@ -544,6 +563,15 @@ class ClearMsg(_ClientMsg):
     table: Name
 
 
+class ReleaseMsg(_ClientMsg):
+    """Break a zone's lease (a robot pushed out of the aisle by hand still holds it): from
+    ``robot``, or from every holder. Robots waiting for the zone may then go."""
+
+    clientmsg: Literal["release"]
+    zone: Name
+    robot: Name | None = None
+
+
 class OrderMsg(_ClientMsg):
     """List orders: a table's (table screen) or those on a robot's tray (robot screen)."""
 
@@ -676,6 +704,7 @@ ClientMessage: TypeAlias = Annotated[
     | DishMsg
     | AckMsg
     | ClearMsg
+    | ReleaseMsg
     | OrderMsg
     | AccountMessage
     | SiteMessage
@@ -686,7 +715,7 @@ _CLIENT: TypeAdapter[ClientMessage] = TypeAdapter(ClientMessage)
 
 #: Sub-discriminators of the nested verbs, with their tags (for clear error messages).
 _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
-    "create": ("type", ("waypoint", "order", "task", "robot", "dish")),
+    "create": ("type", ("waypoint", "order", "task", "robot", "dish", "zone")),
     "control": ("action", ("auto", "manual", "teleop", "initialpose", "goal", "goto")),
     "account": (
         "action",
@@ -712,6 +741,7 @@ _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
             "settings",
             "set_settings",
             "audit",
+            "remove_zone",
         ),
     ),
     "stats": ("action", ("figures", "trips", "forecast", "forecast_cancel")),

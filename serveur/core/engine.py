@@ -43,6 +43,7 @@ from serveur.clock import Clock
 from serveur.core.alerts import RobotFact, Thresholds
 from serveur.core.creation import Creation
 from serveur.core.hub import Hub
+from serveur.core.leases import LeaseBook
 from serveur.core.link_reports import HANDOVER_GRACE, LinkReports
 from serveur.core.moves import RobotMoves
 from serveur.core.places import Places
@@ -50,6 +51,7 @@ from serveur.core.publisher import Publisher
 from serveur.core.runtime import CoreConfig, Destination, Runtime, pose_dict
 from serveur.core.service import Service
 from serveur.core.site import SiteActions
+from serveur.core.traffic import Traffic
 from serveur.core.trips import Trips
 from serveur.domain import (
     DishAction,
@@ -80,7 +82,7 @@ log = logging.getLogger(__name__)
 S = RobotStatus
 
 
-class Core(RobotMoves, SiteActions):
+class Core(RobotMoves, SiteActions, Traffic):
     """Owns robots' runtime state and carries out every instruction.
 
     Collaborators it owns: :class:`~serveur.core.places.Places` (waypoints, map, path distances),
@@ -114,6 +116,8 @@ class Core(RobotMoves, SiteActions):
         self._rt: dict[str, Runtime] = {}
         self._halted = False  # halt_robots ran: shutting down, robots stopped
         self._robots: dict[str, Robot] = {}
+        self.leases = LeaseBook()
+        self.zone_records = {}
         self.languages = list(self.config.languages)
         self.language = self.config.language
         self.places = Places(
@@ -173,6 +177,7 @@ class Core(RobotMoves, SiteActions):
     async def start(self) -> None:
         await self.publisher.skip_stored_events()
         await self.load_settings()
+        await self.load_zones()
         # Path distances between all waypoints are planned before any robot is driven.
         await self.places.load(await self.store.list_waypoints())
         for robot in await self.store.list_robots():
@@ -280,6 +285,9 @@ class Core(RobotMoves, SiteActions):
     def _kick(self) -> None:
         self.dispatcher.kick()
 
+    def _post(self, robot: str, kind: str) -> None:
+        self.reports.post(robot, kind)
+
     async def _stop_robot_runtime(self, rt: Runtime) -> None:
         """A removed robot: its link closed (the robot stopped), its worker ended, forgotten."""
         self.reports.disarm_handover(rt)
@@ -287,6 +295,7 @@ class Core(RobotMoves, SiteActions):
         if rt.link is not None:
             await rt.link.close()
         self._rt.pop(rt.name, None)
+        self.lease_forget(rt.name)
         self._robots.pop(rt.name, None)
 
     def _on_watch(self, topic: str, on: bool) -> None:
@@ -305,7 +314,11 @@ class Core(RobotMoves, SiteActions):
 
     def _robot_view(self, name: str) -> Robot:
         rt = self._rt[name]
-        upd: dict[str, Any] = {"battery": rt.battery, "link_error": rt.link_error}
+        upd: dict[str, Any] = {
+            "battery": rt.battery,
+            "link_error": rt.link_error,
+            "waiting_for": rt.waiting_for,
+        }
         if rt.pose is not None:
             upd.update(x=rt.pose[0], y=rt.pose[1], yaw=rt.pose[2])
         return self._robots[name].model_copy(update=upd)
@@ -357,6 +370,7 @@ class Core(RobotMoves, SiteActions):
         )
         rt.state = st
         self._robots[name] = robot
+        self.lease_status(rt, st.status)
         self.publisher.pub("robots", self._robot_view(name))
         if st.status is not S.OFFLINE:
             rt.offline_since = None
@@ -446,6 +460,10 @@ class Core(RobotMoves, SiteActions):
             return list(self.service.blocks.values())
         if topic == "settings":
             return self.settings()
+        if topic == "zones":
+            return list(self.zone_records.values())
+        if topic == "leases":
+            return self.lease_rows()
         kind, _, robot = topic.partition(":")
         rt = self._runtime(robot)
         if kind == "pose":
@@ -500,6 +518,8 @@ class Core(RobotMoves, SiteActions):
             return await self.service.clear(msg.table, actor)
         if verb == "site":
             return await self._site(msg, actor)
+        if isinstance(msg, P.ReleaseMsg):
+            return await self.release(msg, actor)
         robot = P.robot_of(msg)
         action = P.action_of(msg)
         if robot is None or action is None:
@@ -595,6 +615,8 @@ class Core(RobotMoves, SiteActions):
                 status=OrderStatus(msg.status),
             )
             return {"order": order}
+        if kind == "zone":
+            return await self.create_zone(msg, actor)
         if kind == "dish":
             item = MenuItem(
                 dish=msg.name,
@@ -661,6 +683,8 @@ class Core(RobotMoves, SiteActions):
             return await self.set_settings(msg, actor)
         if isinstance(msg, P.SiteSettings):
             return {"settings": self.settings()}
+        if isinstance(msg, P.SiteRemoveZone):
+            return await self.remove_zone(msg, actor)
         raise InvalidField(f"site {msg.action!r} is not the core's")
 
     async def _order(self, msg: Any) -> dict[str, Any]:
@@ -761,6 +785,8 @@ class Core(RobotMoves, SiteActions):
                 await self._go_home_if_away(rt)
             else:
                 await self._resume_move(rt)
+        elif kind == "lease":
+            await self._lease_granted(rt)
         elif kind == "failed":
             # The link cannot connect (a wrong address, a robot switched off): shown to staff
             # with the robot, once per distinct reason.

@@ -59,6 +59,9 @@ class ReportHandler(Protocol):
     async def on_report(self, rt: Runtime, kind: str, args: tuple[Any, ...]) -> None:
         """Handle one report: ``up``, ``down``, ``goal``, ``handover`` or ``persist_pose``."""
 
+    def moved(self, name: str, x: float, y: float) -> None:
+        """A pose: the zones the robot has left are released (serveur.core.traffic)."""
+
     def battery_changed(self, name: str) -> None:
         """The robot's battery moved by a percent or more since last published, or crossed
         the dispatch threshold: publish its record, and let the dispatcher look again (a
@@ -206,6 +209,7 @@ class LinkReports:
             if step < ODOMETER_JUMP:
                 rt.odometer += step
         rt.pose = (x, y, yaw)
+        self._handler.moved(robot, x, y)
         if self._hub.watched(f"pose:{robot}"):
             self._poses.offer(robot, rt.pose, stamp)
         if self._clock.now() - rt.pose_saved_at > self._config.pose_persist_period:

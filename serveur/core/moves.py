@@ -13,7 +13,7 @@ import contextlib
 import logging
 import math
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from serveur import protocol as P
 from serveur.clock import Clock
@@ -137,7 +137,20 @@ class RobotMoves:
         return math.hypot(rt.pose[0] - dest.x, rt.pose[1] - dest.y) <= self.config.arrive_tolerance
 
     async def _drive(self, rt: Runtime, dest: Destination) -> None:
+        """Send the robot to ``dest`` once it holds the zones on the way (at once without
+        zones); until then it stays where it is (serveur.core.traffic)."""
         rt.dest = dest
+        rt.goal_id = None
+        if await self._lease_leg(rt, dest):
+            await self._send_goal(rt, dest)
+
+    if TYPE_CHECKING:  # the core's (serveur.core.traffic): declared, not defined, here
+
+        async def _lease_leg(self, rt: Runtime, dest: Destination) -> bool: ...
+
+        def leg_ended(self, rt: Runtime) -> None: ...
+
+    async def _send_goal(self, rt: Runtime, dest: Destination) -> None:
         assert rt.link is not None
         try:
             rt.goal_id = await rt.link.send_goal(dest.x, dest.y, dest.yaw)
@@ -199,6 +212,7 @@ class RobotMoves:
             raise
 
     async def _goal_ended(self, rt: Runtime, status: rb.GoalStatus, text: str) -> None:
+        self.leg_ended(rt)
         dest = rt.dest
         st = rt.state.status
         if status is rb.GoalStatus.SUCCEEDED and dest is not None:

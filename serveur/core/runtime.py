@@ -55,6 +55,9 @@ class CoreConfig:
     alert_low_battery: float = 0.20
     alert_wait_at_table: float = 90.0
     alert_dish_at_pass: float = 120.0
+    #: Zones are leased (serveur.core.leases) when the owner has drawn any; False ignores
+    #: them (the replay's "without leases" runs).
+    leases: bool = True
     #: The pages' languages (the owner's settings change them): offered, and the default.
     languages: tuple[str, ...] = ("en", "zh", "ms")
     language: str = "en"
@@ -95,6 +98,8 @@ class Runtime:
     offline_since: float | None = None  # epoch (clock) the robot was last seen, while Offline
     timed_out: float | None = None  # the arrival (status_since) a table timeout was posted for
     link_error: str | None = None  # the link's last connection failure, until it connects
+    waiting_for: list[str] | None = None  # zones it waits to be leased (its goal not sent)
+    waiting_since: float | None = None  # clock.now() it started waiting
     odometer: float = 0.0  # metres driven since this server started (in each status event)
 
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from serveur import protocol as P
 from serveur.clock import Clock
@@ -52,21 +52,17 @@ class SiteActions:
     languages: list[str]
     language: str
 
-    # Provided by the core.
-    def _runtime(self, name: str) -> Runtime:
-        raise NotImplementedError
+    if TYPE_CHECKING:  # the core's: declared, not defined, so they never shadow it
 
-    def _start_link(self, rt: Runtime) -> None:
-        raise NotImplementedError
+        def _runtime(self, name: str) -> Runtime: ...
 
-    def publish_robot(self, name: str) -> None:
-        raise NotImplementedError
+        def _start_link(self, rt: Runtime) -> None: ...
 
-    def _kick(self) -> None:
-        raise NotImplementedError
+        def publish_robot(self, name: str) -> None: ...
 
-    async def _stop_robot_runtime(self, rt: Runtime) -> None:
-        raise NotImplementedError
+        def _kick(self) -> None: ...
+
+        async def _stop_robot_runtime(self, rt: Runtime) -> None: ...
 
     # -- settings ---------------------------------------------------------------------------
 

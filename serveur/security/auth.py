@@ -156,10 +156,11 @@ def required_scope(msg: Any) -> Scope:
             "waypoint": Scope.WAYPOINTS,
             "robot": Scope.ROBOTS,
             "dish": Scope.MENU,
+            "zone": Scope.WAYPOINTS,
         }[msg.type]
     if verb == "dish":
         return Scope.ORDERS
-    if verb in ("go", "skip", "ack", "clear"):
+    if verb in ("go", "skip", "ack", "clear", "release"):
         return Scope.TASKS
     if verb in ("control", "ready"):
         return Scope.CONTROL
@@ -168,7 +169,9 @@ def required_scope(msg: Any) -> Scope:
     if verb == "account":
         return Scope.ACCOUNTS
     if verb == "site":
-        return Scope.AUDIT if msg.action == "audit" else Scope.SITE
+        if msg.action == "audit":
+            return Scope.AUDIT
+        return Scope.WAYPOINTS if msg.action == "remove_zone" else Scope.SITE
     if verb == "stats":
         return Scope.STATS
     raise Forbidden(f"no rule for {verb!r}")  # a new verb must get a rule before anyone uses it

@@ -48,7 +48,7 @@ from serveur.errors import InvalidField
 from serveur.status import RobotMode, RobotStatus
 from serveur.store.accounts import SqlTx, TokenRecord, UserRecord
 from serveur.store.service import check_note, check_quantity
-from serveur.store.site import SiteMixin
+from serveur.store.zones import ZonesMixin
 
 __all__ = [
     "SqlTx",
@@ -70,7 +70,7 @@ __all__ = [
 _E = TypeVar("_E", bound=StrEnum)
 
 
-class Store(SiteMixin, ABC):
+class Store(ZonesMixin, ABC):
     """The restaurant's persistent state. Use as ``async with open_store(url) as store:``.
 
     Errors: :class:`~serveur.errors.NotFound` for a missing robot/waypoint/order/task,

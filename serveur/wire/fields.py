@@ -74,6 +74,8 @@ STATE_TOPICS: Final = (
     "blocks",
     "settings",
     "forecast",
+    "zones",
+    "leases",
 )
 #: Per-robot topic prefixes: ``pose:<robot>`` and ``scan:<robot>``.
 ROBOT_TOPICS: Final = ("pose", "scan")
@@ -99,6 +101,7 @@ VERBS: Final = (
     "account",
     "site",
     "stats",
+    "release",
 )
 
 #: Limits of the work area: far beyond any restaurant, close enough to catch unit mistakes.

@@ -25,6 +25,8 @@ from serveur.domain import (
     TableBlock,
     Task,
     WaypointRecord,
+    ZoneLease,
+    ZoneRecord,
 )
 from serveur.errors import ServeurError
 from serveur.wire.fields import RequestId, Topic
@@ -160,6 +162,8 @@ Snapshot: TypeAlias = (
     | list[Alert]
     | list[MenuItem]
     | list[TableBlock]
+    | list[ZoneRecord]
+    | list[ZoneLease]
     | Settings
     | ForecastInfo
     | MapSnapshot
@@ -179,6 +183,8 @@ UpdateData: TypeAlias = (
     | Alert
     | MenuItem
     | TableBlock
+    | ZoneRecord
+    | ZoneLease
     | Settings
     | ForecastInfo
     | MapSnapshot
@@ -254,6 +260,13 @@ class OkReply(_ServerModel):
     audit: list[AuditRecord] | None = Field(
         default=None, description="site audit: the records found, newest first"
     )
+    zone: ZoneRecord | None = Field(
+        default=None, description="create zone; site remove_zone (removed: true)"
+    )
+    broken: list[str] | None = Field(
+        default=None, description="release: the robots whose lease on the zone was broken"
+    )
+    leases: list[ZoneLease] | None = Field(default=None, description="release: the zone now")
     forecast: ForecastInfo | None = Field(
         default=None, description="stats forecast, forecast_cancel: the forecast"
     )

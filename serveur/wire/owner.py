@@ -27,6 +27,7 @@ __all__ = [
     "SiteMessage",
     "SiteRemoveRobot",
     "SiteRemoveWaypoint",
+    "SiteRemoveZone",
     "SiteRenameWaypoint",
     "SiteSetSettings",
     "SiteSettings",
@@ -124,6 +125,13 @@ class SiteRemoveWaypoint(_SiteMsg):
     waypoint: Name
 
 
+class SiteRemoveZone(_SiteMsg):
+    """Remove a zone: its leases end, robots waiting for it go."""
+
+    action: Literal["remove_zone"]
+    zone: Name
+
+
 class SiteSettings(_SiteMsg):
     """The site's settings as they apply now."""
 
@@ -187,7 +195,8 @@ SiteMessage: TypeAlias = Annotated[
     | SiteRemoveWaypoint
     | SiteSettings
     | SiteSetSettings
-    | SiteAudit,
+    | SiteAudit
+    | SiteRemoveZone,
     Field(discriminator="action"),
 ]
 

@@ -63,6 +63,7 @@ TABLES = (
     "menu",
     "table_block",
     "settings",
+    "zones",
 )
 # Every foreign key, as (table, its key, column, parent table, parent key), for the check.
 FOREIGN_KEYS = (

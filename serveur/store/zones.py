@@ -1,0 +1,96 @@
+"""The zones robots take turns through, stored (migration 007); written once for every SQL
+backend like :mod:`serveur.store.site`.
+
+Zones are the owner's drawing, saved and removed whole; leases on them live in the server
+(:mod:`serveur.core.leases`), not here. A zone removed is deleted outright: nothing refers to
+it (the events keep what it was).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+
+from serveur.domain import ZoneRecord
+from serveur.errors import Conflict, InvalidField, NotFound
+from serveur.store.accounts import SqlTx
+from serveur.store.service import _event, _one
+from serveur.store.site import SiteMixin
+
+__all__ = ["ZonesMixin", "check_zone"]
+
+_ZONE = "SELECT name, points, capacity, updated_at FROM zones"
+
+
+def check_zone(points: Sequence[Sequence[float]], capacity: int) -> list[tuple[float, float]]:
+    """A zone's points as stored: 3 to 32 finite (x, y) pairs enclosing some area."""
+    if isinstance(capacity, bool) or not isinstance(capacity, int) or not 1 <= capacity <= 8:
+        raise InvalidField("a zone's capacity is a whole number from 1 to 8", field="capacity")
+    if not 3 <= len(points) <= 32:
+        raise InvalidField("a zone has 3 to 32 points", field="points")
+    out: list[tuple[float, float]] = []
+    for p in points:
+        if len(p) != 2 or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in p
+        ):
+            raise InvalidField("a zone's point is [x, y] in metres", field="points")
+        out.append((float(p[0]), float(p[1])))
+    area = sum(a[0] * b[1] - b[0] * a[1] for a, b in zip(out, [*out[1:], out[0]], strict=True))
+    if abs(area) / 2 < 0.01:
+        raise InvalidField("a zone must enclose some floor (its points are in a line)")
+    return out
+
+
+class ZonesMixin(SiteMixin):
+    """Zone methods of :class:`~serveur.store.base.Store`."""
+
+    async def list_zones(self) -> list[ZoneRecord]:
+        async def work(db: SqlTx) -> list[ZoneRecord]:
+            return [ZoneRecord(**r) for r in await db.all(f"{_ZONE} ORDER BY name")]
+
+        return await self._portable(work, write=False)
+
+    async def put_zone(
+        self, zone: ZoneRecord, *, replace: bool, now: float, by: str | None = None
+    ) -> ZoneRecord:
+        """Save a zone; an existing one is changed only with ``replace`` (Conflict otherwise;
+        an identical resend is a no-op)."""
+        points = check_zone(zone.points, zone.capacity)
+        body = json.dumps([list(p) for p in points])
+
+        async def work(db: SqlTx) -> ZoneRecord:
+            row = await _one(db, f"{_ZONE} WHERE name = ?", (zone.name,))
+            if row is not None:
+                old = ZoneRecord(**row)
+                if (old.points, old.capacity) == (points, zone.capacity):
+                    return old
+                if not replace:
+                    raise Conflict(f"a zone named {zone.name!r} exists", zone=zone.name)
+                await db.run(
+                    "UPDATE zones SET points = ?, capacity = ?, updated_at = ? WHERE name = ?",
+                    (body, zone.capacity, now, zone.name),
+                )
+            else:
+                await db.run(
+                    "INSERT INTO zones (name, points, capacity, updated_at) VALUES (?, ?, ?, ?)",
+                    (zone.name, body, zone.capacity, now),
+                )
+            data = {"name": zone.name, "points": points, "capacity": zone.capacity, "by": by}
+            await _event(db, "zone.saved", now, data=data)
+            saved = await _one(db, f"{_ZONE} WHERE name = ?", (zone.name,))
+            assert saved is not None
+            return ZoneRecord(**saved)
+
+        return await self._portable(work, write=True)
+
+    async def delete_zone(self, name: str, *, now: float, by: str | None = None) -> ZoneRecord:
+        async def work(db: SqlTx) -> ZoneRecord:
+            row = await _one(db, f"{_ZONE} WHERE name = ?", (name,))
+            if row is None:
+                raise NotFound(f"no zone named {name!r}", zone=name)
+            await db.run("DELETE FROM zones WHERE name = ?", (name,))
+            await _event(db, "zone.removed", now, data={"name": name, "by": by})
+            return ZoneRecord(**row)
+
+        return await self._portable(work, write=True)

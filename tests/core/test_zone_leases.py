@@ -1,0 +1,157 @@
+"""Zones leased to one robot at a time, on a real server driving a real simulator (issue 21).
+
+A room with one aisle one robot wide between its two halves; robots see each other in the
+simulator (their footprints are obstacles, they stop short and give up after a patience), so
+two robots sent head-on through the aisle deadlock there unless something keeps them apart.
+With the aisle drawn as a zone of capacity 1, the server lets one through while the other
+waits at its end of the room, then the other: both arrive and they never touch. Without the
+zone the same meeting ends with goals aborted in the aisle (the model is real).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+from collections.abc import AsyncIterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from websockets.asyncio.client import connect
+
+from serveur.app import App, RobotSpec
+from serveur.clock import ScaledClock
+from serveur.core.runtime import CoreConfig
+from serveur.maps.mapio import OccupancyMap, load_waypoints, save_map
+from serveur.robot_sim import start_simulation
+from tests.conftest import Client, poll_until
+from tests.sim.test_sim_badinput import shut
+
+SCALE = 20.0
+WAIT = 30.0
+RES = 0.05
+RADIUS = 0.2
+# The aisle: x 3..5 m, y 1.25..1.8 m (0.55 m: one robot of 0.4 m, never two side by side).
+AISLE = [[2.9, 1.0], [5.1, 1.0], [5.1, 2.05], [2.9, 2.05]]
+
+
+def narrow_room(tmp: Path) -> Path:
+    """Two 3 m x 3 m halves joined by a 2 m aisle 0.55 m wide."""
+    free = np.zeros((60, 160), dtype=bool)
+    free[2:58, 2:60] = True  # left half, x 0.1..3.0
+    free[2:58, 100:158] = True  # right half, x 5.0..7.9
+    free[25:36, 60:100] = True  # the aisle, y 1.25..1.8
+    yaml_path = tmp / "narrow.yaml"
+    save_map(OccupancyMap(np.where(free, 0, 100).astype(np.int8), RES, (0.0, 0.0, 0.0)), yaml_path)
+    wps = [
+        {"name": "home1", "x": 1.0, "y": 1.5, "yaw": 0.0, "kind": "home"},
+        {"name": "home2", "x": 7.0, "y": 1.5, "yaw": math.pi, "kind": "home"},
+        {"name": "L", "x": 1.5, "y": 2.4, "yaw": 0.0, "kind": "table"},
+        {"name": "R", "x": 6.5, "y": 2.4, "yaw": 0.0, "kind": "table"},
+    ]
+    (tmp / "narrow_waypoints.json").write_text(json.dumps({"waypoints": wps}))
+    return yaml_path
+
+
+@contextlib.asynccontextmanager
+async def narrow_restaurant(tmp: Path, *, leases: bool) -> AsyncIterator[tuple[App, Any, Client]]:
+    yaml_path = narrow_room(tmp)
+    clock = ScaledClock(SCALE)
+    sim = await start_simulation(
+        2,
+        port=0,
+        clock=clock,
+        map_path=yaml_path,
+        seed=5,
+        robots_see_each_other=True,
+        blocked_patience=8.0,
+    )
+    specs = [
+        RobotSpec(r.name, url, f"home{i + 1}")
+        for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
+    ]
+    app = App(
+        tmp / "s.db",
+        port=0,
+        clock=clock,
+        map_path=yaml_path,
+        waypoints=load_waypoints(tmp / "narrow_waypoints.json"),
+        robots=specs,
+        config=CoreConfig(heartbeat=2.0, ack_timeout=3.0, auto_depart=True, leases=leases),
+        plan_in_child=False,
+    )
+    await app.start()
+    token = await app.issue_token("staff", label="tests")
+    c = Client(await connect(app.url, additional_headers={"Authorization": f"Bearer {token}"}))
+    try:
+        yield app, sim, c
+    finally:
+        await c.close()
+        await app.close()
+        await shut(sim)
+
+
+def watch_closest(sim: Any) -> list[float]:
+    closest = [math.inf]
+    for r in sim.robots:
+        step = r._step
+
+        def stepped(dt: float, r: Any = r, step: Any = step) -> None:
+            step(dt)
+            for o in sim.robots:
+                if o is not r:
+                    closest[0] = min(closest[0], math.dist(r.pose[:2], o.pose[:2]))
+
+        r._step = stepped
+    return closest
+
+
+async def head_on(app: App, sim: Any, c: Client) -> list[float]:
+    """Both robots under manual control, then r1 sent to R and r2 to L at once."""
+    await c.subscribe("robots", "leases", "zones")
+    for name in ("r1", "r2"):
+        await c.until(lambda n=name: c.robot(n).get("status") == "Ready", WAIT, f"{name} up")
+        await c.ok("control", robot=name, action="manual")
+    closest = watch_closest(sim)
+    await c.ok("control", robot="r1", action="goto", waypoint="R")
+    await c.ok("control", robot="r2", action="goto", waypoint="L")
+    return closest
+
+
+async def test_with_the_aisle_leased_both_robots_pass_in_turn(tmp_path: Path) -> None:
+    async with narrow_restaurant(tmp_path, leases=True) as (app, sim, c):
+        owner_token = await app.issue_token("integration", scopes=["waypoints", "read"])
+        owner = Client(
+            await connect(app.url, additional_headers={"Authorization": f"Bearer {owner_token}"})
+        )
+        await owner.ok("create", type="zone", name="aisle", points=AISLE, capacity=1)
+        await owner.close()
+        closest = await head_on(app, sim, c)
+        # r2 asked second: it waits for the aisle, at its end of the room, until r1 is through.
+        await c.until(lambda: c.robot("r2").get("waiting_for") == ["aisle"], WAIT, "r2 waits")
+        assert sim.robots[1].pose[0] > 5.0
+        r1, r2 = sim.robots
+        await poll_until(lambda: math.dist(r1.pose[:2], (6.5, 2.4)) < 0.2, WAIT, "r1 at R")
+        await poll_until(lambda: math.dist(r2.pose[:2], (1.5, 2.4)) < 0.2, WAIT, "r2 at L")
+        await c.until(lambda: c.robot("r2").get("waiting_for") is None, WAIT, "r2 done waiting")
+        assert closest[0] >= 2 * RADIUS, closest
+        assert c.robot("r1").get("last_error") is None and c.robot("r2").get("last_error") is None
+        # Once both are through, nobody holds the aisle.
+        await c.until(lambda: c.streams.get("leases", {}).get("holders") == [], WAIT, "aisle free")
+        assert app.core is not None and app.core.leases.holders("aisle") == []
+
+
+async def test_without_leases_the_same_meeting_deadlocks(tmp_path: Path) -> None:
+    async with narrow_restaurant(tmp_path, leases=False) as (app, sim, c):
+        closest = await head_on(app, sim, c)
+        # Face to face in the aisle: each stops short of the other and, after the patience,
+        # its goal is aborted: the server reports the failure on both robots.
+        await c.until(
+            lambda: c.robot("r1").get("last_error") and c.robot("r2").get("last_error"),
+            WAIT,
+            "both goals aborted",
+        )
+        r1, r2 = sim.robots
+        assert 2.5 < r1.pose[0] < 5.5 and 2.5 < r2.pose[0] < 5.5  # stuck in or at the aisle
+        assert closest[0] >= 2 * RADIUS  # they do not collide: they block each other
