@@ -435,7 +435,8 @@ class Server:
                 kind, _, robot = t.partition(":")
                 if kind not in ("pose", "scan") or not robot:
                     raise InvalidField(f"unknown topic {t!r}", topic=t)
-                if robot not in dict(self.core.robot_statuses()):
+                if not msg.unsubscribe and robot not in dict(self.core.robot_statuses()):
+                    # (Leaving a removed robot's stream is fine: nothing to leave.)
                     raise NotFound(f"no robot named {robot!r}", robot=robot)
         if msg.unsubscribe:
             self.core.hub.unsubscribe(sub, topics)

@@ -38,7 +38,7 @@ from serveur.errors import StoreError
 from serveur.robots import rosbridge as rb
 from serveur.scheduler import MIN_BATTERY
 
-__all__ = ["HANDOVER_GRACE", "ODOMETER_JUMP", "LinkReports", "ReportHandler"]
+__all__ = ["HANDOVER_GRACE", "ODOMETER_JUMP", "ODOMETER_STEP", "LinkReports", "ReportHandler"]
 
 log = logging.getLogger(__name__)
 
@@ -48,6 +48,9 @@ HANDOVER_GRACE = 10.0
 #: A pose this far (m) from the last one is a relocalisation (AMCL, a calibration), not
 #: driving: it does not count in the odometer.
 ODOMETER_JUMP = 1.0
+#: Pose noise of a parked robot stays within this (m) of where it stopped (AMCL's jitter is
+#: centimetres): the odometer counts nothing smaller.
+ODOMETER_STEP = 0.1
 #: Wall seconds between tries of a report the store could not write (disk full, I/O error),
 #: doubling from the first to the last.
 STORE_RETRY = (0.5, 10.0)
@@ -66,6 +69,24 @@ class ReportHandler(Protocol):
         """The robot's battery moved by a percent or more since last published, or crossed
         the dispatch threshold: publish its record, and let the dispatcher look again (a
         robot charging at home may be usable for trips now)."""
+
+
+def _odometer(rt: Runtime, x: float, y: float) -> tuple[float, float]:
+    """Count the metres a pose has driven the robot; returns the new anchor.
+
+    A parked robot's AMCL pose wanders by centimetres: counting every step would make it
+    drive metres standing at a table. So distance is counted from an anchor, and only once
+    the pose is ODOMETER_STEP from it (the anchor then moves there): noise inside that circle
+    never counts, and a drive is counted in chords of about that length (short by at most one
+    step a leg). A jump over ODOMETER_JUMP is a relocalisation, not driving.
+    """
+    ax, ay = rt.odometer_at if rt.odometer_at is not None else (x, y)
+    step = math.hypot(x - ax, y - ay)
+    if step < ODOMETER_STEP:
+        return (ax, ay)
+    if step < ODOMETER_JUMP:
+        rt.odometer += step
+    return (x, y)
 
 
 class LinkReports:
@@ -204,10 +225,7 @@ class LinkReports:
         rt = self._rt.get(robot)
         if rt is None:
             return
-        if rt.pose is not None:
-            step = math.hypot(x - rt.pose[0], y - rt.pose[1])
-            if step < ODOMETER_JUMP:
-                rt.odometer += step
+        rt.odometer_at = _odometer(rt, x, y)
         rt.pose = (x, y, yaw)
         self._handler.moved(robot, x, y)
         if self._hub.watched(f"pose:{robot}"):

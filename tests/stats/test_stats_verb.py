@@ -347,13 +347,6 @@ async def test_a_robot_reports_the_distance_it_drove(tmp_path: Path) -> None:
         assert r1["distance_m"] == pytest.approx(readings[-1], abs=0.01)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="server bug: the odometer (serveur/core/link_reports.py pose()) adds every pose step "
-    "under 1 m, so the noise of a parked robot's pose counts as driving: in this replay "
-    "(AMCL publishing at 10 Hz), r1 parked 180 s at a table 'drives' 3.3 m, and the statistics "
-    "give r1 38.3 m / r2 25.0 m where the replay's true poses give 29.1 m / 14.8 m",
-)
 def test_a_parked_robot_drives_nowhere(
     replayed: tuple[PolicyResult, Path],  # noqa: F811
 ) -> None:

@@ -74,7 +74,7 @@ async def test_the_owner_manages_people_and_screens(
 
         # A table screen's token: QR code and link shown once; the link sets the screen up.
         await owner.get_by_label("Screen of").select_option("table-screen")
-        await owner.get_by_label("Which").select_option("T3")
+        await owner.get_by_label("Which", exact=True).select_option("T3")
         await owner.get_by_role("button", name="Make QR code").click()
         await expect(owner.get_by_role("img", name="QR code for Table T3")).to_be_visible()
         link = owner.locator(".acc-made a.setup-link")

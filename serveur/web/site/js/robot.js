@@ -10,7 +10,7 @@ import { Connection } from "./ws.js";
 import { Live } from "./live.js";
 import { act, confirmDialog, el, showError, watchConnection } from "./ui.js";
 import { statusColour } from "./status.js";
-import { dishLabel, onLangChange, statusName, t } from "./i18n.js";
+import { applySiteLanguages, dishLabel, onLangChange, statusName, t } from "./i18n.js";
 
 const name = robotName();
 const conn = new Connection();
@@ -267,5 +267,10 @@ onLangChange(() => {
 });
 document.title = t("robot.docTitle", { name: name || t("robot.docTitleNone") });
 if (!name) render();
-conn.subscribe(["robots", "tasks", "orders"]);
+// The site's languages (the owner's settings): the picker offers them, and a screen with no
+// choice of its own starts in the site's.
+live.addEventListener("change", (e) => {
+  if (e.detail.topic === "settings") applySiteLanguages(live.settings);
+});
+conn.subscribe(["robots", "tasks", "orders", "settings"]);
 conn.start();

@@ -7,7 +7,7 @@
 import { Connection } from "./ws.js";
 import { Live } from "./live.js";
 import { act, el, showError, toast, watchConnection } from "./ui.js";
-import { dishLabel, onLangChange, t } from "./i18n.js";
+import { applySiteLanguages, dishLabel, onLangChange, t } from "./i18n.js";
 
 const table = tableName();
 const conn = new Connection();
@@ -139,5 +139,10 @@ live.addEventListener("change", (e) => {
   render();
   refresh();
 });
-conn.subscribe(["orders", "tasks"]);
+// The site's languages (the owner's settings): the picker offers them, and a screen with no
+// choice of its own starts in the site's.
+live.addEventListener("change", (e) => {
+  if (e.detail.topic === "settings") applySiteLanguages(live.settings);
+});
+conn.subscribe(["orders", "tasks", "settings"]);
 conn.start();
