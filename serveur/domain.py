@@ -161,6 +161,7 @@ class AlertKind(StrEnum):
     WAITING_AT_TABLE = "waiting_at_table"
     DISH_WAITING = "dish_waiting"  # subject: the table whose dishes wait at the pass
     TABLE_UNREACHABLE = "table_unreachable"  # subject: the table
+    ZONE_WAIT = "zone_wait"  # subject: the robot waiting for a zone (serveur.core.leases)
 
 
 class Alert(_Record):

@@ -47,6 +47,7 @@ class Thresholds:
     battery_ok: float = 0.25  # cleared only above this: no flapping around the threshold
     wait_at_table: float = 90.0
     dish_at_pass: float = 120.0
+    zone_wait: float = 60.0  # a leg usually waits seconds for an aisle; a minute is stuck
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,6 +59,9 @@ class RobotFact:
     battery: float | None
     table: str | None = None  # the table it is at or going to
     error: str | None = None
+    waiting_for: tuple[str, ...] = ()  # zones it waits to be leased
+    waiting_since: float | None = None
+    blockers: tuple[str, ...] = ()  # the robots it waits behind
 
 
 @dataclass(frozen=True, slots=True)
@@ -108,6 +112,13 @@ def conditions(
             out[(AlertKind.WAITING_AT_TABLE, r.name)] = (
                 f"{r.name} waiting{where} for {_minutes(now - r.since)}"
             )
+        if r.waiting_for and r.waiting_since is not None:
+            waited = now - r.waiting_since
+            if waited >= limits.zone_wait:
+                behind = f" (held by {', '.join(r.blockers)})" if r.blockers else ""
+                out[(AlertKind.ZONE_WAIT, r.name)] = (
+                    f"{r.name} has waited {_minutes(waited)} for {', '.join(r.waiting_for)}{behind}"
+                )
     oldest: dict[str, float] = {}
     for d in dishes:
         if d.table not in blocked:

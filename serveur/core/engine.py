@@ -141,6 +141,7 @@ class Core(RobotMoves, SiteActions, Traffic):
                 battery_ok=cfg.alert_low_battery + 0.05,
                 wait_at_table=cfg.alert_wait_at_table,
                 dish_at_pass=cfg.alert_dish_at_pass,
+                zone_wait=cfg.alert_zone_wait,
             ),
         )
         self.reports = LinkReports(
@@ -751,6 +752,9 @@ class Core(RobotMoves, SiteActions, Traffic):
                     battery=rt.battery,
                     table=dest.name if dest is not None and dest.kind == "table" else None,
                     error=robot.last_error,
+                    waiting_for=tuple(rt.waiting_for or ()),
+                    waiting_since=rt.waiting_since,
+                    blockers=tuple(self.leases.blockers(name)) if rt.waiting_for else (),
                 )
             )
         return facts

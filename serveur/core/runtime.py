@@ -55,6 +55,7 @@ class CoreConfig:
     alert_low_battery: float = 0.20
     alert_wait_at_table: float = 90.0
     alert_dish_at_pass: float = 120.0
+    alert_zone_wait: float = 60.0
     #: Zones are leased (serveur.core.leases) when the owner has drawn any; False ignores
     #: them (the replay's "without leases" runs).
     leases: bool = True
@@ -99,7 +100,7 @@ class Runtime:
     timed_out: float | None = None  # the arrival (status_since) a table timeout was posted for
     link_error: str | None = None  # the link's last connection failure, until it connects
     waiting_for: list[str] | None = None  # zones it waits to be leased (its goal not sent)
-    waiting_since: float | None = None  # clock.now() it started waiting
+    waiting_since: float | None = None  # clock.epoch() it started waiting
     odometer_at: tuple[float, float] | None = None  # where the odometer last counted from
     odometer: float = 0.0  # metres driven since this server started (in each status event)
 

@@ -149,7 +149,7 @@ class Traffic:
         waiting = None if mine else list(self.leases.waiting(rt.name) or zones)
         if waiting != rt.waiting_for:
             rt.waiting_for = waiting
-            rt.waiting_since = None if mine else self.clock.now()
+            rt.waiting_since = None if mine else self.clock.epoch()
             self.publish_robot(rt.name)
         if not mine:
             log.info(
@@ -165,7 +165,7 @@ class Traffic:
         """A ``lease`` report: the zones it waited for are its own now; drive the leg."""
         if rt.waiting_for is None:
             return
-        waited = self.clock.now() - (rt.waiting_since or self.clock.now())
+        waited = self.clock.epoch() - (rt.waiting_since or self.clock.epoch())
         rt.waiting_for = rt.waiting_since = None
         dest = rt.dest
         if dest is None or rt.state.status not in _MOVING or rt.goal_id is not None:

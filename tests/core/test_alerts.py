@@ -71,3 +71,12 @@ def test_an_alert_is_raised_once_acknowledged_once_and_cleared_with_its_cause() 
     # The same cause again later is a new alert, with a new number.
     [again] = book.update({key: "r1 is stuck"}, now=7.0)
     assert again.id == 2 and again.acked_at is None
+
+
+def test_a_robot_waiting_a_minute_for_a_zone_is_an_alert_naming_who_holds_it() -> None:
+    waiting = robot(S.DELIVERING, waiting_for=("aisle",), waiting_since=100.0, blockers=("r2",))
+    assert kinds([waiting], 159.0) == set()  # a leg waits seconds for an aisle
+    [(key, message)] = conditions([waiting], [], {}, now=160.0, limits=LIMITS).items()
+    assert key == (K.ZONE_WAIT, "r1")
+    assert message == "r1 has waited 1 min for aisle (held by r2)"
+    assert kinds([robot(S.DELIVERING)], 1e6) == set()  # not waiting: nothing
