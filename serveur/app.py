@@ -16,7 +16,7 @@ from typing import Any
 
 from serveur.clock import Clock, ScaledClock
 from serveur.core.engine import Core, CoreConfig
-from serveur.domain import WaypointKind, WaypointRecord
+from serveur.domain import WaypointKind, WaypointRecord, ZoneRecord
 from serveur.errors import Conflict
 from serveur.robots.names import OPTION_KEYS, RosNames
 from serveur.security.sessions import SecurityConfig, Sessions
@@ -92,6 +92,7 @@ class App:
         map_path: str | Path | None = None,
         nav_map: Any = None,
         waypoints: Mapping[str, Any] | None = None,
+        zones: Sequence[ZoneRecord] = (),
         robots: Sequence[RobotSpec] = (),
         config: CoreConfig | None = None,
         security: SecurityConfig | None = None,
@@ -106,6 +107,7 @@ class App:
         self._map_path = map_path
         self._nav_map = nav_map
         self._waypoints = waypoints
+        self._zones = zones
         self._robots = robots
         self._config = config
         self._host, self._port = host, port
@@ -139,6 +141,8 @@ class App:
         now = self.clock.epoch()
         if self._waypoints:
             await import_waypoints(self.store, self._waypoints.values(), now=now)
+        for zone in self._zones:  # a zones file given at start: its zones as drawn there
+            await self.store.put_zone(zone, replace=True, now=now, by="zones file")
         for spec in self._robots:
             await self._register(spec, now)
         self.core = Core(

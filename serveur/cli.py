@@ -132,6 +132,15 @@ async def _run(ns: argparse.Namespace) -> int:
         from serveur.maps.mapio import load_waypoints
 
         waypoints = load_waypoints(ns.waypoints)
+    zones = []
+    if ns.zones:
+        from serveur.store.zones import load_zones_file
+
+        try:
+            zones = load_zones_file(ns.zones)
+        except ServeurError as exc:
+            print(f"serveur run: cannot start: {exc}", file=sys.stderr)
+            return 1
     robots = [parse_robot_spec(s) for s in ns.robot]
     app = App(
         ns.db,
@@ -140,6 +149,7 @@ async def _run(ns: argparse.Namespace) -> int:
         clock=ScaledClock(ns.time_scale),
         map_path=ns.map,
         waypoints=waypoints,
+        zones=zones,
         robots=robots,
         security=_security(ns),
         ssl=tls,
@@ -352,6 +362,10 @@ def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     )
     run.add_argument("--map", help="ROS map YAML (default: adopt the map a robot publishes)")
     run.add_argument("--waypoints", help="waypoints JSON to import (tables, homes)")
+    run.add_argument(
+        "--zones",
+        help="zones JSON to import (aisles, doorways robots take turns through; docs/zones.md)",
+    )
     run.add_argument("--time-scale", type=float, default=1.0)
     _add_security_arguments(run)
     _add_service_arguments(run)

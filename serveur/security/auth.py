@@ -156,7 +156,7 @@ def required_scope(msg: Any) -> Scope:
             "waypoint": Scope.WAYPOINTS,
             "robot": Scope.ROBOTS,
             "dish": Scope.MENU,
-            "zone": Scope.WAYPOINTS,
+            "zone": Scope.SITE,  # the owner's drawing of the room
         }[msg.type]
     if verb == "dish":
         return Scope.ORDERS
@@ -171,7 +171,7 @@ def required_scope(msg: Any) -> Scope:
     if verb == "site":
         if msg.action == "audit":
             return Scope.AUDIT
-        return Scope.WAYPOINTS if msg.action == "remove_zone" else Scope.SITE
+        return Scope.SITE
     if verb == "stats":
         return Scope.STATS
     raise Forbidden(f"no rule for {verb!r}")  # a new verb must get a rule before anyone uses it

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
+from pathlib import Path
 
 from serveur.domain import ZoneRecord
 from serveur.errors import Conflict, InvalidField, NotFound
@@ -18,7 +19,7 @@ from serveur.store.accounts import SqlTx
 from serveur.store.service import _event, _one
 from serveur.store.site import SiteMixin
 
-__all__ = ["ZonesMixin", "check_zone"]
+__all__ = ["ZonesMixin", "check_zone", "load_zones_file"]
 
 _ZONE = "SELECT name, points, capacity, updated_at FROM zones"
 
@@ -39,6 +40,22 @@ def check_zone(points: Sequence[Sequence[float]], capacity: int) -> list[tuple[f
     area = sum(a[0] * b[1] - b[0] * a[1] for a, b in zip(out, [*out[1:], out[0]], strict=True))
     if abs(area) / 2 < 0.01:
         raise InvalidField("a zone must enclose some floor (its points are in a line)")
+    return out
+
+
+def load_zones_file(path: str | Path) -> list[ZoneRecord]:
+    """A zones file: ``{"zones": [{"name", "points": [[x, y], ...], "capacity"}, ...]}`` (the
+    format the console imports and ``serveur run --zones`` reads); each zone checked."""
+    try:
+        doc = json.loads(Path(path).read_text("utf-8"))
+        items = doc["zones"] if isinstance(doc, dict) else doc
+        out = []
+        for z in items:
+            capacity = z.get("capacity", 1)
+            points = check_zone(z["points"], capacity)
+            out.append(ZoneRecord(name=str(z["name"]), points=points, capacity=capacity))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise InvalidField(f"{path}: not a zones file: {exc}", file=str(path)) from None
     return out
 
 

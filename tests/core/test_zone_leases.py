@@ -121,7 +121,7 @@ async def head_on(app: App, sim: Any, c: Client) -> list[float]:
 
 async def test_with_the_aisle_leased_both_robots_pass_in_turn(tmp_path: Path) -> None:
     async with narrow_restaurant(tmp_path, leases=True) as (app, sim, c):
-        owner_token = await app.issue_token("integration", scopes=["waypoints", "read"])
+        owner_token = await app.issue_token("integration", scopes=["site", "read"])
         owner = Client(
             await connect(app.url, additional_headers={"Authorization": f"Bearer {owner_token}"})
         )
