@@ -49,6 +49,8 @@ def _replay_command(ns: argparse.Namespace) -> int:
             ("--load-spread", ns.load_spread >= 0),
             ("--away", 0 <= ns.away <= 1),
             ("--table-timeout", ns.table_timeout >= 0),
+            ("--conflict-distance", ns.conflict_distance > 0),
+            ("--deadlock-after", ns.deadlock_after > 0),
         )
         if not ok
     ]
@@ -72,10 +74,23 @@ def _replay_command(ns: argparse.Namespace) -> int:
         away=ns.away,
         table_timeout=ns.table_timeout or None,
         progress=not ns.quiet,
+        robots_see_each_other=ns.robots_see_each_other,
+        zones="" if ns.zones == "none" else ns.zones,
+        leases=not ns.no_leases,
+        conflict_distance=ns.conflict_distance,
+        deadlock_after=ns.deadlock_after,
     )
     from serveur.replay.service import run_replay
-    from serveur.replay.world import load_world
+    from serveur.replay.traffic import load_zones
+    from serveur.replay.world import load_world, zones_path
 
+    try:
+        zp = zones_path(opts)
+        if zp is not None:
+            load_zones(zp)
+    except ValueError as exc:
+        print(f"serveur replay: {exc}", file=sys.stderr)
+        return 2
     try:
         _, waypoints, _ = load_world(ns.map)
         tables = {w.name for w in waypoints.values() if w.kind == "table"}
@@ -180,6 +195,39 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
         default=d.table_timeout,
         help="the server's: seconds a robot waits at a table before it goes on and the "
         f"dishes are returned (default {d.table_timeout:g}; 0: wait for ever)",
+    )
+    p.add_argument(
+        "--robots-see-each-other",
+        action="store_true",
+        help="robots' footprints are obstacles to each other in the simulator: they stop "
+        "short, wait, plan around and abort after a patience (default: they pass through)",
+    )
+    p.add_argument(
+        "--zones",
+        default=None,
+        metavar="FILE",
+        help='zones created before the service opens ({"zones": [{"name", "points", '
+        '"capacity"}]}; default: <map stem>_zones.json beside the map if it exists; '
+        "none: no zones)",
+    )
+    p.add_argument(
+        "--no-leases",
+        action="store_true",
+        help="the server ignores zones (CoreConfig.leases off): robots never wait for them",
+    )
+    p.add_argument(
+        "--conflict-distance",
+        type=float,
+        default=d.conflict_distance,
+        help="a conflict: two robots' centres closer than this, m "
+        f"(default {d.conflict_distance:g}: 2 x radius + 5 cm)",
+    )
+    p.add_argument(
+        "--deadlock-after",
+        type=float,
+        default=d.deadlock_after,
+        help="a deadlock: robots with goals, within 1.5 m of each other, none moving 0.1 m "
+        f"for this many s (default {d.deadlock_after:g})",
     )
     p.add_argument("--out", default="replay-out", help="output directory (default replay-out)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -27,12 +27,16 @@ class ReplayError(RuntimeError):
     """The replay could not run (server refused an instruction, robots never came up...).
 
     ``code`` is the server's error code when the server refused an instruction (``stale``:
-    the robot had moved on from the trip or stop the instruction named), else None.
+    the robot had moved on from the trip or stop the instruction named), else None;
+    ``details`` the refusal's details (``unreachable``: the blocked ``table``).
     """
 
-    def __init__(self, message: str, code: str | None = None) -> None:
+    def __init__(
+        self, message: str, code: str | None = None, details: dict[str, Any] | None = None
+    ) -> None:
         super().__init__(message)
         self.code = code
+        self.details = details or {}
 
 
 class ProtocolClient:
@@ -64,7 +68,9 @@ class ProtocolClient:
         reply = await asyncio.wait_for(fut, WAIT)
         if reply["servermsg"] != "ok":
             code = reply.get("code")
-            raise ReplayError(f"{verb} {fields}: {code}: {reply.get('message')}", code)
+            raise ReplayError(
+                f"{verb} {fields}: {code}: {reply.get('message')}", code, reply.get("details")
+            )
         return reply
 
     async def close(self) -> None:

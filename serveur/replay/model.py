@@ -77,6 +77,15 @@ class ReplayOptions:
     table_timeout: float | None = 180.0  # the server's: a robot waits this long at a table
     overtime: float = 3600.0  # give up this long after the last dish was ready
     progress: bool = True
+    # Traffic (issue 21, serveur.replay.traffic). Robots' footprints are obstacles to each
+    # other in the simulator (off: robots drive through each other, as before).
+    robots_see_each_other: bool = False
+    #: Zones file the replay creates before the service opens; None: ``<map stem>_zones.json``
+    #: beside the map if there is one; "": no zones.
+    zones: str | None = None
+    leases: bool = True  # CoreConfig.leases: False ignores the zones
+    conflict_distance: float = 0.45  # m between centres: 2 x robot radius + 5 cm
+    deadlock_after: float = 20.0  # s of sim time without progress, robots near each other
 
 
 def dish_dwell(seed: int, line: int) -> float:
@@ -239,6 +248,14 @@ class PolicyResult:
     #: What the replay's players did, to check the event log against: Go pressed, loading
     #: seconds staff took, dishes sent again, stops the guests were back too late for.
     players: dict[str, Any] = field(default_factory=dict)
+    #: Robots and each other (serveur.replay.traffic.TrafficWatch.result): conflicts,
+    #: deadlocks, aborted goals; ``zone_waits``: the server's lease.waited events summed
+    #: (serveur.replay.traffic.zone_waits); ``wait_places``: each wait for a zone seen on the
+    #: robots' records (robot, t, s, zones, x, y); ``zones``: the zones created.
+    traffic: dict[str, Any] = field(default_factory=dict)
+    zone_waits: dict[str, Any] = field(default_factory=dict)
+    wait_places: list[dict[str, Any]] = field(default_factory=list)
+    zones: list[dict[str, Any]] = field(default_factory=list)
 
     def waits(self) -> list[float]:
         return [o["wait"] for o in self.orders if o["wait"] is not None]
@@ -277,4 +294,14 @@ class PolicyResult:
             "resent_delivered": sum(
                 1 for o in self.orders if o.get("resent") and o["wait"] is not None
             ),
+            "conflicts": len(self.traffic.get("conflicts", [])),
+            "deadlocks": len(self.traffic.get("deadlocks", [])),
+            "aborted_by_robot": self.traffic.get("aborted_by_robot", 0),
+            "aborted_other": self.traffic.get("aborted_other", 0),
+            "closest_m": self.traffic.get("closest"),
+            "zone_waits": self.zone_waits.get("waits", 0),
+            "zone_wait_s": self.zone_waits.get("seconds", 0.0),
+            "zone_wait_per_robot": {
+                k: v["seconds"] for k, v in self.zone_waits.get("per_robot", {}).items()
+            },
         }

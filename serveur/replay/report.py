@@ -9,7 +9,10 @@ rectangles and text. Output is byte-identical for identical inputs (no timestamp
 Plots, one set per policy: ``<policy>-wait-hist.png`` (waits in 15 s bins),
 ``<policy>-waits.png`` (each dish's wait against when it was first ready, with a rolling mean;
 a ring for a dish returned from its table and sent again) and
-``<policy>-paths.png`` (every robot's path on the map, one colour per robot).
+``<policy>-paths.png`` (every robot's path on the map, one colour per robot) and
+``<policy>-traffic.png`` (where robots waited: the zones drawn, each wait for a zone a blue
+disc at the waiting robot, its area growing with the seconds waited; deadlocks red crosses,
+goals aborted because of another robot red rings, conflicts orange dots).
 """
 
 from __future__ import annotations
@@ -147,7 +150,8 @@ def _over_time(result: PolicyResult, path: Path) -> None:
     ax.save(path)
 
 
-def _paths(result: PolicyResult, grid: Any, waypoints: dict[str, Any], path: Path) -> None:
+def _map_image(grid: Any) -> tuple[Image.Image, Any]:
+    """The map as an RGB image about 900 px wide, and metres -> pixels."""
     import numpy as np
 
     g = np.asarray(grid.grid)
@@ -155,12 +159,25 @@ def _paths(result: PolicyResult, grid: Any, waypoints: dict[str, Any], path: Pat
     img = Image.fromarray(shade[::-1], mode="L").convert("RGB")
     scale = max(1, round(900 / grid.width))
     img = img.resize((grid.width * scale, grid.height * scale), Image.Resampling.NEAREST)
-    d = ImageDraw.Draw(img, "RGBA")
     res, (ox, oy) = grid.resolution, grid.origin[:2]
 
     def px(x: float, y: float) -> tuple[float, float]:
         return ((x - ox) / res * scale, (grid.height - (y - oy) / res) * scale)
 
+    return img, px
+
+
+def _waypoint_marks(d: Any, px: Any, waypoints: dict[str, Any]) -> None:
+    for w in waypoints.values():
+        x, y = px(w.x, w.y)
+        colour = (0, 0, 0, 255) if w.kind == "table" else (0, 120, 0, 255)
+        d.ellipse((x - 4, y - 4, x + 4, y + 4), outline=colour, width=2)
+        d.text((x + 6, y - 6), w.name, fill=colour, font=_font(12))
+
+
+def _paths(result: PolicyResult, grid: Any, waypoints: dict[str, Any], path: Path) -> None:
+    img, px = _map_image(grid)
+    d = ImageDraw.Draw(img, "RGBA")
     for i, name in enumerate(sorted(result.paths)):
         pts = [px(x, y) for x, y in result.paths[name]]
         r, gr, b = _COLOURS[i % len(_COLOURS)]
@@ -168,14 +185,63 @@ def _paths(result: PolicyResult, grid: Any, waypoints: dict[str, Any], path: Pat
             d.line(pts, fill=(r, gr, b, 60), width=3)
         dist = next((rb["distance"] for rb in result.robots if rb["name"] == name), 0.0)
         d.text((10, 10 + 18 * i), f"{name}: {dist:.0f} m", fill=(r, gr, b, 255), font=_font())
-    for w in waypoints.values():
-        x, y = px(w.x, w.y)
-        colour = (0, 0, 0, 255) if w.kind == "table" else (0, 120, 0, 255)
-        d.ellipse((x - 4, y - 4, x + 4, y + 4), outline=colour, width=2)
-        d.text((x + 6, y - 6), w.name, fill=colour, font=_font(12))
+    _waypoint_marks(d, px, waypoints)
     d.text(
         (img.width / 2, img.height - 22),
         f"{result.policy}: robot paths ({len(result.trips)} trips)",
+        fill=(0, 0, 0, 255),
+        font=_font(16),
+        anchor="ma",
+    )
+    img.save(path, format="PNG", optimize=False)
+
+
+def _traffic(result: PolicyResult, grid: Any, waypoints: dict[str, Any], path: Path) -> None:
+    """Where robots waited: zones, waits for them, deadlocks, aborts and conflicts."""
+    img, px = _map_image(grid)
+    d = ImageDraw.Draw(img, "RGBA")
+    per_m = abs(px(1.0, 0.0)[0] - px(0.0, 0.0)[0])
+    for z in result.zones:
+        pts = [px(x, y) for x, y in z["points"]]
+        d.polygon(pts, fill=(255, 200, 0, 70), outline=(200, 140, 0, 255))
+        cx = sum(p[0] for p in pts) / len(pts)
+        cy = sum(p[1] for p in pts) / len(pts)
+        d.text((cx, cy), f"{z['name']} ({z['capacity']})", fill=(120, 80, 0, 255),
+               font=_font(12), anchor="mm")  # fmt: skip
+    for w in result.wait_places:
+        x, y = px(w["x"], w["y"])
+        # area proportional to the wait: a 60 s wait is a disc 0.5 m across
+        r = max(2.0, 0.25 * per_m * math.sqrt(max(0.0, w["s"]) / 60.0))
+        d.ellipse(
+            (x - r, y - r, x + r, y + r), fill=(31, 119, 180, 50), outline=(31, 119, 180, 160)
+        )
+    t = result.traffic
+    for c in t.get("conflicts", []):
+        x, y = px(c["x"], c["y"])
+        d.ellipse((x - 3, y - 3, x + 3, y + 3), fill=(255, 127, 14, 220))
+    for a in t.get("aborts", []):
+        if a.get("by_robot"):
+            x, y = px(a["x"], a["y"])
+            d.ellipse((x - 7, y - 7, x + 7, y + 7), outline=(214, 39, 40, 255), width=2)
+    for k in t.get("deadlocks", []):
+        x, y = px(k["x"], k["y"])
+        d.line((x - 7, y - 7, x + 7, y + 7), fill=(214, 39, 40, 255), width=3)
+        d.line((x - 7, y + 7, x + 7, y - 7), fill=(214, 39, 40, 255), width=3)
+    _waypoint_marks(d, px, waypoints)
+    zw = result.zone_waits
+    lines = [
+        f"zone waits: {zw.get('waits', 0)}, {zw.get('seconds', 0.0):.0f} s "
+        "(blue: where, area ~ seconds)",
+        f"deadlocks (red x): {len(t.get('deadlocks', []))}; goals aborted by another robot "
+        f"(red ring): {t.get('aborted_by_robot', 0)}",
+        f"conflicts (orange, < {t.get('conflict_distance', 0.45):g} m): "
+        f"{len(t.get('conflicts', []))}",
+    ]
+    for i, text in enumerate(lines):
+        d.text((10, 10 + 18 * i), text, fill=(0, 0, 0, 255), font=_font())
+    d.text(
+        (img.width / 2, img.height - 22),
+        f"{result.policy}: where robots waited",
         fill=(0, 0, 0, 255),
         font=_font(16),
         anchor="ma",
@@ -194,6 +260,7 @@ def write_plots(results: dict[str, PolicyResult], map_path: str | None, out: Pat
             ("wait-hist", lambda p, r=r: _hist(r, p)),
             ("waits", lambda p, r=r: _over_time(r, p)),
             ("paths", lambda p, r=r: _paths(r, grid, waypoints, p)),
+            ("traffic", lambda p, r=r: _traffic(r, grid, waypoints, p)),
         )
         for suffix, draw in files:
             p = out / f"{name}-{suffix}.png"
@@ -209,8 +276,11 @@ def _fmt_s(v: float) -> str:
     return "-" if not math.isfinite(v) else f"{round(v):d} s"
 
 
-def _robot_cell(r: dict[str, Any]) -> str:
-    return f"{round(r['distance']):d} m / {round(r['busy'] / 60):d} min"
+def _robot_cell(r: dict[str, Any], zone_wait: dict[str, float]) -> str:
+    return (
+        f"{round(r['distance']):d} m / {round(r['busy'] / 60):d} min / "
+        f"{round(zone_wait.get(r['name'], 0.0)):d} s"
+    )
 
 
 def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOptions) -> str:
@@ -250,6 +320,29 @@ def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOpti
             "dishes returned / re-sent",
             [f"{stats[n]['returned']} / {stats[n]['resent']}" for n in names],
         ),
+        (
+            f"conflicts (< {opts.conflict_distance:g} m)",
+            [str(stats[n]["conflicts"]) for n in names],
+        ),
+        (
+            f"deadlocks (>= {opts.deadlock_after:g} s)",
+            [str(stats[n]["deadlocks"]) for n in names],
+        ),
+        (
+            "goals aborted: other robot / other",
+            [f"{stats[n]['aborted_by_robot']} / {stats[n]['aborted_other']}" for n in names],
+        ),
+        (
+            "closest two robots came",
+            [
+                "-" if stats[n]["closest_m"] is None else f"{stats[n]['closest_m']:.2f} m"
+                for n in names
+            ],
+        ),
+        (
+            "zone waits: count / total",
+            [f"{stats[n]['zone_waits']} / {_fmt_s(stats[n]['zone_wait_s'])}" for n in names],
+        ),
     ]
     # Robots busiest first, not by name: which of two equal robots took a trip depends on
     # which came home a few milliseconds earlier, and the summary should not flip with that.
@@ -257,8 +350,13 @@ def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOpti
     for i in range(max(len(r) for r in ranked.values())):
         rows.append(
             (
-                f"robot #{i + 1}: distance / busy",
-                [_robot_cell(ranked[n][i]) if i < len(ranked[n]) else "-" for n in names],
+                f"robot #{i + 1}: distance / busy / zone wait",
+                [
+                    _robot_cell(ranked[n][i], stats[n]["zone_wait_per_robot"])
+                    if i < len(ranked[n])
+                    else "-"
+                    for n in names
+                ],
             )
         )
     width = max(len(r[0]) for r in rows) + 2
@@ -272,6 +370,13 @@ def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOpti
         f"Loading: {opts.load_fixed:g} s + {opts.load_per_dish:g} s a plate (spread "
         f"{opts.load_spread:g}); parties away: {100 * opts.away:g} %; table timeout: "
         + ("off" if opts.table_timeout is None else f"{opts.table_timeout:g} s")
+        + ".",
+        "Traffic: robots "
+        + ("see each other" if opts.robots_see_each_other else "pass through each other")
+        + "; zones: "
+        + (", ".join(z["name"] for z in results[names[0]].zones) or "none")
+        + "; leases "
+        + ("on" if opts.leases else "off")
         + ".",
         "",
         " " * width + "".join(f"{n:>{colw}}" for n in names),
@@ -297,6 +402,10 @@ def _report(results: dict[str, PolicyResult], source: str, opts: ReplayOptions) 
                 "sim_seconds": r.sim_seconds,
                 "wall_seconds": r.wall_seconds,
                 "players": r.players,
+                "traffic": r.traffic,
+                "zone_waits": r.zone_waits,
+                "wait_places": r.wait_places,
+                "zones": r.zones,
             }
             for name, r in results.items()
         },

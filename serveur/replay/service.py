@@ -82,8 +82,9 @@ from serveur.replay.model import (
 )
 from serveur.replay.orders import LogOrder
 from serveur.replay.staff import Staff
+from serveur.replay.traffic import TrafficWatch, load_zones, zone_waits
 from serveur.replay.vtime import LoopClock, VirtualTimeLoop
-from serveur.replay.world import load_world, server_config
+from serveur.replay.world import load_world, server_config, zones_path
 
 __all__ = [
     "POLICIES",
@@ -147,6 +148,10 @@ class _Service:
         self.nav_errors = 0
         self.jobs: set[asyncio.Task[None]] = set()
         self.failure: BaseException | None = None
+        self.sim: Any = None
+        # robot -> (since, x, y, zones) while its record says it waits for zones
+        self.waiting: dict[str, tuple[float, float, float, list[str]]] = {}
+        self.wait_places: list[dict[str, Any]] = []
 
     def now(self) -> float:
         return self.console.now()
@@ -178,6 +183,7 @@ class _Service:
         robots = self.console.robots
         old = robots.get(name, {}).get("status")
         robots[name] = robot
+        self._waiting_for(name, robot.get("waiting_for"))
         status = robot["status"]
         if status == old:
             return
@@ -209,6 +215,48 @@ class _Service:
         elif status == "Error":
             self.nav_errors += 1
             self._spawn(self.staff.rescue(name))
+
+    def _waiting_for(self, name: str, zones: list[str] | None) -> None:
+        """Where and how long each robot waited for zones, from its record (the plot)."""
+        if not self.console.t0 or self.sim is None:
+            return
+        if zones and name not in self.waiting:
+            x, y = next(((r.pose[0], r.pose[1]) for r in self.sim.robots if r.name == name), (0, 0))
+            self.waiting[name] = (self.now(), x, y, list(zones))
+        elif not zones and name in self.waiting:
+            self._waited(name)
+
+    def _waited(self, name: str) -> None:
+        since, x, y, zones = self.waiting.pop(name)
+        self.wait_places.append(
+            {
+                "robot": name,
+                "t": round(since, 1),
+                "s": round(self.now() - since, 1),
+                "zones": zones,
+                "x": round(x, 2),
+                "y": round(y, 2),
+            }
+        )
+
+    async def _create_zones(self, app: Any, result: PolicyResult) -> None:
+        """The zones file's zones, created as the owner would (``create zone``)."""
+        path = zones_path(self.opts)
+        if path is None:
+            return
+        try:
+            zones = load_zones(path)
+        except ValueError as exc:
+            raise ReplayError(str(exc)) from None
+        token = await app.issue_token("integration", scopes=["site", "read"], label="zones")
+        ws = await connect(app.url, additional_headers={"Authorization": f"Bearer {token}"})
+        owner = ProtocolClient(ws, lambda _topic, _data: None)
+        try:
+            for z in zones:
+                await owner.call("create", type="zone", replace=True, **z)
+        finally:
+            await owner.close()
+        result.zones = zones
 
     # recording ---------------------------------------------------------------------------
 
@@ -276,7 +324,16 @@ class _Service:
             clock=self.clock,
             seed=opts.seed,
             ros=[opts.ros[i % len(opts.ros)] for i in range(opts.robots)],
+            robots_see_each_other=opts.robots_see_each_other,
         )
+        self.sim = sim
+        watch = TrafficWatch(
+            sim.robots,
+            self.now,
+            conflict_distance=opts.conflict_distance,
+            deadlock_after=opts.deadlock_after,
+        )
+        watch.attach()
         # Every waypoint's distance field before the service opens: a robot's first goal at a
         # spot would otherwise wait for it (40-80 ms of CPU, in the middle of the service).
         await sim.warm_plans([(w.x, w.y) for w in waypoints.values()])
@@ -310,6 +367,7 @@ class _Service:
             await app.start()
             core = app.core
             assert core is not None
+            await self._create_zones(app, result)
             console = self.console
             console.distance = core.distance
             token = await app.issue_token("staff", label="replay")
@@ -329,6 +387,7 @@ class _Service:
             )
             console.t0 = float(self.clock.now())
             epoch0 = float(self.clock.epoch())
+            watch.start()
             bg.append(asyncio.create_task(self._sample(sim, result.paths)))
             if opts.progress:
                 bg.append(asyncio.create_task(self._progress(self.policy)))
@@ -362,6 +421,10 @@ class _Service:
             await app.close()
             await sim.close()
         result.wall_seconds = time.perf_counter() - wall0
+        result.traffic = watch.result()
+        for name in sorted(self.waiting):  # still waiting when the service ended
+            self._waited(name)
+        result.wait_places = self.wait_places
         result.nav_errors = self.nav_errors
         result.recoveries = self.staff.recoveries
         return result
@@ -408,6 +471,7 @@ class _Service:
                 for e in batch
             ]
         ev = service_events(events, self.now())
+        result.zone_waits = zone_waits(events)
         lines = dict(self.staff.line_of)
         for o in await store.list_orders():
             line = lines.get(o.id)
@@ -447,6 +511,7 @@ class _Service:
             "go_pressed": len(staff.loaded),
             "loading_s": sum(staff.loaded.values()),
             "resent": staff.resent,
+            "tables_cleared": staff.cleared,
             "guests_missed": len(self.guests.missed),
             "parties_away": sum(len(a) for a in self.guests.away.values()),
         }

@@ -80,6 +80,7 @@ class Staff:
         self.eta: dict[str, float] = {}  # busy robot -> when staff expect it back (service s)
         self.retries: dict[str, int] = {}
         self.recoveries = 0
+        self.cleared = 0  # blocked tables staff cleared (a robot gave up on one)
         self.wake = asyncio.Event()
 
     # what the service tells the staff ----------------------------------------------------
@@ -200,9 +201,25 @@ class Staff:
                     del self.pending[oid]
                     self.carted.add(oid)
                 for i in range(0, len(cart), MAX_CART):  # the protocol's limit per cart
-                    reply = await c.call("create", type="task", orders=cart[i : i + MAX_CART])
+                    reply = await self._send_cart(cart[i : i + MAX_CART])
                     for task in reply["tasks"]:
                         c.tasks.setdefault(task["id"], task)
+
+    async def _send_cart(self, orders: list[int]) -> dict[str, Any]:
+        """``create task``; a table the server blocked after a robot gave up on it (in the
+        replay, only ever another robot in the way: no chairs move) is cleared by staff, who
+        see the way is free, and the cart sent again."""
+        c = self.console
+        for _ in range(8):
+            try:
+                return await c.call("create", type="task", orders=orders)
+            except ReplayError as exc:
+                table = exc.details.get("table")
+                if exc.code != "unreachable" or not table:
+                    raise
+                await c.call("clear", table=table)
+                self.cleared += 1
+        return await c.call("create", type="task", orders=orders)
 
     async def _create_due(self, t: float) -> None:
         """The kitchen: every dish of the log ready by ``t`` appears at the pass, in order."""
@@ -232,6 +249,13 @@ class Staff:
         if free < 1 or not self.pending:
             return []
         dishes = list(self.pending.values())
+        if self.opts.robots_see_each_other:
+            # Robots that block each other cannot both stand at one table: staff send a
+            # table's dishes once no robot is on its way to it or at it (tables_taken).
+            taken = self.tables_taken()
+            dishes = [d for d in dishes if d.table not in taken]
+            if not dishes:
+                return []
         if self.policy == "baseline":
             carts: list[list[int]] = []
             for _ in range(free):
@@ -260,6 +284,18 @@ class Staff:
             busy=self._busy(now),
             rank=self.opts.rank,
         )
+
+    def tables_taken(self) -> set[str]:
+        """Tables a robot is on its way to or standing at (a stop of a queued or active
+        trip not yet done or skipped)."""
+        out: set[str] = set()
+        for t in self.console.tasks.values():
+            if t.get("status") not in ("queued", "active"):
+                continue
+            for stop in t.get("stops", []):
+                if stop.get("status") in ("pending", "arrived"):
+                    out.add(stop["table"])
+        return out
 
     def _busy(self, now: float) -> list[float]:
         """Seconds until each robot out on a trip is expected back at the pass.

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from serveur.maps.mapio import OccupancyMap, Waypoint
     from serveur.security.sessions import SecurityConfig
 
-__all__ = ["load_world", "server_config"]
+__all__ = ["load_world", "server_config", "zones_path"]
 
 
 def load_world(map_path: str | None) -> tuple[OccupancyMap, dict[str, Waypoint], Path]:
@@ -40,6 +40,19 @@ def load_world(map_path: str | None) -> tuple[OccupancyMap, dict[str, Waypoint],
         if cand.is_file():
             return load_map(p), load_waypoints(cand), p
     raise ReplayError(f"no waypoints for {p}: expected {stem.name}_waypoints.json beside it")
+
+
+def zones_path(opts: ReplayOptions) -> Path | None:
+    """The zones file the replay creates: ``opts.zones``, else ``<map stem>_zones.json``
+    beside the map if it exists ("" or a missing default: no zones)."""
+    if opts.zones is not None:
+        return Path(opts.zones) if opts.zones else None
+    from serveur.maps.navigation import demo_map_path
+
+    p = Path(opts.map_path) if opts.map_path is not None else demo_map_path()
+    stem = p.with_suffix("")
+    cand = stem.with_name(stem.name + "_zones.json")
+    return cand if cand.is_file() else None
 
 
 def server_config(opts: ReplayOptions, policy: str) -> tuple[CoreConfig, SecurityConfig]:
@@ -74,6 +87,7 @@ def server_config(opts: ReplayOptions, policy: str) -> tuple[CoreConfig, Securit
         # robot nobody collects from moves on after the timeout (simulated s; None: never).
         auto_depart=False,
         table_timeout=opts.table_timeout,
+        leases=opts.leases,
     )
     # The per-connection rate limit counts wall seconds, but the replay's one client
     # speaks for a whole kitchen and staff in accelerated time: at 200x a rush is
