@@ -626,6 +626,29 @@ def _stats(
     return build()
 
 
+#: Zones the fuzzer names (the fuzz restaurant has none: ``release`` is ``not_found``, and a
+#: staff connection may not draw one).
+ZONES = ("aisle", "door", "pass zone")
+_POINT = st.tuples(_coord, _coord).map(list)
+
+
+@st.composite
+def create_zone(draw: st.DrawFn) -> Obj:
+    """An owner's zone (scope ``site``): ``forbidden`` for the fuzz connections (staff)."""
+    points = draw(st.lists(_POINT, min_size=3, max_size=6))
+    return _with(
+        draw,
+        {"clientmsg": "create", "type": "zone", "name": _pick(draw, ZONES), "points": points},
+        {"capacity": st.integers(1, 8), "replace": st.booleans()},
+    )
+
+
+@st.composite
+def release_msgs(draw: st.DrawFn) -> Obj:
+    zone = _pick(draw, (*ZONES, "T3"))
+    return _with(draw, {"clientmsg": "release", "zone": zone}, {"robot": _any_robot})
+
+
 #: verb (or "verb sub-type") -> strategy of valid messages. One line per verb.
 VERB_STRATEGIES: dict[str, st.SearchStrategy[Obj]] = {
     "login": login_msgs(),
@@ -653,6 +676,8 @@ VERB_STRATEGIES: dict[str, st.SearchStrategy[Obj]] = {
     "dish": dish_msgs(),
     "ack": st.builds(lambda a: obj(clientmsg="ack", id=IdSlot(), alert=a), st.integers(1, 30)),
     "clear": st.builds(lambda t: obj(clientmsg="clear", id=IdSlot(), table=t), _table),
+    "create zone": create_zone(),
+    "release": release_msgs(),
     "account list_users": _account("list_users"),
     "account add_user": _account("add_user", username=_USERS, role=_USER_ROLES),
     "account set_role": _account("set_role", username=_USERS, role=_USER_ROLES),
@@ -668,6 +693,7 @@ VERB_STRATEGIES: dict[str, st.SearchStrategy[Obj]] = {
         "rename_waypoint", waypoint=_table, name=st.sampled_from(NEW_WAYPOINTS)
     ),
     "site remove_waypoint": _site("remove_waypoint", waypoint=_table),
+    "site remove_zone": _site("remove_zone", zone=st.sampled_from(ZONES)),
     "site settings": _site("settings"),
     "site set_settings": _site_some("set_settings", _SET_SETTINGS),
     "site audit": _site(
@@ -809,6 +835,9 @@ _MODELS: dict[str, type[Any]] = {
     "site dependents": P.SiteDependents,
     "site rename_waypoint": P.SiteRenameWaypoint,
     "site remove_waypoint": P.SiteRemoveWaypoint,
+    "site remove_zone": P.SiteRemoveZone,
+    "create zone": P.CreateZone,
+    "release": P.ReleaseMsg,
     "site settings": P.SiteSettings,
     "site set_settings": P.SiteSetSettings,
     "site audit": P.SiteAudit,

@@ -455,6 +455,7 @@ def test_action_of_and_robot_of() -> None:
         "create task": (None, None),
         "create robot": (None, None),
         "create dish": (None, None),
+        "create zone": (None, None),
         "order table": (None, None),
         "order robot": (None, "r1"),
         **{f"control {a}": (Action(a), "r1") for a in P._SUBTAGS["control"][1]},
@@ -466,6 +467,7 @@ def test_action_of_and_robot_of() -> None:
         "dish": (None, None),
         "ack": (None, None),
         "clear": (None, None),
+        "release": (None, None),  # a zone's lease: from every holder here (no robot named)
         # people and screen tokens (owners): no robot's status either
         **{f"account {a}": (None, None) for a in P._SUBTAGS["account"][1]},
         # the owner's site and statistics: a robot edited or removed is named (it must
@@ -570,6 +572,12 @@ SETTINGS = {"clientmsg": "site", "action": "set_settings"}
 AUDIT = {"clientmsg": "site", "action": "audit"}
 FIGURES = {"clientmsg": "stats", "action": "figures"}
 FORECAST = {"clientmsg": "stats", "action": "forecast", "day": "2026-11-20", "robots": [2]}
+ZONE = {
+    "clientmsg": "create",
+    "type": "zone",
+    "name": "aisle",
+    "points": [[3.2, 1.0], [5.2, 1.0], [5.2, 2.0]],
+}
 
 
 @pytest.mark.parametrize(
@@ -731,6 +739,23 @@ FORECAST = {"clientmsg": "stats", "action": "forecast", "day": "2026-11-20", "ro
         (FORECAST | {"robots": [2, 2]}, []),
         (FORECAST | {"policy": "fifo"}, ["policy"]),
         ({"clientmsg": "stats", "action": "forecast_cancel", "day": "2026-11-20"}, ["day"]),
+        # zones: a polygon of map points, a capacity; a lease released by zone
+        (ZONE, None),
+        (ZONE | {"points": [[0.0, 0.0], [1.0, 0.0]]}, ["points"]),
+        (ZONE | {"points": [[float(i), 0.0] for i in range(33)]}, ["points"]),
+        (ZONE | {"points": [[0.0, 0.0], [1.0, 0.0], [1.0]]}, ["points", 2]),
+        (ZONE | {"points": [[0.0, 0.0], [1.0, 0.0], [1.0, 1e5]]}, ["points", 2, 1]),
+        (ZONE | {"points": [[0.0, 0.0], [1.0, 0.0], [1.0, math.nan]]}, ["points", 2, 1]),
+        (ZONE | {"capacity": 0}, ["capacity"]),
+        (ZONE | {"capacity": 9}, ["capacity"]),
+        (ZONE | {"capacity": True}, ["capacity"]),
+        (ZONE | {"replace": 1}, ["replace"]),
+        # points in a line: the server's check (invalid_field with details.field)
+        (ZONE | {"points": [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]}, None),
+        ({"clientmsg": "release"}, ["zone"]),
+        ({"clientmsg": "release", "zone": "aisle", "robot": ""}, ["robot"]),
+        ({"clientmsg": "release", "zone": "aisle", "robot": None}, None),
+        ({"clientmsg": "site", "action": "remove_zone"}, ["zone"]),
     ],
 )
 def test_field_errors(msg: dict[str, Any], loc: list[Any] | None) -> None:

@@ -143,6 +143,8 @@ ALL_TOPICS = [
     "menu",
     "blocks",
     "settings",
+    "zones",
+    "leases",
     f"pose:{ROBOT}",
 ]
 #: The site of the doc's restaurant: as shipped (trips wait at the pass for Go).
@@ -786,7 +788,8 @@ def _event_rows() -> dict[str, set[str]]:
 #: Event kinds the store can write that no request or robot report leads to (no verb deletes a
 #: waypoint): not in the doc's table.
 UNREACHED_KINDS = frozenset({"waypoint.deleted"})
-_KIND = re.compile(r'"((?:robot|waypoint|order|task|stop|table|alert|menu|settings)\.[a-z_]+)"')
+_KINDS = "robot|waypoint|order|task|stop|table|alert|menu|settings|zone|lease"
+_KIND = re.compile(rf'"((?:{_KINDS})\.[a-z_]+)"')
 
 
 def test_the_event_table_lists_every_kind_the_server_records() -> None:

@@ -52,6 +52,14 @@ MESSAGES: dict[str, dict[str, Any]] = {
     "ack": {"clientmsg": "ack", "alert": 1},
     "clear": {"clientmsg": "clear", "table": "T1"},
     "create dish": {"clientmsg": "create", "type": "dish", "name": "Laksa"},
+    # Zones: the owner draws them (scope site); staff break a lease (scope tasks).
+    "create zone": {
+        "clientmsg": "create",
+        "type": "zone",
+        "name": "aisle",
+        "points": [[0, 0], [1, 0], [1, 1]],
+    },
+    "release": {"clientmsg": "release", "zone": "aisle"},
     # The owner's console: the site (scope site; its audit search, scope audit) and the
     # statistics (scope stats).
     "site edit_robot": {"clientmsg": "site", "action": "edit_robot", "trays": 2, **ROBOT},
@@ -64,6 +72,7 @@ MESSAGES: dict[str, dict[str, Any]] = {
         "name": "Patio 1",
     },
     "site remove_waypoint": {"clientmsg": "site", "action": "remove_waypoint", "waypoint": "T1"},
+    "site remove_zone": {"clientmsg": "site", "action": "remove_zone", "zone": "aisle"},
     "site settings": {"clientmsg": "site", "action": "settings"},
     "site set_settings": {"clientmsg": "site", "action": "set_settings", "table_timeout": 60},
     "site audit": {"clientmsg": "site", "action": "audit", "verb": "site"},
@@ -96,8 +105,8 @@ STATS_SCRIPT = Principal(Role.INTEGRATION, 10, scopes=frozenset({Scope.STATS}))
 # Who may send what. Anything not listed for a principal must be refused.
 ALLOWED: dict[str, set[str]] = {
     "owner": set(MESSAGES),
-    # The menu, the site and the statistics are the owner's.
-    "staff": set(MESSAGES) - {"create robot", "create dish"} - SITE - STATS,
+    # The menu, the site (zones included) and the statistics are the owner's.
+    "staff": set(MESSAGES) - {"create robot", "create dish", "create zone"} - SITE - STATS,
     "r1 screen": {"next", "stop", "continue", "cancel", "go", "skip", "order robot", "data"},
     "r2 screen": {"data"},  # its own robot's view of the robots topic
     # "Food collected" on the table's own screen: the core checks the robot is at T1.
@@ -107,7 +116,7 @@ ALLOWED: dict[str, set[str]] = {
     "pos": {"create order", "dish", "data", "order table", "order robot"},
     # Every site action but the audit search, which needs the audit scope (and no topic:
     # ``data`` needs read).
-    "site script": SITE - {"site audit"},
+    "site script": SITE - {"site audit"} | {"create zone"},
     "audit script": {"site audit"},
     "stats script": STATS,
 }
