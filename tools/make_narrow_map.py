@@ -6,7 +6,7 @@ planters between them) with ONE opening one robot wide: the kitchen pass, the ro
 and two tables on the west side, five tables on the east side. Every trip to the east side
 drives the aisle out and back, so two robots meeting in it head-on block each other unless the
 server leases the aisle (a zone of capacity 1 in ``_zones.json``). The two west tables are
-reached without the aisle: robots serving them never wait for it.
+reached without the aisle.
 
 Layout (metres, x to the east, y to the north, room interior [0, 13] x [0, 7]):
 
@@ -16,8 +16,12 @@ Layout (metres, x to the east, y to the north, room interior [0, 13] x [0, 7]):
   edges (a robot serving a table is not in the way of robots going to the others);
 * the dividing wall x 5..7, with the aisle at y 3.175..3.825 (0.65 m: a 0.4 m robot, never two side
   by side), its mouths chamfered 0.6 m so a robot coming at an angle does not clip the corner;
-* the zone ``aisle``: x 4.4..7.6, y 2.9..4.1 (the aisle and 0.6 m before each mouth), capacity
-  1. Homes, the pass and every table spot are outside it, even widened by a robot's radius.
+* the zone ``aisle`` (capacity 1): the aisle, 0.6 m beyond its east mouth, and the funnel of
+  floor between the homes and its west mouth (x 2.0..7.6; 1.2 m high at the aisle, 2.4 m at
+  x 2.0), where robots coming home and robots leaving for the aisle cross. Homes, the pass and
+  every table spot are outside it, even widened by a robot's radius; a robot driving from a
+  home in the middle of the column (or the far end) to T6 or T7 crosses the funnel and asks
+  for the zone too.
 
 The geometry below is the single source of truth; re-running the script reproduces the
 committed files byte for byte. Run: ``python tools/make_narrow_map.py``.
@@ -48,7 +52,10 @@ PASS_SPOT = (2.2, 6.3)
 DIVIDER = (5.0, 7.0)  # x extent of the dividing wall
 AISLE = (3.175, 3.825)  # y extent of the opening: 0.65 m
 CHAMFER = 0.6
-ZONE = [[4.4, 2.9], [7.6, 2.9], [7.6, 4.1], [4.4, 4.1]]
+#: The aisle and its approach from the homes: a funnel from 0.8 m in front of the homes to the
+#: aisle's west mouth, the aisle, and 0.6 m beyond its east mouth. Robots coming home and robots
+#: leaving for the aisle would otherwise cross on the floor in front of it.
+ZONE = [[2.0, 2.3], [4.4, 2.9], [7.6, 2.9], [7.6, 4.1], [4.4, 4.1], [2.0, 4.7]]
 SPOT_GAP = 0.5  # serving spot distance from the table edge
 
 # name: (cx, cy, size, serving side); square tables.

@@ -210,8 +210,8 @@ def _traffic(result: PolicyResult, grid: Any, waypoints: dict[str, Any], path: P
                font=_font(12), anchor="mm")  # fmt: skip
     for w in result.wait_places:
         x, y = px(w["x"], w["y"])
-        # area proportional to the wait: a 60 s wait is a disc 0.5 m across
-        r = max(2.0, 0.25 * per_m * math.sqrt(max(0.0, w["s"]) / 60.0))
+        # area proportional to the wait: a 60 s wait is a disc 1 m across
+        r = max(4.0, 0.5 * per_m * math.sqrt(max(0.0, w["s"]) / 60.0))
         d.ellipse(
             (x - r, y - r, x + r, y + r), fill=(31, 119, 180, 50), outline=(31, 119, 180, 160)
         )
@@ -237,8 +237,10 @@ def _traffic(result: PolicyResult, grid: Any, waypoints: dict[str, Any], path: P
         f"conflicts (orange, < {t.get('conflict_distance', 0.45):g} m): "
         f"{len(t.get('conflicts', []))}",
     ]
+    width = max(d.textlength(text, font=_font()) for text in lines)
+    d.rectangle((4, 4, 16 + width, 14 + 18 * len(lines)), fill=(255, 255, 255, 220))
     for i, text in enumerate(lines):
-        d.text((10, 10 + 18 * i), text, fill=(0, 0, 0, 255), font=_font())
+        d.text((10, 8 + 18 * i), text, fill=(0, 0, 0, 255), font=_font())
     d.text(
         (img.width / 2, img.height - 22),
         f"{result.policy}: where robots waited",
