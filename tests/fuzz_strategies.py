@@ -629,13 +629,13 @@ def _stats(
 #: Zones the fuzzer names (the fuzz restaurant has none: ``release`` is ``not_found``, and a
 #: staff connection may not draw one).
 ZONES = ("aisle", "door", "pass zone")
-_POINT = st.tuples(_coord, _coord).map(list)
+_POINT: st.SearchStrategy[Node] = st.tuples(_coord, _coord).map(lambda xy: [xy[0], xy[1]])
 
 
 @st.composite
 def create_zone(draw: st.DrawFn) -> Obj:
     """An owner's zone (scope ``site``): ``forbidden`` for the fuzz connections (staff)."""
-    points = draw(st.lists(_POINT, min_size=3, max_size=6))
+    points: Node = draw(st.lists(_POINT, min_size=3, max_size=6))
     return _with(
         draw,
         {"clientmsg": "create", "type": "zone", "name": _pick(draw, ZONES), "points": points},
