@@ -411,7 +411,12 @@ class Server:
         ):
             return
         p = conn.principal
-        target = getattr(msg, "robot", None) or getattr(msg, "name", None)
+        target = (
+            getattr(msg, "robot", None)
+            or getattr(msg, "waypoint", None)
+            or getattr(msg, "zone", None)
+            or getattr(msg, "name", None)
+        )
         if target is None and getattr(msg, "table", None) is not None:
             target = msg.table
         data: dict[str, Any] = {}

@@ -242,6 +242,11 @@ def _kind(v: Any) -> str:
     return "object"
 
 
+#: Not checked at all: a robot's connection error depends on the network the test runs on (the
+#: documented robots' addresses are not on loopback): null, or any reason.
+UNCHECKED = frozenset({"link_error"})
+
+
 @dataclass(frozen=True)
 class Rules:
     volatile: frozenset[str] = VOLATILE
@@ -259,6 +264,8 @@ class Rules:
 def mismatches(doc: Any, got: Any, rules: Rules, path: str = "", key: str = "") -> list[str]:
     """Where ``got`` (what the server sent) differs from ``doc`` (the example); [] if nowhere."""
     where = path or "(top)"
+    if key in UNCHECKED:
+        return []
     if key in rules.volatile or (key in ORDER_ID_LISTS and isinstance(doc, int)):
         if _kind(doc) != _kind(got):
             return [f"{where}: documented a {_kind(doc)} ({doc!r}), got {got!r}"]

@@ -62,6 +62,8 @@ class SiteActions:
 
         def _kick(self) -> None: ...
 
+        def _robot_view(self, name: str) -> Robot: ...
+
         async def _stop_robot_runtime(self, rt: Runtime) -> None: ...
 
     # -- settings ---------------------------------------------------------------------------
@@ -141,13 +143,13 @@ class SiteActions:
                 self._start_link(rt)
         self.publish_robot(rt.name)
         self._kick()
-        return {"robot": self._robots[rt.name]}
+        return {"robot": self._robot_view(rt.name)}
 
     async def remove_robot(self, msg: P.SiteRemoveRobot, actor: str | None) -> dict[str, Any]:
         rt = self._runtime(msg.robot)
         async with rt.lock:
             revoked = await self.store.remove_robot(rt.name, now=self.clock.epoch(), by=actor)
-            robot = self._robots[rt.name]
+            robot = self._robot_view(rt.name)
         await self._stop_robot_runtime(rt)
         self.publisher.pub("robots", robot.model_copy(update={"removed": True}))
         log.info("%s: removed by %s", rt.name, actor)

@@ -27,11 +27,6 @@ if TYPE_CHECKING:  # the computation is imported when the command runs
 
 __all__ = ["add_stats_parser", "render", "trip_rows", "write_csv"]
 
-NO_DISTANCE = (
-    "Distance per robot: not given. Robots' poses are not in the events table (the server "
-    "keeps only each robot's last pose), so it cannot be computed from the records."
-)
-
 
 # -- formatting ------------------------------------------------------------------------------
 
@@ -115,6 +110,7 @@ def render(rows: Sequence[Figures], total: Figures) -> str:
             str(r.trips),
             str(r.errors),
             str(r.link_drops),
+            f"{r.distance_m:.0f} m",
         ]
         for f in every
         for r in f.robots
@@ -155,11 +151,21 @@ def render(rows: Sequence[Figures], total: Figures) -> str:
                 trips,
             ),
             _grid(
-                "Robots (busy: on a trip or going home; share of the time online)",
-                ["period", "robot", "busy", "busy %", "loading", "trips", "errors", "link drops"],
+                "Robots (busy: on a trip or going home; share of the time online; distance: "
+                "the server's odometer)",
+                [
+                    "period",
+                    "robot",
+                    "busy",
+                    "busy %",
+                    "loading",
+                    "trips",
+                    "errors",
+                    "link drops",
+                    "distance",
+                ],
                 robots,
             ),
-            NO_DISTANCE + "\n",
         ]
     )
 

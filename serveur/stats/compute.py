@@ -7,9 +7,9 @@ with its stops, every robot's status spells. :func:`figures` gives the figures o
 total. Nothing here reads a database or the clock: :mod:`serveur.stats.load` fetches the
 events, and the tests feed hand-made ones.
 
-Where each figure comes from is in docs/statistics.md. What the events cannot give is left
-out rather than guessed: robots' poses are not events (the store keeps only the last one), so
-there is no distance per robot.
+Where each figure comes from is in docs/statistics.md. A robot's distance comes from the
+server's odometer, written in each of its status events (serveur.core.link_reports): poses
+themselves are not events.
 """
 
 from __future__ import annotations

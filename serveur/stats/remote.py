@@ -50,12 +50,15 @@ class StatsService:
         self._one = asyncio.Lock()
 
     async def handle(self, msg: P.StatsFigures | P.StatsTrips) -> dict[str, Any]:
+        field = "utc_offset"
         try:
             tz = None if msg.utc_offset is None else parse_offset(msg.utc_offset)
+            field = "start"
             start = None if msg.start is None else parse_when(msg.start, tz)
+            field = "end"
             end = None if msg.end is None else parse_when(msg.end, tz, end=True)
         except ValueError as exc:
-            raise InvalidField(str(exc), field="start") from None
+            raise InvalidField(str(exc), field=field) from None
         if start is not None and end is not None and end <= start:
             raise InvalidField("end is not after start", field="end")
         async with self._one:
