@@ -8,6 +8,11 @@
 // each robot's share of the work; the trip history, each trip opening onto its stops and
 // dishes; and both as CSV files built here, with the columns `serveur stats --csv` writes.
 //
+// "How many robots do I need?": a past service day's dishes replayed by the server (`stats`
+// `forecast`: a `serveur replay` child per fleet size, one after the other) with the fleet
+// sizes ticked; each fleet's step and result arrive on the `forecast` topic, shown as words,
+// a table and a bar chart of the 95 % wait, the fleet the site has now marked.
+//
 // Times are shown on the restaurant's clock as this device knows it: the request names this
 // device's UTC offset, and every time is written with that same offset, so the periods, the
 // times and the CSV agree with `serveur stats --utc-offset` on the server.
@@ -21,6 +26,16 @@ const RELOAD_AFTER_MS = 60_000; // the tab opened again later than this: the fig
 const STATS_TIMEOUT_MS = 130_000; // the server gives a computation up to 120 s
 const TRIPS_PAGE = 50; // trips listed at first, and more at each "Show more"
 const HTML_LANG = { en: "en", zh: "zh-Hans", ms: "ms" };
+const FLEET_SIZES = [1, 2, 3, 4, 5, 6]; // the fleet sizes an owner may try in a forecast
+// A forecast's fleet states, in the order they go through (a record never goes back).
+const FLEET_STEP = { waiting: 0, running: 1, done: 2, failed: 2, cancelled: 2 };
+const FLEET_PROGRESS = {
+  waiting: "stats.fc.progress.waiting",
+  running: "stats.fc.progress.running",
+  done: "stats.fc.progress.done",
+  failed: "stats.fc.progress.failed",
+  cancelled: "stats.fc.progress.cancelled",
+};
 
 // The CSV's columns, as serveur/stats/cli.py writes them (figure_rows, trip_rows).
 const FIELDS = [
@@ -349,6 +364,74 @@ function chart({ kind, values, labels, tick, width, label }) {
   return root;
 }
 
+/**
+ * "How many robots?": one bar per fleet size tried, as tall as the wait within which 95 % of
+ * the replayed day's dishes reached the table (minutes); the fleet the site has now marked.
+ * A fleet still replaying (or failed) keeps its place, with no bar.
+ */
+function fleetChart({ fleets, current, width, label }) {
+  const height = 200;
+  const values = fleets.map((f) => (f.state === "done" && f.wait_p95 !== null && f.wait_p95 !== undefined ? f.wait_p95 / 60 : null));
+  const top_ = niceTop(Math.max(0, ...values.filter((v) => v !== null)));
+  const ticks = [0, top_ / 2, top_];
+  const tickText = ticks.map((v) => fmt(v, { maximumFractionDigits: 1 }));
+  const left = 12 + Math.max(...tickText.map(textWidth));
+  const right = 10;
+  const top = 20;
+  const bottom = 44; // the fleet size, and "now" under the current one
+  const w = Math.max(200, width);
+  const plotW = w - left - right;
+  const plotH = height - top - bottom;
+  const y = (v) => top + plotH - (v / top_) * plotH;
+  const band = plotW / Math.max(1, fleets.length);
+  const bw = Math.max(8, Math.min(56, band * 0.6));
+  const root = svg("svg", { class: "chart chart-fleets", viewBox: `0 0 ${w} ${height}`, width: w, height, role: "img", "aria-label": label });
+  const grid = svg("g", { class: "chart-grid", "aria-hidden": "true" });
+  ticks.forEach((v, i) => {
+    grid.append(svg("line", { x1: left, x2: w - right, y1: y(v), y2: y(v) }), svg("text", { x: left - 6, y: y(v) + 4, "text-anchor": "end" }, tickText[i]));
+  });
+  root.append(grid);
+  const axis = svg("g", { class: "chart-axis", "aria-hidden": "true" });
+  const numbers = svg("g", { class: "chart-values", "aria-hidden": "true" });
+  const marks = svg("g", { class: "chart-marks" });
+  fleets.forEach((f, i) => {
+    const x = left + band * (i + 0.5);
+    const now = f.robots === current;
+    const name = t("stats.fc.fleet", { count: f.robots });
+    axis.append(svg("text", { x, y: height - bottom + 18, "text-anchor": "middle", class: now ? "now" : null }, textWidth(name) + 4 <= band ? name : fmt(f.robots)));
+    if (now) axis.append(svg("text", { x, y: height - bottom + 34, "text-anchor": "middle", class: "now" }, t("stats.fc.now")));
+    const v = values[i];
+    if (v === null) return;
+    const h = plotH - (y(v) - top);
+    numbers.append(svg("text", { x, y: top + plotH - h - 4, "text-anchor": "middle" }, fmt(v, { maximumFractionDigits: 1, minimumFractionDigits: 1 })));
+    marks.append(
+      svg(
+        "rect",
+        { class: now ? "bar now" : "bar", x: x - bw / 2, y: top + plotH - h, width: bw, height: Math.max(h, 0), "data-robots": f.robots, "data-value": f.wait_p95 },
+        svg("title", {}, `${name}: ${minutes(f.wait_p95)}`),
+      ),
+    );
+  });
+  root.append(axis, numbers, marks);
+  return root;
+}
+
+/** How far a forecast record has got: each fleet's step, and the forecast's end. */
+function fcStep(fc) {
+  return fc.fleets.reduce((n, f) => n + (FLEET_STEP[f.state] ?? 0), 0) + (fc.state === "running" ? 0 : 1);
+}
+
+/** The forecast's state in words: "Replaying… 1 of 2 finished.", "Finished.", … */
+function fcStateText(fc) {
+  if (fc.state === "running") {
+    const finished = fc.fleets.filter((f) => f.state !== "waiting" && f.state !== "running").length;
+    return t("stats.fc.state.running", { done: fmt(finished), total: fmt(fc.fleets.length) });
+  }
+  if (fc.state === "done") return t("stats.fc.state.done");
+  if (fc.state === "cancelled") return t("stats.fc.state.cancelled");
+  return fc.error ? t("stats.fc.state.failedWhy", { error: fc.error }) : t("stats.fc.state.failed");
+}
+
 // -- the panel -------------------------------------------------------------------------------------
 
 let ids = 0;
@@ -454,23 +537,106 @@ export class StatsPanel {
       el("section", { class: "card", "aria-labelledby": robotsTitle }, el("h3", { id: robotsTitle, "data-i18n": "stats.robots.title" }), this.robotTable),
       el("section", { class: "card", "aria-labelledby": tripsTitle }, el("h3", { id: tripsTitle, "data-i18n": "stats.trips.title" }), el("p", { class: "muted", "data-i18n": "stats.trips.hint" }), this.tripNote, this.tripList, el("div", { class: "form-buttons stats-more" }, this.moreTrips)),
     );
-    root.append(el("div", { class: "stats-wrap" }, this.form, this.state, this.results));
+    // -- "How many robots do I need?": a recorded day replayed with other fleet sizes
+    this.forecast = null; // the latest forecast record (the `forecast` topic's), or null
+    this.fcError = ""; // why the last Start was refused, shown until the next one
+    this.fcStarting = false;
+    this.fleetsTouched = false; // the owner chose the fleet sizes: no more defaults
+    this.dayTouched = false; // the owner chose the day: the range no longer sets it
+    this.fcDay = el("input", { id: id("fc-day"), name: "forecast-day", type: "date", value: isoDate(addDays(serviceToday(), -1)), max: today, required: true });
+    this.fcDay.addEventListener("input", () => {
+      this.dayTouched = true;
+    });
+    this.fcPicks = FLEET_SIZES.map((n) => {
+      const box = el("input", { type: "checkbox", name: "forecast-robots", value: n, id: id(`fc-robots-${n}`) });
+      box.addEventListener("change", () => {
+        this.fleetsTouched = true;
+      });
+      const now = el("span", { class: "fc-now", hidden: true, "data-i18n": "stats.fc.now" });
+      return { n, box, now, label: el("label", { class: "fc-pick", for: box.id }, box, el("span", { class: "fc-pick-face" }, el("span", { class: "fc-pick-n" }, fmt(n)), now)) };
+    });
+    const fleetsLegend = id("fc-fleets");
+    this.fcStart = el("button", { type: "submit", class: "primary", "data-needs-online": true, "data-i18n": "stats.fc.start" });
+    this.fcCancel = el("button", { type: "button", class: "secondary", hidden: true, "data-needs-online": true, "data-i18n": "stats.fc.cancel", onclick: () => this._fcCancelRun() });
+    this.fcForm = el(
+      "form",
+      { class: "fc-controls", "data-i18n-aria-label": "stats.fc.controls" },
+      el("div", { class: "stats-field" }, el("label", { for: this.fcDay.id, "data-i18n": "stats.fc.day" }), this.fcDay),
+      el("fieldset", { class: "fc-fleets" }, el("legend", { id: fleetsLegend, "data-i18n": "stats.fc.fleets" }), el("div", { class: "fc-picks" }, ...this.fcPicks.map((p) => p.label))),
+      el("div", { class: "form-buttons fc-buttons" }, this.fcStart, this.fcCancel),
+    );
+    this.fcForm.addEventListener("submit", (e) => {
+      e.preventDefault();
+      this._fcStartRun();
+    });
+    this.fcMessage = el("p", { class: "fc-message", role: "status", "aria-live": "polite" });
+    this.fcHeading = el("h3", { class: "fc-heading" });
+    this.fcProgress = el("ol", { class: "fc-progress" });
+    this.fcSentences = el("ul", { class: "fc-sentences" });
+    this.fcTable = el("div", { class: "table-scroll", tabindex: "0", role: "region", "data-i18n-aria-label": "stats.fc.caption" });
+    this.fcChart = el("div", { class: "chart-box fc-chart" });
+    const fcChartTitle = id("fc-chart-title");
+    this.fcResult = el(
+      "div",
+      { class: "fc-result", hidden: true },
+      this.fcHeading,
+      this.fcProgress,
+      this.fcSentences,
+      el("div", { class: "fc-side" }, this.fcTable, el("div", { class: "fc-chart-wrap" }, el("h4", { id: fcChartTitle, "data-i18n": "stats.fc.chart" }), this.fcChart)),
+    );
+    const fcTitle = id("fc-title");
+    this.fcSection = el(
+      "section",
+      { class: "card stats-forecast", "aria-labelledby": fcTitle },
+      el("h2", { id: fcTitle, "data-i18n": "stats.fc.title" }),
+      el("p", { class: "muted fc-explain", "data-i18n": "stats.fc.explain" }),
+      this.fcForm,
+      this.fcMessage,
+      this.fcResult,
+    );
+    conn.addEventListener("snapshot", (e) => {
+      const data = e.detail.data || {};
+      if ("forecast" in data) this._fcApply(data.forecast, { snapshot: true });
+    });
+    conn.addEventListener("update", (e) => {
+      if (e.detail.topic === "forecast") this._fcApply(e.detail.data);
+    });
+    if (live) {
+      live.addEventListener("change", (e) => {
+        if (e.detail.topic === "robots") this._fcDefaults();
+      });
+    }
+    this._fcDefaults();
+
+    root.append(el("div", { class: "stats-wrap" }, this.form, this.state, this.results, this.fcSection));
 
     this.drawnWidth = 0;
     new ResizeObserver(() => {
       const w = this.deliveredChart.clientWidth;
       if (this.figures && w && Math.abs(w - this.drawnWidth) > 8) this._charts();
     }).observe(this.deliveredChart);
-    onLangChange(() => this._render());
+    this.fcDrawnWidth = 0;
+    new ResizeObserver(() => {
+      const w = this.fcChart.clientWidth;
+      if (this.forecast && w && Math.abs(w - this.fcDrawnWidth) > 8) this._fcChart();
+    }).observe(this.fcChart);
+    onLangChange(() => {
+      this._render();
+      this._fcRender();
+    });
     this._render();
   }
 
   /** The tab was opened: fetch the figures the first time, and again when they may be old. */
   shown() {
     const today = isoDate(serviceToday());
-    this.from.max = this.to.max = today; // the console may have stayed open overnight
+    this.from.max = this.to.max = this.fcDay.max = today; // the console may have stayed open overnight
+    // The forecast under way or the last one (this console's or another owner's): its record
+    // now and each change, kept across reconnections (the owner's alone: scope stats).
+    this.conn.subscribe(["forecast"]);
     if (!this.figures || Date.now() - this.loadedAt > RELOAD_AFTER_MS) this.load();
     else this._charts(); // the tab was hidden: the charts are drawn to its width again
+    this._fcChart();
   }
 
   _ask() {
@@ -518,6 +684,7 @@ export class StatsPanel {
         this.tripList.replaceChildren();
       }
       this.asked = ask;
+      this._fcDayFromRange();
       this.figures = figures.stats;
       this.trips = trips.stats;
       this.loadedAt = Date.now();
@@ -765,6 +932,170 @@ export class StatsPanel {
     if (s.outcome === "skipped" && s.by) return t("stats.stop.skippedBy", { time, who: s.by.replace(/^user:/, "") });
     if (s.outcome === "skipped") return t("stats.stop.timedOut", { time });
     return t("stats.stop.pending");
+  }
+
+  // -- "How many robots do I need?" ------------------------------------------------------------
+
+  /** The robots the site has now (registered, whatever their state): the fleet to compare. */
+  _fleetNow() {
+    return this.live && this.live.robots ? this.live.robots.size : 0;
+  }
+
+  /** Until the owner picks: the fleet now −1, the same, +1 and +2 (within 1..6); the current
+   *  size marked "now" on its box. */
+  _fcDefaults() {
+    const current = this._fleetNow();
+    const wanted = new Set([current - 1, current, current + 1, current + 2]);
+    for (const p of this.fcPicks) {
+      if (!this.fleetsTouched) p.box.checked = wanted.has(p.n);
+      p.now.hidden = p.n !== current;
+    }
+    if (this.forecast) this._fcRender();
+  }
+
+  /** The day to replay follows the range while it is one past day; else yesterday. */
+  _fcDayFromRange() {
+    if (this.dayTouched || !this.asked) return;
+    const today = isoDate(serviceToday());
+    const ask = this.asked;
+    this.fcDay.value = ask.start === ask.end && ask.start < today ? ask.start : isoDate(addDays(serviceToday(), -1));
+  }
+
+  /** A forecast record from the topic or a reply. Within one forecast a record that is behind
+   *  the one shown (a reply overtaken by the topic's updates) is dropped; a snapshot is the
+   *  server's word (null: it knows of none, e.g. after a restart, and a running one is gone). */
+  _fcApply(rec, { snapshot = false } = {}) {
+    if (rec === null || rec === undefined) {
+      if (snapshot && this.forecast && this.forecast.state === "running") this.forecast = null;
+      this._fcRender();
+      return;
+    }
+    const cur = this.forecast;
+    if (!snapshot && cur && cur.id === rec.id && fcStep(rec) < fcStep(cur)) return;
+    this.forecast = rec;
+    this._fcRender();
+  }
+
+  async _fcStartRun() {
+    const day = this.fcDay.value;
+    const robots = this.fcPicks.filter((p) => p.box.checked).map((p) => p.n);
+    if (!/^\d{4}-\d{2}-\d{2}$/.test(day)) return this._fcSay(t("stats.fc.noDay"), true);
+    if (!robots.length) return this._fcSay(t("stats.fc.noFleet"), true);
+    this.fcStarting = true;
+    this._fcSay(t("stats.fc.starting"));
+    this._fcRender();
+    try {
+      const reply = await this.conn.request(
+        { clientmsg: "stats", action: "forecast", day, robots, policy: "serveur", utc_offset: offsetText(offsetAt(day)) },
+        { timeout: STATS_TIMEOUT_MS },
+      );
+      this.fcError = "";
+      this._fcApply(reply.forecast);
+    } catch (err) {
+      if (err && err.code === "not_found") this.fcError = t("stats.fc.noDishes", { day: dateWords(day) });
+      else if (err && err.code === "conflict") this.fcError = t("stats.fc.busy");
+      else {
+        showError(err);
+        this.fcError = t("stats.fc.startFailed");
+      }
+    } finally {
+      this.fcStarting = false;
+      this._fcRender();
+    }
+  }
+
+  async _fcCancelRun() {
+    this.fcCancel.disabled = true;
+    try {
+      const reply = await this.conn.request({ clientmsg: "stats", action: "forecast_cancel" });
+      this._fcApply(reply.forecast);
+    } catch (err) {
+      if (!err || err.code !== "not_found") showError(err); // not_found: it had just ended
+    } finally {
+      this.fcCancel.disabled = false;
+      this._fcRender();
+    }
+  }
+
+  /** The forecast section's line: what is happening, or why Start was refused. */
+  _fcSay(text, error = false) {
+    this.fcError = error ? text : "";
+    this.fcMessage.textContent = text;
+    this.fcMessage.classList.toggle("error", error);
+  }
+
+  _fcRender() {
+    const fc = this.forecast;
+    const running = Boolean(fc && fc.state === "running");
+    this.fcStart.disabled = running || this.fcStarting;
+    this.fcCancel.hidden = !running;
+    if (this.fcError) this._fcSay(this.fcError, true);
+    else if (this.fcStarting) this._fcSay(t("stats.fc.starting"));
+    else this._fcSay(fc ? fcStateText(fc) : "");
+    this.fcResult.hidden = !fc;
+    if (!fc) return;
+    const current = this._fleetNow();
+    this.fcHeading.textContent = t("stats.fc.heading", { day: dateWords(fc.day), count: fc.dishes });
+    // Each fleet's step while it runs; after, only if one did not finish.
+    const unfinished = fc.fleets.some((f) => f.state !== "done");
+    this.fcProgress.hidden = !running && !unfinished;
+    this.fcProgress.replaceChildren(
+      ...fc.fleets.map((f) =>
+        el(
+          "li",
+          { class: `fc-step fc-${f.state}`, "data-robots": f.robots },
+          t("stats.fc.progressItem", { fleet: t("stats.fc.fleet", { count: f.robots }), state: FLEET_PROGRESS[f.state] ? t(FLEET_PROGRESS[f.state]) : f.state }),
+        ),
+      ),
+    );
+    const done = fc.fleets.filter((f) => f.state === "done");
+    this.fcSentences.hidden = !done.length;
+    this.fcSentences.replaceChildren(
+      ...done.map((f) => {
+        let text = t("stats.fc.sentence", { count: f.robots, p95: minutes(f.wait_p95), mean: minutes(f.wait_mean) });
+        if (f.undelivered) text += ` ${t("stats.fc.undelivered", { count: f.undelivered })}`;
+        return el("li", { "data-robots": f.robots }, text);
+      }),
+    );
+    const head = ["stats.fc.col.robots", "stats.fc.col.delivered", "stats.fc.col.waitMean", "stats.fc.col.waitP95"];
+    this.fcTable.replaceChildren(
+      el(
+        "table",
+        { class: "stats-table fc-table" },
+        el("caption", { "data-i18n": "stats.fc.caption" }),
+        el("thead", {}, el("tr", {}, ...head.map((k) => el("th", { scope: "col", "data-i18n": k })))),
+        el(
+          "tbody",
+          {},
+          ...fc.fleets.map((f) => {
+            const ok = f.state === "done";
+            const delivered = ok ? t("stats.fc.deliveredOf", { delivered: count(f.delivered), dishes: count(fc.dishes) }) : DASH;
+            return el(
+              "tr",
+              { class: f.robots === current ? "now" : null, "data-robots": f.robots },
+              el("th", { scope: "row" }, el("span", { class: "fc-fleet-name" }, t("stats.fc.fleet", { count: f.robots })), f.robots === current ? [" ", el("span", { class: "fc-now" }, t("stats.fc.now"))] : null),
+              el("td", { "data-col": "delivered" }, delivered),
+              el("td", { "data-col": "wait-mean" }, ok ? minutes(f.wait_mean) : DASH),
+              el("td", { "data-col": "wait-p95" }, ok ? minutes(f.wait_p95) : DASH),
+            );
+          }),
+        ),
+      ),
+    );
+    this._fcChart();
+  }
+
+  _fcChart() {
+    const fc = this.forecast;
+    if (!fc || this.fcResult.hidden) return;
+    const width = Math.min(560, this.fcChart.clientWidth || 320);
+    this.fcDrawnWidth = this.fcChart.clientWidth;
+    const done = fc.fleets.filter((f) => f.state === "done" && f.wait_p95 !== null);
+    const list = new Intl.ListFormat(locale(), { type: "unit", style: "short" });
+    const label = done.length
+      ? t("stats.fc.chartSummary", { list: list.format(done.map((f) => t("stats.fc.chartItem", { count: f.robots, wait: minutes(f.wait_p95) }))) })
+      : t("stats.fc.chartNone");
+    this.fcChart.replaceChildren(fleetChart({ fleets: fc.fleets, current: this._fleetNow(), width, label }));
   }
 
   _download(which) {
