@@ -2,26 +2,29 @@
 ``narrow_restaurant_waypoints.json`` and ``narrow_restaurant_zones.json`` (issue 21).
 
 A restaurant cut in two by a thick wall (a service corridor, a bar, a row of pillars with
-planters between them) with ONE opening one robot wide: the kitchen pass, the robots' homes
-and two tables on the west side, five tables on the east side. Every trip to the east side
-drives the aisle out and back, so two robots meeting in it head-on block each other unless the
-server leases the aisle (a zone of capacity 1 in ``_zones.json``). The two west tables are
-reached without the aisle.
+planters between them) with ONE opening one robot wide: the kitchen pass and the robots' homes
+on the west side, five tables on the east side. Every trip drives the aisle out and back, so
+two robots meeting in it head-on block each other unless the server leases the aisle (a zone of
+capacity 1 in ``_zones.json``).
 
 Layout (metres, x to the east, y to the north, room interior [0, 13] x [0, 7]):
 
 * the pass counter along the west wall, six homes 1 m apart in a column 0.7 m in front of it,
   facing it (robots load at home, as in the demo room), the pass spot beside them;
+* the dividing wall x 5..7, with the aisle at y 3.175..3.825 (0.65 m: a 0.4 m robot, never two
+  side by side; at 0.55-0.6 m the simulator's path follower, cutting the corner into the aisle
+  by a few centimetres, got stuck against the wall), its mouths chamfered 0.6 m;
 * east of the wall, five tables around a hall 2.5 m wide, their serving spots on the hall's
   edges (a robot serving a table is not in the way of robots going to the others);
-* the dividing wall x 5..7, with the aisle at y 3.175..3.825 (0.65 m: a 0.4 m robot, never two side
-  by side), its mouths chamfered 0.6 m so a robot coming at an angle does not clip the corner;
-* the zone ``aisle`` (capacity 1): the aisle, 0.6 m beyond its east mouth, and the funnel of
-  floor between the homes and its west mouth (x 2.0..7.6; 1.2 m high at the aisle, 2.4 m at
-  x 2.0), where robots coming home and robots leaving for the aisle cross. Homes, the pass and
-  every table spot are outside it, even widened by a robot's radius; a robot driving from a
-  home in the middle of the column (or the far end) to T6 or T7 crosses the funnel and asks
-  for the zone too.
+* the zone ``aisle`` (capacity 1): the aisle, the whole floor between the front of the homes
+  (0.45 m from each home) and its west mouth, and the middle of the hall beyond its east mouth
+  (x 7.4..10.4, y 2.65..4.35, clear of the table spots). Drawn as the aisle alone (x 4.4..7.6),
+  robots still met on the floors at either end: a robot coming home and the next one leaving
+  for the aisle (the lease passes when the first robot leaves the zone), and robots crossing the
+  hall between tables (the simulator's local planner stops short of a robot in its way and
+  plans around it only once it stands still, as move_base does, so robots crossing in the open
+  come within 5 cm of each other: a conflict by the replay's measure). Homes, the pass and
+  every table spot are outside it, even widened by a robot's radius.
 
 The geometry below is the single source of truth; re-running the script reproduces the
 committed files byte for byte. Run: ``python tools/make_narrow_map.py``.
@@ -52,10 +55,12 @@ PASS_SPOT = (2.2, 6.3)
 DIVIDER = (5.0, 7.0)  # x extent of the dividing wall
 AISLE = (3.175, 3.825)  # y extent of the opening: 0.65 m
 CHAMFER = 0.6
-#: The aisle and its approach from the homes: a funnel from 0.8 m in front of the homes to the
-#: aisle's west mouth, the aisle, and 0.6 m beyond its east mouth. Robots coming home and robots
-#: leaving for the aisle would otherwise cross on the floor in front of it.
-ZONE = [[2.0, 2.3], [4.4, 2.9], [7.6, 2.9], [7.6, 4.1], [4.4, 4.1], [2.0, 4.7]]
+#: The floor between the homes and the aisle's west mouth, the aisle, and the middle of the hall
+#: beyond it (clear of the table spots).
+ZONE = [
+    [1.65, 0.55], [4.4, 2.9], [7.0, 2.9], [7.4, 2.65], [10.4, 2.65],
+    [10.4, 4.35], [7.4, 4.35], [7.0, 4.1], [4.4, 4.1], [1.65, 6.45],
+]  # fmt: skip
 SPOT_GAP = 0.5  # serving spot distance from the table edge
 
 # name: (cx, cy, size, serving side); square tables.
@@ -65,8 +70,6 @@ TABLES: dict[str, tuple[float, float, float, str]] = {
     "T3": (11.8, 1.3, 0.9, "north"),
     "T4": (11.8, 3.5, 0.9, "west"),
     "T5": (11.8, 5.7, 0.9, "south"),
-    "T6": (3.6, 0.9, 0.8, "north"),  # west side: no aisle
-    "T7": (3.6, 6.1, 0.8, "south"),
 }
 
 OUT = Path(__file__).resolve().parent.parent / "serveur" / "data"
@@ -112,7 +115,7 @@ def build_waypoints() -> dict[str, Waypoint]:
         d = size / 2 + SPOT_GAP
         if side == "west":
             wps.append(Waypoint(name, cx - d, cy, FACE_EAST, "table"))
-        elif side == "north":
+        elif side == "north":  # the spot north of the table, facing south
             wps.append(Waypoint(name, cx, cy + d, FACE_SOUTH, "table"))
         else:
             wps.append(Waypoint(name, cx, cy - d, FACE_NORTH, "table"))

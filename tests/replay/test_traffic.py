@@ -2,8 +2,8 @@
 
 One short service (20 minutes of orders, 3 robots) on the narrow-aisle room
 (serveur/data/narrow_restaurant*, made by tools/make_narrow_map.py: the kitchen and homes on one
-side, five tables on the other, ONE aisle 0.65 m wide between them, leased as the zone
-``aisle``), played twice with robots that see each other in the simulator:
+side, five tables on the other, ONE aisle 0.65 m wide between them, leased with the floor at
+its ends as the zone ``aisle``), played twice with robots that see each other in the simulator:
 
 * leases on (the room's ``_zones.json``): no two robots ever came within 5 cm of each other,
   no deadlock, no goal aborted because of another robot, every dish delivered — and robots did
