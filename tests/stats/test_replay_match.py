@@ -89,7 +89,7 @@ def test_the_command_prints_and_exports_them(
     argv = ["stats", "--db", str(db), "--by", "hour", "--utc-offset", "+00:00"]
     assert main([*argv, "--csv", str(out)]) == 0
     text = capsys.readouterr().out
-    assert f"{round(s['wait_mean']):d} s" in text and "not in the events table" in text
+    assert f"{round(s['wait_mean']):d} s" in text and "distance" in text
     rows = list(csv.DictReader(out.open()))
     # The virtual service opens at 2026-01-01 00:00 UTC and lasts ten minutes: one hour
     # (and the range's total, always the last row).
