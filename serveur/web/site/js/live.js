@@ -2,11 +2,11 @@
 // "Topics"). State topics are upserts keyed by name or id; streams keep the latest value.
 // Emits "change" {topic, record} after every change (record: the updated record, or null after a
 // snapshot), so views redraw only what they show. A robot or waypoint update with `removed: true`
-// (the owner removed or renamed it) drops that record. `settings` keeps the site's settings.
+// (the owner removed or renamed it) drops that record, as does a removed zone (and its lease row). `settings` keeps the site's settings.
 
 const KEYS = {
   robots: "name", waypoints: "name", orders: "id", tasks: "id", events: "id",
-  alerts: "id", menu: "dish", blocks: "table",
+  alerts: "id", menu: "dish", blocks: "table", zones: "name", leases: "zone",
 };
 const MAX_EVENTS = 200;
 
@@ -22,6 +22,8 @@ export class Live extends EventTarget {
     this.alerts = new Map(); // active alerts only: a cleared one is removed
     this.menu = new Map(); // dish name -> menu item
     this.blocks = new Map(); // table -> why no robot is sent there
+    this.zones = new Map(); // zone name -> {name, points, capacity} (zones robots take turns through)
+    this.leases = new Map(); // zone name -> {zone, capacity, holders, waiting}
     this.map = null;
     this.settings = null; // the site's settings, if the page subscribed to them
     this.poses = new Map(); // robot -> {x, y, yaw, stamp}
@@ -53,9 +55,10 @@ export class Live extends EventTarget {
   _put(topic, rec) {
     // An alert whose cause ended, a block whose reason is gone: over, not shown any more.
     const over = (topic === "alerts" && rec.cleared_at !== null && rec.cleared_at !== undefined) || (topic === "blocks" && !rec.reason);
-    const removed = (topic === "robots" || topic === "waypoints") && rec.removed === true;
+    const removed = (topic === "robots" || topic === "waypoints" || topic === "zones") && rec.removed === true;
     if (over || removed) this[topic].delete(rec[KEYS[topic]]);
     else this[topic].set(rec[KEYS[topic]], rec);
+    if (removed && topic === "zones") this.leases.delete(rec.name); // its leases ended with it
     if (removed && topic === "robots") {
       [this.poses, this.scans].forEach((m) => m.delete(rec.name));
       // Its streams ended with it: not asked for again on the next reconnect.

@@ -6,6 +6,105 @@ import { statusColour } from "../status.js";
 export const WAYPOINT_COLOURS = { table: "#8b5a2b", home: "#2f6fdb", pass: "#138a5b", other: "#666" };
 const ROBOT_RADIUS_M = 0.25;
 const BLOCKED_COLOUR = "#dc2626";
+// A zone's tint by its state: nobody in it, robots in it (room left or not), robots waiting.
+export const ZONE_COLOURS = { free: "#0e7490", used: "#b45309", waiting: "#be123c" };
+const DRAFT_COLOUR = "#0f766e";
+
+/** A zone's state from its lease row: "waiting" (robots wait for it), "used" (held) or "free". */
+export function zoneState(lease) {
+  if (lease && lease.waiting && lease.waiting.length) return "waiting";
+  if (lease && lease.holders && lease.holders.length) return "used";
+  return "free";
+}
+
+/**
+ * The zones, under everything but the grid: each a translucent polygon tinted by its state
+ * (`leases`: zone name -> lease row), its outline solid (dashed when free), its name to `labels`
+ * at its middle. Returns {zone: state} of what was drawn.
+ */
+export function drawZones(ctx, view, zones, leases, labels) {
+  const drawn = {};
+  ctx.save();
+  for (const z of zones) {
+    if (!z.points || z.points.length < 3) continue;
+    const state = zoneState(leases.get(z.name));
+    const colour = ZONE_COLOURS[state];
+    const pts = z.points.map(([x, y]) => view.toScreen(x, y));
+    ctx.beginPath();
+    pts.forEach(([x, y], i) => (i ? ctx.lineTo(x, y) : ctx.moveTo(x, y)));
+    ctx.closePath();
+    ctx.globalAlpha = state === "free" ? 0.12 : 0.22;
+    ctx.fillStyle = colour;
+    ctx.fill();
+    ctx.globalAlpha = 0.9;
+    ctx.strokeStyle = colour;
+    ctx.lineWidth = 2;
+    ctx.setLineDash(state === "free" ? [6, 4] : []);
+    ctx.stroke();
+    ctx.setLineDash([]);
+    ctx.globalAlpha = 1;
+    const cx = pts.reduce((a, p) => a + p[0], 0) / pts.length;
+    const cy = pts.reduce((a, p) => a + p[1], 0) / pts.length;
+    labels.push({ text: z.name, x: cx, y: cy, r: 2, colour: darker(colour), font: "italic 12px system-ui, sans-serif", prio: 3 });
+    drawn[z.name] = state;
+  }
+  ctx.restore();
+  return drawn;
+}
+
+/** A zone being drawn: its corners joined, and a dashed line on to the cursor (if any). */
+export function drawZoneDraft(ctx, view, points, cursor) {
+  const pts = points.map(([x, y]) => view.toScreen(x, y));
+  ctx.save();
+  ctx.strokeStyle = DRAFT_COLOUR;
+  ctx.fillStyle = DRAFT_COLOUR;
+  ctx.lineWidth = 2.5;
+  if (pts.length > 2) {
+    ctx.beginPath();
+    pts.forEach(([x, y], i) => (i ? ctx.lineTo(x, y) : ctx.moveTo(x, y)));
+    ctx.closePath();
+    ctx.globalAlpha = 0.15;
+    ctx.fill();
+    ctx.globalAlpha = 1;
+  }
+  if (pts.length > 1) {
+    ctx.beginPath();
+    pts.forEach(([x, y], i) => (i ? ctx.lineTo(x, y) : ctx.moveTo(x, y)));
+    ctx.stroke();
+  }
+  if (cursor && pts.length) {
+    const [cx, cy] = view.toScreen(cursor.x, cursor.y);
+    const [lx, ly] = pts[pts.length - 1];
+    ctx.setLineDash([5, 4]);
+    ctx.beginPath();
+    ctx.moveTo(lx, ly);
+    ctx.lineTo(cx, cy);
+    if (pts.length > 1) ctx.lineTo(pts[0][0], pts[0][1]);
+    ctx.stroke();
+    ctx.setLineDash([]);
+  }
+  for (const [i, [x, y]] of pts.entries()) {
+    ctx.beginPath();
+    ctx.arc(x, y, i === 0 ? 7 : 5, 0, 2 * Math.PI);
+    ctx.fill();
+    ctx.strokeStyle = "#fff";
+    ctx.lineWidth = 1.5;
+    ctx.stroke();
+    ctx.strokeStyle = DRAFT_COLOUR;
+    ctx.lineWidth = 2.5;
+  }
+  if (cursor) {
+    const [cx, cy] = view.toScreen(cursor.x, cursor.y);
+    ctx.beginPath();
+    ctx.moveTo(cx - 10, cy);
+    ctx.lineTo(cx + 10, cy);
+    ctx.moveTo(cx, cy - 10);
+    ctx.lineTo(cx, cy + 10);
+    ctx.lineWidth = 2;
+    ctx.stroke();
+  }
+  ctx.restore();
+}
 
 /** The occupancy grid, drawn in world units (see grid.js for why no row flip is needed). */
 export function drawGrid(ctx, view, map, image) {

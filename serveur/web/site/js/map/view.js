@@ -23,6 +23,13 @@
 // ringed, and faint lines on to its later tables; data-routes publishes what was drawn
 // ({robot: [current table, later tables...]}). Tables robots cannot reach (blocks) are crossed
 // (data-blocked lists them).
+//
+// Zones (live.zones, tinted by live.leases) are drawn under everything but the grid; data-zones
+// publishes {zone: "free" | "used" | "waiting"} as drawn. The "zone" tool draws one: a click or
+// tap (not a drag: dragging still pans) adds a corner, a click on the first corner closes it;
+// from the keyboard, arrow keys move a cross, Enter adds a corner there, Enter again on the last
+// corner closes it (3 corners at least), Backspace takes the last corner back, Escape cancels.
+// The corners so far are published as data-draft; finishZone() closes the zone (Finish button).
 
 import { decodeGrid } from "./grid.js";
 import {
@@ -35,6 +42,8 @@ import {
   drawRobot,
   drawScan,
   drawWaypoints,
+  drawZoneDraft,
+  drawZones,
 } from "./draw.js";
 import { statusColour } from "../status.js";
 import { t } from "../i18n.js";
@@ -47,6 +56,7 @@ export const CONSOLE_GOAL_COLOUR = TOOL_COLOURS.goal; // a goal sent from this c
 const KEY_STEP_M = 0.1; // a cursor step; Shift: five
 const KEY_TURN = Math.PI / 12; // 15 degrees
 const KEY_PAN_PX = 40;
+const CLOSE_PX = 14; // a click this near the first corner closes the zone
 
 export class MapView {
   /**
@@ -58,6 +68,8 @@ export class MapView {
    * @param opts.onSelect (robotName) after a click on a robot
    * @param opts.onCancel () after Escape cancels a pose tool
    * @param opts.onCursor ({x, y, yaw} or null) when the keyboard's mark moves or goes
+   * @param opts.onZone ([[x, y], ...]) when the zone tool's polygon is closed (3 corners or more)
+   * @param opts.onDraft ([[x, y], ...]) when a corner is added or taken back
    */
   constructor(canvas, live, opts) {
     this.canvas = canvas;
@@ -77,6 +89,7 @@ export class MapView {
     this._dirty = true;
     this._draws = 0;
     this._cursor = null; // the keyboard's pose cursor: {x, y, yaw}
+    this.draft = null; // the zone tool's corners so far: [[x, y], ...]
     this.following = false; // keep the selected robot in the middle (setFollow)
     canvas.dataset.follow = "off";
     this._listen();
@@ -97,13 +110,50 @@ export class MapView {
     this.canvas.dataset.tool = tool;
     this._gesture = null;
     this._cursor = null;
+    this.draft = tool === "zone" ? [] : null;
+    this._publishDraft();
     this._publishCursor();
     this.requestDraw();
+  }
+
+  _publishDraft() {
+    if (this.draft) {
+      this.canvas.dataset.draft = JSON.stringify(this.draft.map(([x, y]) => [round2(x), round2(y)]));
+    } else {
+      delete this.canvas.dataset.draft;
+    }
+    if (this.opts.onDraft && this.draft) this.opts.onDraft(this.draft);
+  }
+
+  /** The zone tool: add a corner at map point (x, y). */
+  addCorner(x, y) {
+    if (!this.draft) return;
+    this.draft.push([x, y]);
+    this._publishDraft();
+    this.requestDraw();
+  }
+
+  /** The zone tool: close the polygon drawn so far (3 corners at least); false if too few. */
+  finishZone() {
+    if (!this.draft || this.draft.length < 3) return false;
+    const points = this.draft.map(([x, y]) => [round2(x), round2(y)]);
+    this.opts.onZone(points);
+    return true;
   }
 
   /** Start the keyboard cursor of the current pose tool on the selected robot and focus the map. */
   startKeyboardTool() {
     if (this.tool === "pan") return;
+    if (this.tool === "zone") {
+      // A cross on the last corner, else in the middle of the view.
+      const last = this.draft && this.draft[this.draft.length - 1];
+      const [cx, cy] = last || this.toWorld(this.canvas.clientWidth / 2, this.canvas.clientHeight / 2);
+      this._cursor = { x: round2(cx), y: round2(cy), yaw: 0 };
+      this._publishCursor();
+      this.canvas.focus();
+      this.requestDraw();
+      return;
+    }
     const name = this.opts.selected();
     const p = (name && this.live.pose(name)) || { x: 0, y: 0, yaw: 0 };
     const [cx, cy] = this.toWorld(this.canvas.clientWidth / 2, this.canvas.clientHeight / 2);
@@ -251,6 +301,8 @@ export class MapView {
     }
     // Labels are placed last, robots' names first, so none covers another (draw.js).
     const labels = [];
+    const zones = [...live.zones.values()].sort((a, b) => (a.name < b.name ? -1 : 1));
+    this.canvas.dataset.zones = JSON.stringify(drawZones(ctx, this, zones, live.leases, labels));
     drawWaypoints(ctx, this, [...live.waypoints.values()], labels);
     const selected = this.opts.selected();
     const scan = selected && live.scans.get(selected);
@@ -283,8 +335,9 @@ export class MapView {
     }
     const g = this._gesture;
     const c = this._cursor;
+    if (this.tool === "zone" && this.draft) drawZoneDraft(ctx, this, this.draft, c);
     const pick = g && g.kind === "pose" ? g : c;
-    if (pick && this.tool !== "pan") {
+    if (pick && TOOL_COLOURS[this.tool]) {
       const [sx, sy] = this.toScreen(pick.x, pick.y);
       ctx.beginPath();
       ctx.arc(sx, sy, c === pick ? 10 : 6, 0, 2 * Math.PI);
@@ -345,7 +398,7 @@ export class MapView {
       return;
     }
     if (this._pointers.size > 2) return;
-    if (this.tool === "pan") {
+    if (this.tool === "pan" || this.tool === "zone") {
       this._gesture = { kind: "pan", sx, sy, lastX: sx, lastY: sy, moved: false };
     } else {
       const [x, y] = this.toWorld(sx, sy);
@@ -392,7 +445,9 @@ export class MapView {
     this._gesture = null;
     this.requestDraw();
     if (!g || cancelled) return;
-    if (g.kind === "pan" && !g.moved) {
+    if (g.kind === "pan" && !g.moved && this.tool === "zone") {
+      this._cornerAt(g.sx, g.sy);
+    } else if (g.kind === "pan" && !g.moved) {
       const name = this._robotAt(g.sx, g.sy);
       if (name) this.opts.onSelect(name);
     } else if (g.kind === "pose") {
@@ -400,7 +455,65 @@ export class MapView {
     }
   }
 
+  /** A click or tap with the zone tool: a corner, or the zone closed on its first corner. */
+  _cornerAt(sx, sy) {
+    const first = this.draft && this.draft[0];
+    if (first && this.draft.length >= 3) {
+      const [fx, fy] = this.toScreen(first[0], first[1]);
+      if (Math.hypot(fx - sx, fy - sy) <= CLOSE_PX) {
+        this.finishZone();
+        return;
+      }
+    }
+    const [x, y] = this.toWorld(sx, sy);
+    this.addCorner(x, y);
+  }
+
+  /** The zone tool's keys; true if the key was the tool's. */
+  _zoneKey(ev) {
+    const arrows = { ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, 1], ArrowDown: [0, -1] };
+    if (ev.key === "Escape") {
+      this._cursor = null;
+      this._publishCursor();
+      if (this.opts.onCancel) this.opts.onCancel();
+      return true;
+    }
+    if (ev.key === "Backspace" && this.draft && this.draft.length) {
+      this.draft.pop();
+      this._publishDraft();
+      this.requestDraw();
+      return true;
+    }
+    if (!(ev.key in arrows) && ev.key !== "Enter") return false;
+    if (!this._cursor) {
+      this.startKeyboardTool(); // the first key shows the cross; the next ones move it
+      return true;
+    }
+    const cur = this._cursor;
+    if (ev.key === "Enter") {
+      const last = this.draft[this.draft.length - 1];
+      const onLast = last && Math.hypot(last[0] - cur.x, last[1] - cur.y) < 1e-6;
+      if (onLast && this.draft.length >= 3) this.finishZone();
+      else if (!onLast) this.addCorner(cur.x, cur.y);
+      return true;
+    }
+    const [dx, dy] = arrows[ev.key];
+    const step = KEY_STEP_M * (ev.shiftKey ? 5 : 1);
+    cur.x = round2(cur.x + dx * step);
+    cur.y = round2(cur.y + dy * step);
+    this._publishCursor();
+    this.requestDraw();
+    return true;
+  }
+
   _key(ev) {
+    if (this.tool === "zone") {
+      if (this._zoneKey(ev)) {
+        ev.preventDefault();
+        return;
+      }
+      if (ev.key === "Backspace") return;
+    }
     const arrows = { ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, 1], ArrowDown: [0, -1] };
     const c = this._cursor;
     if (this.tool !== "pan" && !c && (ev.key in arrows || ev.key === "Enter")) this.startKeyboardTool();
@@ -457,6 +570,10 @@ export class MapView {
     }
     return best;
   }
+}
+
+function round2(v) {
+  return Math.round(v * 100) / 100;
 }
 
 function mid(a, b) {

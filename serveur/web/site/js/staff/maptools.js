@@ -6,11 +6,19 @@
 // setFollow); a pan or zoom by hand, or Escape anywhere, turns it off.
 // The map's legend (staff.html #map-legend) takes its swatches' colours from the drawing code
 // and is kept no taller than the map.
+//
+// Zones (issue 21): the owner's "Draw zone" tool (view.js's "zone" tool: corners clicked or
+// placed from the keyboard, Finish or Enter on the last corner closes it, Escape cancels), then
+// a form asks the zone's name and capacity and sends `create zone`; redrawing an existing zone
+// (editZone, from the Restaurant tab's list) sends it with `replace`. The side panel lists the
+// zones with who holds and who waits for each, and staff break a lease stuck on a robot pushed
+// out of the zone by hand (Release, `release`).
 
-import { act, toast } from "../ui.js";
+import { act, byName, confirmDialog, el, KeyedList, toast } from "../ui.js";
 import { allowed, statusColour } from "../status.js";
-import { WAYPOINT_COLOURS } from "../map/draw.js";
+import { WAYPOINT_COLOURS, ZONE_COLOURS, zoneState } from "../map/draw.js";
 import { onLangChange, t } from "../i18n.js";
+import { field, formDialog } from "./restaurant.js";
 
 // hint: a catalog key.
 const TOOLS = {
@@ -18,6 +26,41 @@ const TOOLS = {
   goal: { button: "tool-goal", hint: "map.goalHintFull" },
 };
 const REACHED_M = 0.3;
+const MAX_CAPACITY = 8;
+
+/** A zone's lease in words: who is in it and who waits for it. */
+export function leaseWords(lease) {
+  const holders = (lease && lease.holders) || [];
+  const waiting = (lease && lease.waiting) || [];
+  const parts = [holders.length ? t("zones.heldBy", { robots: holders.join(", ") }) : t("zones.free")];
+  if (waiting.length) parts.push(t("zones.waiting", { robots: waiting.join(", ") }));
+  return parts.join(" · ");
+}
+
+/** Break `robot`'s lease on `zone`, once staff confirm the robot is out of the zone. */
+export async function releaseLease(conn, zone, robot, button) {
+  const yes = await confirmDialog(t("zones.releaseQuestion", { zone, robot }), {
+    yes: t("zones.releaseYes"),
+    no: t("zones.releaseNo"),
+    detail: t("zones.releaseDetail", { zone, robot }),
+  });
+  if (!yes) return;
+  const reply = await act(button, () => conn.request({ clientmsg: "release", zone, robot }));
+  if (reply) toast(t("zones.released", { zone, robot }));
+}
+
+/** The Release buttons of a zone's row: one per robot holding it. */
+export function releaseButtons(conn, zone, lease) {
+  return ((lease && lease.holders) || []).map((robot) =>
+    el("button", {
+      class: "secondary",
+      "data-needs-online": true,
+      "aria-label": t("zones.releaseFor", { zone, robot }),
+      text: t("zones.release"),
+      onclick: (e) => releaseLease(conn, zone, robot, e.currentTarget),
+    }),
+  );
+}
 
 export class MapTools {
   constructor(conn, live, view, selection, goals) {
@@ -27,6 +70,25 @@ export class MapTools {
     this.selection = selection;
     this.goals = goals;
     this.hint = document.getElementById("tool-hint");
+    this.editing = null; // the zone being drawn again (replace), or null for a new one
+    this.zoneButton = document.getElementById("tool-zone");
+    this.finishButton = document.getElementById("tool-zone-finish");
+    this.zoneButton.addEventListener("click", (e) => {
+      this.editing = null;
+      this._setTool(this.view.tool === "zone" ? "pan" : "zone");
+      if (e.detail === 0 && this.view.tool === "zone") this.view.startKeyboardTool();
+    });
+    this.finishButton.addEventListener("click", () => {
+      if (!this.view.finishZone()) this._showHint("zone");
+    });
+    conn.addEventListener("session", () => this._showOwnerTools());
+    // The Restaurant tab's "Draw again" (restaurant.js): the map, with this zone's drawing started.
+    document.addEventListener("serveur:redraw-zone", (e) => this.editZone(e.detail.zone));
+    // The view calls back with the zone tool's corners (main.js made it with the pose tools' hooks).
+    view.opts.onZone = (points) => this.zoneDrawn(points);
+    view.opts.onDraft = () => this.showDraft();
+    this._zonesPanel();
+    conn.subscribe(["zones", "leases"]);
     for (const [tool, { button }] of Object.entries(TOOLS)) {
       document.getElementById(button).addEventListener("click", (e) => {
         this._setTool(this.view.tool === tool ? "pan" : tool);
@@ -51,10 +113,14 @@ export class MapTools {
     live.addEventListener("change", (e) => {
       if (e.detail.topic === "robots") this._refresh();
       if (e.detail.topic === "blocks") view.requestDraw(); // blocked tables are drawn crossed
+      if (e.detail.topic === "zones" || e.detail.topic === "leases") {
+        view.requestDraw(); // zones are drawn tinted by their leases
+        this._renderZones();
+      }
       if (e.detail.topic.startsWith("pose:") || e.detail.topic === "robots") this._forgetReachedGoals();
     });
     selection.onChange(() => {
-      this._setTool("pan");
+      if (this.view.tool !== "zone") this._setTool("pan");
       this._refresh();
       view.requestDraw(); // following: the newly selected robot comes to the middle
     });
@@ -62,12 +128,113 @@ export class MapTools {
     onLangChange(() => {
       this._refresh();
       this._showHint(this.view.tool);
+      this.zoneRows.invalidate();
+      this._renderZones();
     });
     this._refresh();
+    this._showOwnerTools();
+  }
+
+  /** Drawing zones is the owner's (the server refuses anyone else): the tool shows for owners. */
+  _showOwnerTools() {
+    const owner = Boolean(this.conn.session && this.conn.session.role === "owner");
+    this.zoneButton.hidden = !owner;
+    if (!owner && this.view.tool === "zone") this._setTool("pan");
+  }
+
+  /** Draw zone `name` again: its corners are replaced, its name kept. */
+  editZone(name) {
+    if (!this.live.zones.has(name)) return;
+    document.getElementById("tab-map").click();
+    this.editing = name;
+    this._setTool("zone");
+    this.zoneButton.focus();
+  }
+
+  /** The zone tool's polygon is closed: ask its name and capacity, then store it. */
+  async zoneDrawn(points) {
+    const editing = this.editing;
+    const old = editing ? this.live.zones.get(editing) : null;
+    this.editing = null;
+    this._setTool("pan");
+    const name = el("input", { id: "zone-name", type: "text", maxlength: 64, required: true, autocomplete: "off", value: editing || "" });
+    if (editing) name.readOnly = true;
+    const capacity = el("input", {
+      id: "zone-capacity", type: "number", min: 1, max: MAX_CAPACITY, step: 1, inputmode: "numeric", required: true,
+      value: String(old ? old.capacity : 1),
+    });
+    await formDialog({
+      title: editing ? t("map.zone.editTitle", { zone: editing }) : t("map.zone.newTitle"),
+      yes: t("map.zone.save"),
+      fields: [
+        field("zone-name", "map.zone.name", name),
+        field("zone-capacity", "map.zone.capacity", capacity),
+        el("p", { class: "muted rest-hint", text: t("map.zone.corners", { count: points.length }) }),
+        el("p", { class: "muted rest-hint", text: t("map.zone.capacityNote") }),
+      ],
+      submit: async () => {
+        const msg = {
+          clientmsg: "create",
+          type: "zone",
+          name: name.value.trim(),
+          points,
+          capacity: Number(capacity.value),
+          replace: Boolean(editing),
+        };
+        const reply = await this.conn.request(msg);
+        toast(t("map.zone.saved", { zone: reply.zone.name }));
+        return true;
+      },
+    });
+    this.zoneButton.focus(); // the keyboard's place kept: the tool again, for the next zone
+  }
+
+  /** The side panel's Zones: each zone, its state, who holds it, who waits; Release. */
+  _zonesPanel() {
+    this.zoneList = el("ul", { class: "zones-list", "data-i18n-aria-label": "zones.title" });
+    this.zoneSection = el(
+      "section",
+      { class: "zones-side", "aria-labelledby": "zones-title", hidden: true },
+      el("h2", { id: "zones-title", "data-i18n": "zones.title" }),
+      this.zoneList,
+    );
+    // Last in the side panel: the robots and the selected robot's joystick keep their places.
+    document.querySelector("#panel-map .side").append(this.zoneSection);
+    this.zoneRows = new KeyedList(this.zoneList, {
+      key: (z) => z.name,
+      signature: (z) => [z.capacity, this.live.leases.get(z.name) || null],
+      build: (z) => this._zoneRow(z),
+    });
+  }
+
+  _renderZones() {
+    const zones = [...this.live.zones.values()].sort((a, b) => byName(a.name, b.name));
+    this.zoneSection.hidden = zones.length === 0;
+    this.zoneRows.update(zones);
+  }
+
+  _zoneRow(z) {
+    const lease = this.live.leases.get(z.name);
+    const state = zoneState(lease);
+    return el(
+      "li",
+      { class: "zone-row", "data-zone": z.name, "data-state": state },
+      el("span", { class: "zone-swatch", "aria-hidden": "true", style: { background: ZONE_COLOURS[state] } }),
+      el("span", { class: "zone-name", text: z.name }),
+      el("span", { class: "zone-capacity muted", text: t("zones.capacity", { count: z.capacity }) }),
+      el("span", { class: "zone-lease", "data-testid": "zone-lease", text: leaseWords(lease) }),
+      el("div", { class: "zone-actions" }, releaseButtons(this.conn, z.name, lease)),
+    );
   }
 
   /** The keyboard's mark moved: the hint (a live region) says where it is now. */
   showMark(mark) {
+    if (mark && this.view.tool === "zone") {
+      const count = this.view.draft ? this.view.draft.length : 0;
+      const where = t("map.zone.at", { x: mark.x.toFixed(2), y: mark.y.toFixed(2) });
+      this.hint.textContent = `${t("map.zone.keysHint")} ${t("map.zone.cornersSoFar", { count })} ${where}`;
+      return;
+    }
     if (!mark || !TOOLS[this.view.tool]) return;
     const where = t("map.where", {
       x: mark.x.toFixed(2),
@@ -79,6 +246,12 @@ export class MapTools {
 
   /** Escape on the map: the tool is off, focus back on its button. */
   cancel() {
+    if (this.view.tool === "zone") {
+      this.editing = null;
+      this._setTool("pan");
+      this.zoneButton.focus();
+      return;
+    }
     const button = TOOLS[this.view.tool] && document.getElementById(TOOLS[this.view.tool].button);
     this._setTool("pan");
     if (button) button.focus();
@@ -89,10 +262,23 @@ export class MapTools {
     for (const [name, { button }] of Object.entries(TOOLS)) {
       document.getElementById(button).setAttribute("aria-pressed", String(name === tool));
     }
+    this.zoneButton.setAttribute("aria-pressed", String(tool === "zone"));
+    this.finishButton.hidden = tool !== "zone";
     this._showHint(tool);
   }
 
+  /** The zone tool: a corner added or taken back; the hint counts them. */
+  showDraft() {
+    if (this.view.tool === "zone") this._showHint("zone");
+  }
+
   _showHint(tool) {
+    if (tool === "zone") {
+      const count = this.view.draft ? this.view.draft.length : 0;
+      const what = this.editing ? t("map.zone.hintEdit", { zone: this.editing }) : t("map.zone.hint");
+      this.hint.textContent = `${what} ${t("map.zone.cornersSoFar", { count })}`;
+      return;
+    }
     const hint = TOOLS[tool] && TOOLS[tool].hint;
     this.hint.textContent = hint ? t("map.hintFor", { robot: this.selection.name, hint: t(hint) }) : "";
   }
@@ -102,6 +288,10 @@ export class MapTools {
     const legend = document.getElementById("map-legend");
     for (const sw of legend.querySelectorAll("[data-status]")) sw.style.background = statusColour(sw.dataset.status);
     for (const sw of legend.querySelectorAll("[data-kind]")) sw.style.background = WAYPOINT_COLOURS[sw.dataset.kind];
+    for (const sw of legend.querySelectorAll("[data-zone-state]")) {
+      sw.style.borderColor = ZONE_COLOURS[sw.dataset.zoneState];
+      sw.style.backgroundColor = `${ZONE_COLOURS[sw.dataset.zoneState]}40`; // translucent, as drawn
+    }
     const fit = () => {
       const h = this.view.canvas.clientHeight;
       legend.style.maxHeight = h > 0 ? `${Math.max(44, h - 16)}px` : "";

@@ -6,9 +6,15 @@
 //
 // The page also follows the `settings` topic (every role may read it): the language pickers
 // offer the site's languages and a device with no choice of its own speaks the site's default.
+//
+// Zones (issue 21): each zone with its capacity, who holds it and who waits; draw it again on the
+// map (maptools.js, `create zone` with `replace`), remove it (`site remove_zone`), release a lease
+// stuck on a robot (`release`), and import a file of zones ({"zones": [{name, points,
+// capacity}]}: each sent as `create zone` with `replace`, those refused listed with the reason).
 
 import { act, byName, confirmDialog, describeError, el, KeyedList, showError, toast } from "../ui.js";
 import { applySiteLanguages, LANGS, onLangChange, statusName, t } from "../i18n.js";
+import { leaseWords, releaseButtons } from "./maptools.js";
 
 const KINDS = ["table", "home", "pass", "other"];
 const KINEMATICS = { omni: "owner.drive.omni", diff: "owner.drive.diff" };
@@ -35,7 +41,7 @@ function rosOf(robot) {
 }
 
 /** A modal form: resolves with true when submitted (and `submit` did not return false). */
-function formDialog({ title, fields, yes, danger = false, submit }) {
+export function formDialog({ title, fields, yes, danger = false, submit }) {
   return new Promise((resolve) => {
     const titleId = `dlg-${Math.random().toString(36).slice(2)}`;
     const yesBtn = el("button", { type: "submit", class: danger ? "danger" : "primary", "data-needs-online": true, text: yes });
@@ -73,7 +79,7 @@ function formDialog({ title, fields, yes, danger = false, submit }) {
   });
 }
 
-function field(id, labelKey, control, hint = null) {
+export function field(id, labelKey, control, hint = null) {
   return el("div", { class: "rest-field" }, el("label", { for: id, "data-i18n": labelKey }), control, hint);
 }
 
@@ -102,6 +108,18 @@ export class RestaurantPanel {
       build: (w) => this._placeRow(w),
       empty: () => el("li", { class: "muted", text: t("owner.places.none") }),
     });
+
+    // -- zones
+    this.zoneList = el("ul", { class: "rest-list", "data-i18n-aria-label": "owner.zones.title" });
+    this.zoneRows = new KeyedList(this.zoneList, {
+      key: (z) => z.name,
+      signature: (z) => [z.capacity, z.points, this.live.leases.get(z.name) || null],
+      build: (z) => this._zoneRow(z),
+      empty: () => el("li", { class: "muted", text: t("owner.zones.none") }),
+    });
+    this.zoneFile = el("input", { id: "zone-file", type: "file", accept: ".json,application/json", "data-needs-online": true });
+    this.zoneFile.addEventListener("change", () => this._importZones());
+    this.importReport = el("div", { class: "zone-import-report", role: "status", "data-testid": "zone-import" });
 
     // -- settings
     this.timeout = el("input", { id: "set-timeout", type: "number", min: 10, max: 3600, step: 1, inputmode: "numeric", required: true });
@@ -159,6 +177,21 @@ export class RestaurantPanel {
         ),
         el(
           "section",
+          { class: "card", "aria-labelledby": "rest-zones-title" },
+          el("h2", { id: "rest-zones-title", "data-i18n": "owner.zones.title" }),
+          el("p", { class: "muted", "data-i18n": "owner.zones.note" }),
+          this.zoneList,
+          el(
+            "div",
+            { class: "rest-field zone-import" },
+            el("label", { for: "zone-file", "data-i18n": "owner.zones.import" }),
+            this.zoneFile,
+            el("p", { class: "muted rest-hint", "data-i18n": "owner.zones.importNote" }),
+          ),
+          this.importReport,
+        ),
+        el(
+          "section",
           { class: "card", "aria-labelledby": "rest-settings-title" },
           el("h2", { id: "rest-settings-title", "data-i18n": "owner.settings.title" }),
           form,
@@ -169,7 +202,7 @@ export class RestaurantPanel {
     conn.subscribe(["settings"]);
     live.addEventListener("change", (e) => {
       const topic = e.detail.topic;
-      if (topic === "robots" || topic === "waypoints") this.render();
+      if (topic === "robots" || topic === "waypoints" || topic === "zones" || topic === "leases") this.render();
       if (topic === "settings") {
         applySiteLanguages(live.settings);
         this._gotSettings(live.settings);
@@ -178,6 +211,7 @@ export class RestaurantPanel {
     onLangChange(() => {
       this.robotRows.invalidate();
       this.placeRows.invalidate();
+      this.zoneRows.invalidate();
       this._fillLanguage();
       this.render();
     });
@@ -205,6 +239,90 @@ export class RestaurantPanel {
     this.placeRows.update(
       [...this.live.waypoints.values()].sort((a, b) => KINDS.indexOf(a.kind) - KINDS.indexOf(b.kind) || byName(a.name, b.name)),
     );
+    this.zoneRows.update([...this.live.zones.values()].sort((a, b) => byName(a.name, b.name)));
+  }
+
+  // -- zones ----------------------------------------------------------------------------------
+
+  _zoneRow(z) {
+    const lease = this.live.leases.get(z.name);
+    return el(
+      "li",
+      { "data-zone": z.name, class: "rest-place rest-zone" },
+      el("span", { class: "rest-name", text: z.name }),
+      el("span", { class: "rest-kind", text: t("owner.zones.capacity", { count: z.capacity }) }),
+      el("span", { class: "muted rest-pos", text: t("owner.zones.corners", { count: z.points.length }) }),
+      el("span", { class: "rest-lease", "data-testid": "zone-lease", text: leaseWords(lease) }),
+      el(
+        "div",
+        { class: "row-actions" },
+        ...releaseButtons(this.conn, z.name, lease),
+        el("button", {
+          class: "secondary",
+          "data-needs-online": true,
+          "aria-label": t("owner.zones.redrawFor", { zone: z.name }),
+          text: t("owner.zones.redraw"),
+          onclick: () => document.dispatchEvent(new CustomEvent("serveur:redraw-zone", { detail: { zone: z.name } })),
+        }),
+        el("button", {
+          class: "danger",
+          "data-needs-online": true,
+          "aria-label": t("owner.zones.removeFor", { zone: z.name }),
+          text: t("owner.remove"),
+          onclick: (e) => this._removeZone(z.name, e.currentTarget),
+        }),
+      ),
+    );
+  }
+
+  async _removeZone(zone, button) {
+    const yes = await confirmDialog(t("owner.zones.removeQuestion", { zone }), {
+      detail: t("owner.zones.removeDetail"),
+      yes: t("owner.remove"),
+      no: t("owner.cancel"),
+    });
+    if (!yes) return;
+    const reply = await act(button, () => this.conn.request({ clientmsg: "site", action: "remove_zone", zone }));
+    if (reply) toast(t("owner.zones.removed", { zone }));
+  }
+
+  /** The file chosen: each of its zones stored (replacing one of the same name); what failed said. */
+  async _importZones() {
+    const file = this.zoneFile.files && this.zoneFile.files[0];
+    if (!file) return;
+    this.importReport.replaceChildren();
+    let zones;
+    try {
+      const doc = JSON.parse(await file.text());
+      zones = Array.isArray(doc) ? doc : doc && doc.zones;
+      if (!Array.isArray(zones)) throw new Error(t("owner.zones.importNoZones"));
+    } catch (err) {
+      this.importReport.append(el("p", { class: "rest-error", text: t("owner.zones.importUnreadable", { file: file.name, error: err.message || String(err) }) }));
+      this.zoneFile.value = "";
+      return;
+    }
+    const done = [];
+    const failed = [];
+    for (const [i, z] of zones.entries()) {
+      const name = z && typeof z.name === "string" && z.name ? z.name : t("owner.zones.importNth", { n: i + 1 });
+      const msg = { clientmsg: "create", type: "zone", name: z && z.name, points: z && z.points, replace: true };
+      if (z && z.capacity !== undefined) msg.capacity = z.capacity;
+      try {
+        await this.conn.request(msg);
+        done.push(name);
+      } catch (err) {
+        failed.push([name, describeError(err)]);
+      }
+    }
+    this.zoneFile.value = "";
+    this.importReport.append(el("p", { text: t("owner.zones.imported", { count: done.length, zones: done.join(", ") || "-" }) }));
+    if (failed.length) {
+      this.importReport.append(
+        el("p", { class: "rest-error", text: t("owner.zones.importFailed", { count: failed.length }) }),
+        el("ul", { class: "rest-deps" }, ...failed.map(([n, why]) => el("li", { text: t("owner.zones.importWhy", { zone: n, error: why }) }))),
+      );
+    }
+    toast(t("owner.zones.imported", { count: done.length, zones: done.join(", ") || "-" }), { kind: failed.length ? "error" : "info" });
   }
 
   // -- robots ---------------------------------------------------------------------------------

@@ -1,5 +1,6 @@
 // The robots list: status, battery, current trip, and the instructions the robot's status
 // allows (status.js). A refusal from the server (the status changed meanwhile) is shown.
+// A robot waiting for a zone (waiting_for) says which, and which robot is in it (the leases).
 
 import { act, confirmDialog, el, formatClock } from "../ui.js";
 import { allowed, statusColour } from "../status.js";
@@ -26,7 +27,7 @@ export class RobotsPanel {
     this.selection = selection;
     this.rows = new Map(); // name -> {li, signature}
     live.addEventListener("change", (e) => {
-      if (["robots", "tasks", "waypoints", "orders"].includes(e.detail.topic)) this.render();
+      if (["robots", "tasks", "waypoints", "orders", "leases"].includes(e.detail.topic)) this.render();
     });
     // Time at the table ticks: only that text changes, once a second.
     setInterval(() => this._tick(), 1000);
@@ -53,7 +54,7 @@ export class RobotsPanel {
       const loading = robot.status === "Loading" ? traySignature(this.live, robot.current_task) : "";
       const signature = JSON.stringify([
         robot.status, robot.mode, battery(robot), trip, selected, robot.last_error, loading, robot.status_since,
-        rosVersion(robot),
+        rosVersion(robot), this._waiting(robot),
       ]);
       let row = this.rows.get(name);
       if (!row) {
@@ -124,10 +125,28 @@ export class RobotsPanel {
       el("span", { class: "ros" }, t("robots.ros", { version: rosVersion(robot) })),
       el("span", { class: "trip" }, trip),
       robot.last_error ? el("span", { class: "last-error" }, t("robots.lastError", { message: robot.last_error })) : null,
+      robot.waiting_for && robot.waiting_for.length
+        ? el("span", { class: "waiting-for", "data-testid": "waiting-for" }, this._waiting(robot))
+        : null,
       this._atTable(robot),
       robot.status === "Loading" ? this._loading(robot) : null,
       el("div", { class: "actions", role: "group", "aria-label": t("robots.actions", { name }) }, buttons),
     ];
+  }
+
+  /** "Waiting for aisle (held by r2)": the zones a robot waits for and who is in them, or "". */
+  _waiting(robot) {
+    const zones = robot.waiting_for;
+    if (!zones || !zones.length) return "";
+    const holders = new Set();
+    for (const z of zones) {
+      const lease = this.live.leases.get(z);
+      for (const r of (lease && lease.holders) || []) if (r !== robot.name) holders.add(r);
+    }
+    const names = zones.join(", ");
+    return holders.size
+      ? t("robots.waitingHeld", { zones: names, robots: [...holders].sort().join(", ") })
+      : t("robots.waitingQueue", { zones: names });
   }
 
   /** A robot waiting at a table: where, and for how long (ticks each second). */
