@@ -27,6 +27,7 @@ from serveur.maps.mapio import OccupancyMap, load_waypoints, save_map
 from serveur.robot_sim import start_simulation
 from tests.conftest import Client, poll_until
 from tests.sim.test_sim_badinput import shut
+from tests.sim.test_sim_robots_see_each_other import watch_closest
 
 SCALE = 20.0
 WAIT = 30.0
@@ -90,21 +91,6 @@ async def narrow_restaurant(tmp: Path, *, leases: bool) -> AsyncIterator[tuple[A
         await c.close()
         await app.close()
         await shut(sim)
-
-
-def watch_closest(sim: Any) -> list[float]:
-    closest = [math.inf]
-    for r in sim.robots:
-        step = r._step
-
-        def stepped(dt: float, r: Any = r, step: Any = step) -> None:
-            step(dt)
-            for o in sim.robots:
-                if o is not r:
-                    closest[0] = min(closest[0], math.dist(r.pose[:2], o.pose[:2]))
-
-        r._step = stepped
-    return closest
 
 
 async def head_on(app: App, sim: Any, c: Client) -> list[float]:
