@@ -330,12 +330,15 @@ class LeaseBook:
         claimed: set[str] = set()  # zones an earlier request still waits for
         keep: list[_Request] = []
         for req in self._queue:
-            if not set(req.zones) & claimed and all(self._room(z, req.robot) for z in req.zones):
-                h = self._held.setdefault(req.robot, _Holding())
+            h = self._held.setdefault(req.robot, _Holding())
+            # A zone the robot holds already (it stands in it) is its own: a later claim on it
+            # waits for this robot to drive out, so it must not hold this robot back.
+            new = set(req.zones) - h.zones
+            if not new & claimed and all(self._room(z, req.robot) for z in new):
                 h.zones |= set(req.zones)
                 granted.append(Grant(req.robot, req.zones))
             else:
-                claimed |= set(req.zones)
+                claimed |= new
                 keep.append(req)
         self._queue = keep
         return granted

@@ -128,14 +128,15 @@ class Traffic:
         """The zones the robot's leg to ``dest`` crosses, and those it stands in."""
         goal = (dest.x, dest.y)
         if rt.pose is None:
-            path = [goal]
-        else:
-            here = (rt.pose[0], rt.pose[1])
-            start = self.places.nearest(*here)
-            if start is not None and dest.name in self.places.waypoints and start != dest.name:
-                path = [here, *self.places.path(start, dest.name)]
-            else:
-                path = [here, goal]
+            return path_zones([goal], self.leases.zones.values(), margin=self.config.robot_radius)
+        here = (rt.pose[0], rt.pose[1])
+        # The planned path between the waypoints nearest each end (a goal that is no waypoint,
+        # Move here, included): what the robot's planner will drive, near enough.
+        start = self.places.nearest(*here)
+        end = dest.name if dest.name in self.places.waypoints else self.places.nearest(*goal)
+        path = [here, goal]
+        if start is not None and end is not None and start != end:
+            path = [here, *self.places.path(start, end), goal]
         return path_zones(path, self.leases.zones.values(), margin=self.config.robot_radius)
 
     async def _lease_leg(self, rt: Runtime, dest: Destination) -> bool:

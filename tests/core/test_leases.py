@@ -103,3 +103,16 @@ def test_robots_standing_in_each_others_zone_are_found_waiting_for_each_other() 
     # Staff move r2 out of the doorway by hand and break its lease: r1 goes.
     _, grants = b.break_lease("door", "r2")
     assert [g.robot for g in grants] == ["r1"]
+
+
+def test_a_robot_standing_in_a_zone_is_not_held_back_by_a_robot_waiting_for_it() -> None:
+    b = book()
+    assert mine(b.request("r1", ["aisle"], 0.0), "r1")
+    b.leg_over("r1", 3.0, 0.4)  # r1 stopped inside the aisle (a table's spot there)
+    assert not mine(b.request("r2", ["aisle"], 1.0), "r2")  # r2 waits for r1 to leave
+    # r1's next leg goes out through the aisle and the door: it must not wait behind r2,
+    # who waits for r1 to leave.
+    assert mine(b.request("r1", ["aisle", "door"], 2.0), "r1")
+    assert b.cycles() == []
+    grants = b.moved("r1", 8.5, 0.5)  # out of the aisle, into the doorway
+    assert [g.robot for g in grants] == ["r2"]

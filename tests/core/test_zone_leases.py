@@ -22,7 +22,7 @@ from websockets.asyncio.client import connect
 
 from serveur.app import App, RobotSpec
 from serveur.clock import ScaledClock
-from serveur.core.runtime import CoreConfig
+from serveur.core.runtime import CoreConfig, Destination
 from serveur.maps.mapio import OccupancyMap, load_waypoints, save_map
 from serveur.robot_sim import start_simulation
 from tests.conftest import Client, poll_until
@@ -126,6 +126,10 @@ async def test_with_the_aisle_leased_both_robots_pass_in_turn(tmp_path: Path) ->
         # Once both are through, nobody holds the aisle.
         await c.until(lambda: c.streams.get("leases", {}).get("holders") == [], WAIT, "aisle free")
         assert app.core is not None and app.core.leases.holders("aisle") == []
+        # A Move here to a spot that is no waypoint, across the room, crosses the aisle too:
+        # its zones are read off the planned path, not the straight line (which meets a wall).
+        far = Destination("manual", "", 7.4, 2.5, 0.0)
+        assert app.core.leg_zones(app.core._rt["r2"], far) == ["aisle"]
 
 
 async def test_without_leases_the_same_meeting_deadlocks(tmp_path: Path) -> None:
