@@ -7,8 +7,11 @@ dwell and absences, loading at the pass, statistics; pure), :mod:`~serveur.repla
 (map and server settings), :mod:`~serveur.replay.client` (the protocol client and its
 console), the players
 :mod:`~serveur.replay.staff` and :mod:`~serveur.replay.guests`, :mod:`~serveur.replay.report`
-(summary and plots), :mod:`~serveur.replay.recorded` (a recorded service day as a log) and
-:mod:`~serveur.replay.cli` (the subcommand). It drives the server
+(summary and plots), :mod:`~serveur.replay.recorded` (a recorded service day as a log),
+:mod:`~serveur.replay.forecast` (the owner's "how many robots?": a recorded day replayed with
+other fleets, in child processes), :mod:`~serveur.replay.traffic` (conflicts, deadlocks and
+zone waits measured on the simulator's true poses) and :mod:`~serveur.replay.cli` (the
+subcommand). It drives the server
 only as a client does, over ``/ws``.
 
 May import: serveur.app, serveur.clock, serveur.robot_sim, serveur.scheduler,
