@@ -93,7 +93,7 @@ async def test_no_serious_or_critical_violation_on_any_page(
         found["login"] = await violations(staff)
         await log_in(staff, "owner", r.app.first_owner_password or "")
         await expect(staff.get_by_role("button", name="Select r1")).to_be_visible()
-        tabs = ("Map", "Issue task", "New order", "Kitchen", "Menu", "Restaurant", "Activity")
+        tabs = ("Map", "Send food", "New order", "Kitchen", "Menu", "Restaurant", "Activity")
         tabs += ("Statistics",)
         for tab in (*tabs, "Accounts"):  # Accounts last: what it shows once is checked next
             await staff.get_by_role("tab", name=tab).click()

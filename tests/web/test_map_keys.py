@@ -57,7 +57,7 @@ async def test_calibrate_and_move_here_from_the_keyboard(tmp_path: Path, browser
         assert await staff.evaluate(DRAWS_OVER_FRAMES, 30) <= 2
 
         p0 = await c.until(lambda: c.streams.get("pose:r1"), what="pose")
-        calibrate = staff.get_by_role("button", name="Calibrate")
+        calibrate = staff.get_by_role("button", name="Set where the robot is")
         await expect(calibrate).to_be_enabled()
         await calibrate.focus()
         await staff.keyboard.press("Enter")

@@ -72,9 +72,9 @@ async def test_every_screen_size(tmp_path: Path, browser: Any, name: str) -> Non
         page = await context.new_page()
         await page.goto(f"{http_base(r)}/#token={r.token}")
         await expect(page.locator("body")).to_have_attribute("data-connection", "online")
-        await expect(page.get_by_role("button", name="Release r1")).to_be_visible()
+        await expect(page.get_by_role("button", name="Ready for orders r1")).to_be_visible()
 
-        for tab in ("Map", "Issue task", "New order", "Kitchen"):
+        for tab in ("Map", "Send food", "New order", "Kitchen"):
             await page.get_by_role("tab", name=tab).click()
             width, inner = await page.evaluate(NO_SIDEWAYS_SCROLL)
             assert width <= inner, f"{name} {tab}: page {width} px wide in {inner}"
@@ -128,7 +128,7 @@ async def test_every_screen_size(tmp_path: Path, browser: Any, name: str) -> Non
             await page.goto(f"{http_base(r)}/")
             await log_in(page, "owner", r.app.first_owner_password or "")
             await expect(page.locator("body")).to_have_attribute("data-connection", "online")
-            for tab in ("Map", "Issue task", "New order", "Kitchen", "Menu"):
+            for tab in ("Map", "Send food", "New order", "Kitchen", "Menu"):
                 await page.get_by_role("tab", name=tab).click()
                 width, inner = await page.evaluate(NO_SIDEWAYS_SCROLL)
                 assert width <= inner, f"owner's {tab}: page {width} px wide in {inner}"

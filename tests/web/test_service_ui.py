@@ -137,8 +137,8 @@ async def test_a_service_loaded_sent_timed_out_and_sent_again(tmp_path: Path, br
         await staff.get_by_role("button", name="Ready: Satay for T12").click()
         await expect(cooking).to_contain_text("Nothing cooking.")
 
-        # Issue task: both into the cart, sent; the robot takes the trip and waits at the pass.
-        await staff.get_by_role("tab", name="Issue task").click()
+        # Send food: both into the cart, sent; the robot takes the trip and waits at the pass.
+        await staff.get_by_role("tab", name="Send food").click()
         await staff.get_by_role("button", name=f"Add to cart: {laksa} for T1").click()
         await staff.get_by_role("button", name="Add to cart: Satay for T12").click()
         await staff.get_by_role("button", name=re.compile(r"^Send 2 dishes")).click()
@@ -158,7 +158,7 @@ async def test_a_service_loaded_sent_timed_out_and_sent_again(tmp_path: Path, br
             f"Tray 1 → {first}: {dishes[first]}"
         )
         await expect(row.get_by_role("button", name="Go r1")).to_be_visible()
-        await staff.get_by_role("tab", name="Issue task").click()
+        await staff.get_by_role("tab", name="Send food").click()
         await loading.get_by_role("button", name="Go r1").click()
         await expect(loading).to_contain_text("No robot is waiting to be loaded.")
         await c.until(lambda: c.robot("r1")["status"] in ("Delivering", "Delivered"), what="go")
@@ -196,7 +196,7 @@ async def test_a_service_loaded_sent_timed_out_and_sent_again(tmp_path: Path, br
             lambda: c.task(task["id"])["stops"][1]["status"] == "skipped", what="timed out"
         )
         await expect(banner).to_be_hidden()
-        await staff.get_by_role("tab", name="Issue task").click()
+        await staff.get_by_role("tab", name="Send food").click()
         returned = staff.get_by_role("list", name="Returned dishes")
         back = dishes[second]
         await expect(returned).to_contain_text(back)
@@ -221,7 +221,7 @@ async def test_a_blocked_table_its_alert_and_a_dish_changed(tmp_path: Path, brow
         made = await c.ok("create", type="order", dish="Laksa", table="T5")
         screens = Screens(browser, http_base(r), r.token)
         staff = await screens.open("/")
-        await staff.get_by_role("tab", name="Issue task").click()
+        await staff.get_by_role("tab", name="Send food").click()
         add = staff.get_by_role("button", name="Add to cart: Laksa for T5")
         await expect(add).to_be_enabled()
 
@@ -249,7 +249,7 @@ async def test_a_blocked_table_its_alert_and_a_dish_changed(tmp_path: Path, brow
         assert await banner.get_attribute("data-chimes") is None  # none since the reload
         await c.ok("clear", table="T7")
         await expect(banner).not_to_contain_text("T7")
-        await staff.get_by_role("tab", name="Issue task").click()
+        await staff.get_by_role("tab", name="Send food").click()
 
         # The dish is changed while it waits: three of them, a note for the kitchen.
         await staff.get_by_role("button", name="Change Laksa for T5").click()
@@ -334,7 +334,7 @@ async def test_action_buttons_are_disabled_while_the_connection_is_lost(
 
         screens = Screens(browser, http_base(r), r.token)
         staff = await screens.open("/", ws_route=relay)
-        auto = staff.get_by_role("button", name="Auto r1")
+        auto = staff.get_by_role("button", name="Start delivering r1")
         await expect(auto).to_be_enabled()
         cut["on"] = True
         for ws in routes:

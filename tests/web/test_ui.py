@@ -194,8 +194,8 @@ async def test_a_whole_delivery_by_clicking(tmp_path: Path, browser: Any) -> Non
             "Laksa"
         )
 
-        # Issue task: the dish is pending with its table and waiting time; into the cart; send.
-        await staff.get_by_role("tab", name="Issue task").click()
+        # Send food: the dish is pending with its table and waiting time; into the cart; send.
+        await staff.get_by_role("tab", name="Send food").click()
         row = staff.get_by_role("row").filter(has_text="Laksa")
         await expect(row).to_contain_text("T3")
         await expect(row.locator("td.waiting")).to_have_text(re.compile(r"\d+ (s|min)"))
@@ -210,9 +210,9 @@ async def test_a_whole_delivery_by_clicking(tmp_path: Path, browser: Any) -> Non
         [oid] = [o["id"] for o in c.records["orders"].values() if o["dish"] == "Laksa"]
         await c.until(lambda: c.order(oid).get("status") == "assigned", what="order assigned")
 
-        # Auto: the robot takes the trip and leaves.
+        # Start delivering: the robot takes the trip and leaves.
         await staff.get_by_role("tab", name="Map & robots").click()
-        await staff.get_by_role("button", name="Auto r1").click()
+        await staff.get_by_role("button", name="Start delivering r1").click()
         await expect(robot.locator(".destination")).to_have_text("Table T3")
         home = WAYPOINTS["home1"]
         await c.until(
@@ -238,9 +238,7 @@ async def test_a_whole_delivery_by_clicking(tmp_path: Path, browser: Any) -> Non
         orders = {o.dish: (o.table, o.status.value) for o in await r.app.store.list_orders()}
         assert orders["Laksa"] == ("T3", "delivered")
         assert {o[1] for d, o in orders.items() if d != "Laksa"} == {"pending"}
-        await expect(staff.get_by_role("listitem").filter(has_text="r1")).to_contain_text(
-            "Awaiting"
-        )
+        await expect(staff.get_by_role("listitem").filter(has_text="r1")).to_contain_text("Free")
         screens.assert_no_errors()
 
 
@@ -285,7 +283,7 @@ async def test_stop_then_cancel_with_confirmation(tmp_path: Path, browser: Any) 
         )
         await expect(robot.get_by_text("Awaiting orders")).to_be_visible()
         await c.until(lambda: c.order(oid).get("status") == "pending", what="order pending")
-        await staff.get_by_role("tab", name="Issue task").click()
+        await staff.get_by_role("tab", name="Send food").click()
         await expect(staff.get_by_role("button", name="Add to cart: Curry for T16")).to_be_visible()
         screens.assert_no_errors()
 
@@ -356,7 +354,7 @@ async def test_calibrate_move_here_teleop_and_waypoints(tmp_path: Path, browser:
         await expect(staff.get_by_role("button", name="Take control r1")).to_be_visible()
         await staff.get_by_role("button", name="Take control r1").click()
         await c.status("r1", "Manual")
-        calibrate = staff.get_by_role("button", name="Calibrate")
+        calibrate = staff.get_by_role("button", name="Set where the robot is")
         await expect(calibrate).to_be_enabled()
 
         # Zoom in and pan: the conversion must follow the view.
@@ -374,7 +372,7 @@ async def test_calibrate_move_here_teleop_and_waypoints(tmp_path: Path, browser:
         assert max((await pixel(staff, *await to_screen(staff, *wall)))[:3]) < 90
         assert min((await pixel(staff, *await to_screen(staff, *floor)))[:3]) > 230
 
-        # Calibrate: press where the robot "really" is, drag toward its heading (east).
+        # Set where the robot is: press where it "really" is, drag toward its heading (east).
         await calibrate.click()
         await expect(calibrate).to_have_attribute("aria-pressed", "true")
         await drag(staff, await to_screen(staff, 4.5, 9.0), 0.0)
@@ -429,7 +427,7 @@ async def test_calibrate_move_here_teleop_and_waypoints(tmp_path: Path, browser:
 
         # Waypoints: save the pose under a name; go to a waypoint by clicking it.
         await staff.get_by_label("Name", exact=True).fill("bar")
-        await staff.get_by_role("button", name="Save waypoint").click()
+        await staff.get_by_role("button", name="Save this place").click()
         await expect(staff.get_by_role("button", name="Go to bar")).to_be_visible()
         pose = c.streams["pose:r1"]
         bar = await c.until(lambda: c.records["waypoints"].get("bar"), what="waypoint bar")
@@ -440,7 +438,7 @@ async def test_calibrate_move_here_teleop_and_waypoints(tmp_path: Path, browser:
             lambda: near(c.streams.get("pose:r1"), t7.x, t7.y, 0.3), what="go-to reaches T7"
         )
         assert len(twists()) == released  # nothing was sent after the release
-        await staff.get_by_role("button", name="Release r1").click()
+        await staff.get_by_role("button", name="Ready for orders r1").click()
         await c.status("r1", "Ready")
         await expect(calibrate).to_be_disabled()
         screens.assert_no_errors()
@@ -459,7 +457,7 @@ async def test_pages_reconnect_after_a_server_restart(tmp_path: Path, browser: A
         await c.status("r1", "Ready")
         # Without a reload, every page is live again: a new order shows up...
         await c.ok("create", type="order", dish="Soup", table="T5")
-        await staff.get_by_role("tab", name="Issue task").click()
+        await staff.get_by_role("tab", name="Send food").click()
         await expect(staff.get_by_role("button", name="Add to cart: Soup for T5")).to_be_visible()
         await expect(table.get_by_role("list", name="Ready in the kitchen")).to_contain_text("Soup")
         # ...and a click on one page reaches the new server and shows on the others (once
@@ -468,7 +466,7 @@ async def test_pages_reconnect_after_a_server_restart(tmp_path: Path, browser: A
         await robot.get_by_role("button", name="Activate this robot").click()
         await expect(robot.get_by_text("Awaiting orders")).to_be_visible()
         await staff.get_by_role("tab", name="Map & robots").click()
-        await expect(staff.get_by_role("button", name="Release r1")).to_be_visible()
+        await expect(staff.get_by_role("button", name="Ready for orders r1")).to_be_visible()
         for page in (staff, robot, table):
             await expect(page.locator("body")).to_have_attribute("data-connection", "online")
         # The only errors allowed are the browser's own notes of refused connection attempts.
@@ -508,13 +506,13 @@ async def test_server_refusals_are_shown_and_gaps_resync(tmp_path: Path, browser
         # again, and the fresh snapshot shows what the server has.
         held["on"] = False
         await c.ok("create", type="order", dish="Tea", table="T2")
-        await expect(staff.get_by_role("button", name="Release r1")).to_be_visible()
+        await expect(staff.get_by_role("button", name="Ready for orders r1")).to_be_visible()
         await expect(take).to_have_count(0)
 
         # Saving a waypoint under a taken name asks before replacing it.
         await staff.get_by_label("Name", exact=True).fill("T1")
-        await staff.get_by_role("button", name="Save waypoint").click()
-        dialog = staff.get_by_role("dialog", name="Replace waypoint T1?")
+        await staff.get_by_role("button", name="Save this place").click()
+        dialog = staff.get_by_role("dialog", name="Replace the place T1?")
         await expect(dialog).to_be_visible()
         await dialog.get_by_role("button", name="No").click()
         await expect(dialog).to_have_count(0)

@@ -2,13 +2,20 @@
 // "Topics"). State topics are upserts keyed by name or id; streams keep the latest value.
 // Emits "change" {topic, record} after every change (record: the updated record, or null after a
 // snapshot), so views redraw only what they show. A robot or waypoint update with `removed: true`
-// (the owner removed or renamed it) drops that record, as does a removed zone (and its lease row). `settings` keeps the site's settings.
+// (the owner removed or renamed it) drops that record, as does a removed zone (and its lease row).
+// Single-value topics are kept whole: `map`, `settings` (the site's settings) and `forecast` (the
+// owner's "how many robots" forecast). Only `pose:<robot>` and `scan:<robot>` are per-robot
+// streams; any other topic is not filed under a robot.
 
 const KEYS = {
   robots: "name", waypoints: "name", orders: "id", tasks: "id", events: "id",
   alerts: "id", menu: "dish", blocks: "table", zones: "name", leases: "zone",
 };
 const MAX_EVENTS = 200;
+// Topics whose one value is kept whole in this[topic] (null: none yet, or none loaded).
+const SINGLE = ["map", "settings", "forecast"];
+// Per-robot streams, `<kind>:<robot>`: kind -> the Live table holding each robot's latest value.
+const ROBOT_STREAMS = { pose: "poses", scan: "scans" };
 
 export class Live extends EventTarget {
   constructor(conn) {
@@ -26,6 +33,7 @@ export class Live extends EventTarget {
     this.leases = new Map(); // zone name -> {zone, capacity, holders, waiting}
     this.map = null;
     this.settings = null; // the site's settings, if the page subscribed to them
+    this.forecast = null; // the owner's latest fleet forecast, if the page subscribed to it
     this.poses = new Map(); // robot -> {x, y, yaw, stamp}
     this.scans = new Map(); // robot -> scan
     this.clock = new ServerClock();
@@ -71,16 +79,13 @@ export class Live extends EventTarget {
   }
 
   _stream(topic, data) {
-    if (topic === "map") {
-      this.map = data;
-      return;
-    }
-    if (topic === "settings") {
-      this.settings = data;
+    if (SINGLE.includes(topic)) {
+      this[topic] = data ?? null;
       return;
     }
     const [kind, robot] = splitTopic(topic);
-    const table = kind === "pose" ? this.poses : this.scans;
+    const table = robot && Object.hasOwn(ROBOT_STREAMS, kind) ? this[ROBOT_STREAMS[kind]] : null;
+    if (!table) return; // not a robot's stream (audit, a topic this page does not keep): views read the change event
     if (data === null) table.delete(robot);
     else {
       table.set(robot, data);

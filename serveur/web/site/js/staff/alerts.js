@@ -9,7 +9,8 @@ import { onLangChange, t } from "../i18n.js";
 const MUTE_KEY = "serveur.alertsMuted";
 
 // The headline of each kind, from its subject (a robot or a table), in the page's language; the
-// detail is the cause as the live records tell it (the robot's error, why the table is blocked).
+// detail is the cause as the live records tell it (the robot's error, why the table is blocked,
+// the zones a robot waits for and who is in them).
 const KINDS = {
   robot_error: "alerts.kind.robotError",
   robot_offline: "alerts.kind.robotOffline",
@@ -17,6 +18,7 @@ const KINDS = {
   waiting_at_table: "alerts.kind.waitingAtTable",
   dish_waiting: "alerts.kind.dishWaiting",
   table_unreachable: "alerts.kind.tableUnreachable",
+  zone_wait: "alerts.kind.zoneWait",
 };
 
 function loadMuted() {
@@ -103,7 +105,7 @@ export class AlertsPanel {
       this._showMute();
     });
     live.addEventListener("change", (e) => {
-      if (["alerts", "robots", "blocks"].includes(e.detail.topic)) this.render();
+      if (["alerts", "robots", "blocks", "leases"].includes(e.detail.topic)) this.render();
     });
     onLangChange(() => {
       for (const row of this.rows.values()) row.signature = "";
@@ -165,7 +167,10 @@ export class AlertsPanel {
     this.badge.title = t("alerts.badge", { count: unseen });
   }
 
-  /** The cause, from the live records: the robot's last error, its battery, the block's reason. */
+  /**
+   * The cause, from the live records: the robot's last error, its battery, the block's reason,
+   * the zones a robot waits for ("Waiting for aisle (held by r2)").
+   */
   _detail(alert) {
     if (alert.kind === "table_unreachable") return this.live.blocks.get(alert.subject)?.reason || null;
     const robot = this.live.robots.get(alert.subject);
@@ -175,7 +180,22 @@ export class AlertsPanel {
       return t("robots.battery", { value: t("robots.batteryPercent", { percent: Math.round(robot.battery * 100) }) });
     }
     if (alert.kind === "waiting_at_table") return this.live.destination(alert.subject);
+    if (alert.kind === "zone_wait") return this._zoneWait(robot);
     return null;
+  }
+
+  /** The zones `robot` waits for (its live `waiting_for`) and the robots holding them, or null. */
+  _zoneWait(robot) {
+    const zones = robot.waiting_for;
+    if (!Array.isArray(zones) || !zones.length) return null;
+    const holders = new Set();
+    for (const zone of zones) {
+      for (const r of this.live.leases.get(zone)?.holders || []) if (r !== robot.name) holders.add(r);
+    }
+    const names = zones.join(", ");
+    return holders.size
+      ? t("robots.waitingHeld", { zones: names, robots: [...holders].sort().join(", ") })
+      : t("alerts.zoneWaitFor", { zones: names });
   }
 
   _content(alert) {
