@@ -72,7 +72,7 @@ async def test_every_screen_size(tmp_path: Path, browser: Any, name: str) -> Non
         page = await context.new_page()
         await page.goto(f"{http_base(r)}/#token={r.token}")
         await expect(page.locator("body")).to_have_attribute("data-connection", "online")
-        await expect(page.get_by_role("button", name="Ready for orders r1")).to_be_visible()
+        await expect(page.get_by_role("button", name="Done driving r1")).to_be_visible()
 
         for tab in ("Map", "Send food", "New order", "Kitchen"):
             await page.get_by_role("tab", name=tab).click()

@@ -438,7 +438,7 @@ async def test_calibrate_move_here_teleop_and_waypoints(tmp_path: Path, browser:
             lambda: near(c.streams.get("pose:r1"), t7.x, t7.y, 0.3), what="go-to reaches T7"
         )
         assert len(twists()) == released  # nothing was sent after the release
-        await staff.get_by_role("button", name="Ready for orders r1").click()
+        await staff.get_by_role("button", name="Done driving r1").click()
         await c.status("r1", "Ready")
         await expect(calibrate).to_be_disabled()
         screens.assert_no_errors()
@@ -466,7 +466,7 @@ async def test_pages_reconnect_after_a_server_restart(tmp_path: Path, browser: A
         await robot.get_by_role("button", name="Activate this robot").click()
         await expect(robot.get_by_text("Awaiting orders")).to_be_visible()
         await staff.get_by_role("tab", name="Map & robots").click()
-        await expect(staff.get_by_role("button", name="Ready for orders r1")).to_be_visible()
+        await expect(staff.get_by_role("button", name="Pause deliveries r1")).to_be_visible()
         for page in (staff, robot, table):
             await expect(page.locator("body")).to_have_attribute("data-connection", "online")
         # The only errors allowed are the browser's own notes of refused connection attempts.
@@ -506,7 +506,7 @@ async def test_server_refusals_are_shown_and_gaps_resync(tmp_path: Path, browser
         # again, and the fresh snapshot shows what the server has.
         held["on"] = False
         await c.ok("create", type="order", dish="Tea", table="T2")
-        await expect(staff.get_by_role("button", name="Ready for orders r1")).to_be_visible()
+        await expect(staff.get_by_role("button", name="Pause deliveries r1")).to_be_visible()
         await expect(take).to_have_count(0)
 
         # Saving a waypoint under a taken name asks before replacing it.

@@ -7,7 +7,8 @@ import { allowed, statusColour } from "../status.js";
 import { onLangChange, statusName, t } from "../i18n.js";
 import { goButton, trayList, traySignature } from "./dishes.js";
 
-// [action, label key, request]; `ready` reads "Release" (hand back from Manual or leave Auto).
+// [action, label key, request]. `ready` takes a robot out of Manual (staff are done driving it)
+// or out of Auto (it stops taking trips): its words depend on which (readyKey).
 const ACTIONS = [
   ["auto", "robots.auto", (r) => ({ clientmsg: "control", robot: r, action: "auto" })],
   ["manual", "robots.manual", (r) => ({ clientmsg: "control", robot: r, action: "manual" })],
@@ -18,6 +19,11 @@ const ACTIONS = [
   ["skip", "robots.skip", (r, at) => ({ clientmsg: "skip", robot: r, ...at })],
   ["cancel", "robots.cancel", (r, at) => ({ clientmsg: "cancel", robot: r, ...at })],
 ];
+
+/** The `ready` button's words: "Done driving" under staff control, else "Pause deliveries". */
+function readyKey(robot) {
+  return robot.status === "Manual" ? "robots.doneDriving" : "robots.pause";
+}
 
 export class RobotsPanel {
   constructor(list, conn, live, selection) {
@@ -92,8 +98,9 @@ export class RobotsPanel {
     const onTrip = robot.current_task !== null && robot.current_task !== undefined;
     // Skip needs a table to leave: only on a trip.
     const offered = ([action]) => allowed(robot.status, action) && (action !== "skip" || onTrip);
-    const buttons = ACTIONS.filter(offered).map(([action, key, make]) =>
-      el("button", {
+    const buttons = ACTIONS.filter(offered).map(([action, actionKey, make]) => {
+      const key = action === "ready" ? readyKey(robot) : actionKey;
+      return el("button", {
         class: action === "stop" || action === "cancel" ? "danger" : action === "skip" ? "secondary" : "",
         "data-needs-online": true,
         "data-focus-key": action,
@@ -101,8 +108,8 @@ export class RobotsPanel {
         // The trip and stop shown now: the server refuses the command if the robot moved on.
         onclick: (e) => this._do(e.currentTarget, action, name, make(name, this.live.target(name))),
         text: t(key),
-      }),
-    );
+      });
+    });
     return [
       el(
         "button",
