@@ -12,7 +12,7 @@ import { goButton, trayList, traySignature } from "./dishes.js";
 const ACTIONS = [
   ["auto", "robots.auto", (r) => ({ clientmsg: "control", robot: r, action: "auto" })],
   ["manual", "robots.manual", (r) => ({ clientmsg: "control", robot: r, action: "manual" })],
-  ["ready", "robots.release", (r) => ({ clientmsg: "ready", robot: r })],
+  ["ready", "robots.pause", (r) => ({ clientmsg: "ready", robot: r })],
   ["stop", "robots.stop", (r, at) => ({ clientmsg: "stop", robot: r, ...at })],
   ["continue", "robots.continue", (r, at) => ({ clientmsg: "continue", robot: r, ...at })],
   ["next", "robots.collected", (r, at) => ({ clientmsg: "next", robot: r, ...at })],
