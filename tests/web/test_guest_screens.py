@@ -243,3 +243,33 @@ async def test_a_stuck_robot_asks_for_staff_in_the_guests_words(
         skips = [m for m in screens.sent if m.get("clientmsg") == "skip"]
         assert [(m["task"], m["stop"]) for m in skips] == [(task["id"], 0)]
         screens.assert_no_errors()
+
+
+async def test_guest_screens_speak_the_sites_language(tmp_path: Path, browser: Any) -> None:
+    """The owner's settings choose the languages offered and the one a screen with no choice of
+    its own starts in: a new table screen and a robot screen open in Malay and offer only
+    Malay and English; a screen told ?lang=en keeps English."""
+    async with service(tmp_path) as r:
+        owner = Client(await connect(r.app.url))
+        r.clients.append(owner)
+        await owner.ok("login", username="owner", password=r.app.first_owner_password)
+        await owner.ok("site", action="set_settings", languages=["ms", "en"], language="ms")
+        screens = Screens(browser, http_base(r))
+        table = await screens.open(
+            "/table/T3", token=await r.app.issue_token("table-screen", table="T3")
+        )
+        robot = await screens.open(
+            "/robot/r1", token=await r.app.issue_token("robot-screen", robot="r1")
+        )
+        told = await screens.open(
+            "/table/T4?lang=en", token=await r.app.issue_token("table-screen", table="T4")
+        )
+        for page in (table, robot):
+            await expect(page.locator("html")).to_have_attribute("data-site-langs", "ms en")
+            await expect(page.locator("html")).to_have_attribute("lang", "ms")
+            options = page.locator("#lang-picker option")
+            await expect(options).to_have_count(2)
+            assert sorted(await options.evaluate_all("os => os.map(o => o.value)")) == ["en", "ms"]
+        await expect(told.locator("html")).to_have_attribute("data-site-langs", "ms en")
+        await expect(told.locator("html")).to_have_attribute("lang", "en")
+        screens.assert_no_errors()
