@@ -29,7 +29,6 @@ from typing import Annotated, Any, Final, Literal, TypeAlias
 from pydantic import (
     AfterValidator,
     BaseModel,
-    ConfigDict,
     Field,
     TypeAdapter,
     ValidationError,
@@ -42,6 +41,18 @@ from serveur.domain import (
 )
 from serveur.errors import BadJson, InvalidField, ServeurError, UnknownMessage
 from serveur.status import Action
+from serveur.wire.accounts import (
+    AccountAddUser,
+    AccountCreateToken,
+    AccountListTokens,
+    AccountListUsers,
+    AccountMessage,
+    AccountRemoveUser,
+    AccountResetPassword,
+    AccountRevokeToken,
+    AccountSetRole,
+)
+from serveur.wire.base import ClientModel
 from serveur.wire.fields import (
     MAX_ANGULAR,
     MAX_COORD,
@@ -208,14 +219,7 @@ __all__ = [
 # --------------------------------------------------------------------------- client messages
 
 
-class _ClientMsg(BaseModel):
-    """Common base: strict types, unknown fields refused, immutable once parsed."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, hide_input_in_errors=True)
-
-    id: RequestId | None = Field(
-        default=None, description="Echoed in the reply so the client can match it"
-    )
+_ClientMsg = ClientModel  # every client message's base (serveur.wire.base)
 
 
 #: Longest password accepted (scrypt hashes any length; this bounds the work).
@@ -584,107 +588,6 @@ class OrderMsg(_ClientMsg):
         if (self.table is None) == (self.robot is None):
             raise PydanticCustomError("order_query", "give exactly one of table or robot")
         return self
-
-
-# --------------------------------------------------------------------------- accounts (owners)
-
-#: The roles a person's account may have.
-UserRole: TypeAlias = Literal["owner", "staff"]
-#: The screens the console makes tokens for (scripts' tokens stay on the command line).
-ScreenRole: TypeAlias = Literal["robot-screen", "table-screen"]
-Label = Annotated[str, Field(max_length=64)]
-
-
-class _AccountMsg(_ClientMsg):
-    clientmsg: Literal["account"]
-
-
-class AccountListUsers(_AccountMsg):
-    """The people who log in (names and roles, never a password)."""
-
-    action: Literal["list_users"]
-
-
-class AccountAddUser(_AccountMsg):
-    """Add a person; the server generates a strong password, returned once."""
-
-    action: Literal["add_user"]
-    username: Name
-    role: UserRole = "staff"
-
-
-class AccountSetRole(_AccountMsg):
-    """Make a person owner or staff (their sessions end: they log in again)."""
-
-    action: Literal["set_role"]
-    username: Name
-    role: UserRole
-
-
-class AccountResetPassword(_AccountMsg):
-    """Give a person a new generated password, returned once; their sessions end."""
-
-    action: Literal["reset_password"]
-    username: Name
-
-
-class AccountRemoveUser(_AccountMsg):
-    """Remove a person and end their sessions (never the last owner)."""
-
-    action: Literal["remove_user"]
-    username: Name
-
-
-class AccountCreateToken(_AccountMsg):
-    """A token for a robot's or a table's screen: returned once, with its setup link."""
-
-    action: Literal["create_token"]
-    role: ScreenRole
-    robot: Name | None = None
-    table: Name | None = None
-    label: Label = ""
-    base: Annotated[str, Field(max_length=200, pattern=r"^https?://[^\s/#?]+$")] | None = Field(
-        default=None,
-        description="The server's address as the screen will type it (http://host:port):"
-        " the QR code holds base + link; without it, only the link",
-    )
-
-    @model_validator(mode="after")
-    def _bound(self) -> AccountCreateToken:
-        if (self.role == "robot-screen") != (self.robot is not None) or (
-            self.role == "table-screen"
-        ) != (self.table is not None):
-            raise PydanticCustomError(
-                "screen_target", "a robot-screen token needs robot, a table-screen token table"
-            )
-        return self
-
-
-class AccountListTokens(_AccountMsg):
-    """The active device tokens (never the token itself); ``all``: revoked and expired too."""
-
-    action: Literal["list_tokens"]
-    all: bool = False
-
-
-class AccountRevokeToken(_AccountMsg):
-    """Revoke a token by id: its connections are closed."""
-
-    action: Literal["revoke_token"]
-    token: OrderId
-
-
-AccountMessage: TypeAlias = Annotated[
-    AccountListUsers
-    | AccountAddUser
-    | AccountSetRole
-    | AccountResetPassword
-    | AccountRemoveUser
-    | AccountCreateToken
-    | AccountListTokens
-    | AccountRevokeToken,
-    Field(discriminator="action"),
-]
 
 
 ClientMessage: TypeAlias = Annotated[

@@ -6,17 +6,17 @@ them); kept apart because they are the owner's console, not the dinner service's
 Every field is checked here, so a request that reaches the core is well formed: an edit names
 at least one field, a setting is within its range, a period is a day or a time.
 
-May import: serveur.wire.fields
 """
 
 from __future__ import annotations
 
 from typing import Annotated, Any, Literal, TypeAlias
 
-from pydantic import BaseModel, ConfigDict, Field, StrictBool, model_validator
+from pydantic import Field, StrictBool, model_validator
 from pydantic_core import PydanticCustomError
 
-from serveur.wire.fields import Name, OrderId, RequestId, WsUrl
+from serveur.wire.base import ClientModel
+from serveur.wire.fields import Name, OrderId, WsUrl
 
 __all__ = [
     "LANGUAGES",
@@ -50,13 +50,7 @@ _When = Annotated[str, Field(pattern=r"^\d{4}-\d{2}-\d{2}(T\d{2}:\d{2}(:\d{2})?)
 _Offset = Annotated[str, Field(pattern=r"^[+-]\d{2}:\d{2}$")]
 
 
-class _Msg(BaseModel):
-    # As protocol._ClientMsg: strict types, unknown fields refused, immutable once parsed.
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, hide_input_in_errors=True)
-
-    id: RequestId | None = Field(
-        default=None, description="Echoed in the reply so the client can match it"
-    )
+_Msg = ClientModel
 
 
 class _SiteMsg(_Msg):
