@@ -518,7 +518,7 @@ class Core(RobotMoves, SiteActions, Traffic):
         if isinstance(msg, P.ClearMsg):
             return await self.service.clear(msg.table, actor)
         if verb == "site":
-            return await self._site(msg, actor)
+            return await self.site(msg, actor)
         if isinstance(msg, P.ReleaseMsg):
             return await self.release(msg, actor)
         robot = P.robot_of(msg)
@@ -642,51 +642,8 @@ class Core(RobotMoves, SiteActions, Traffic):
             wp = WaypointRecord(name=msg.name, x=x, y=y, yaw=yaw, kind=WaypointKind(msg.kind))
             return {"waypoint": await self.creation.waypoint(wp, replace=msg.replace)}
         if kind == "robot":
-            if msg.home is not None:
-                self.places.waypoint(msg.home)
-            link = dict(msg.link or {})
-            try:
-                RosNames.from_options(link)
-            except ValueError as exc:
-                raise InvalidField(str(exc), field="link") from None
-            robot = await self.store.add_robot(
-                msg.name,
-                msg.url,
-                home=msg.home,
-                kinematics=msg.kinematics,
-                link=link,
-                now=self.clock.epoch(),
-            )
-            if msg.trays is not None and msg.trays != robot.trays:
-                await self.store.set_trays(robot.name, msg.trays, now=self.clock.epoch())
-                robot = await self.store.get_robot(robot.name)
-                if robot.name in self._robots:
-                    self._robots[robot.name] = robot
-            if robot.name not in self._rt:
-                self._add_runtime(robot)
-                self._start_link(self._rt[robot.name])
-            self.publish_robot(robot.name)
-            return {"robot": self._robot_view(robot.name)}
+            return await self.register_robot(msg)
         raise InvalidField(f"cannot create {kind!r}")
-
-    async def _site(self, msg: Any, actor: str | None) -> dict[str, Any]:
-        if isinstance(msg, P.SiteEditRobot):
-            return await self.edit_robot(msg, actor)
-        if isinstance(msg, P.SiteRemoveRobot):
-            return await self.remove_robot(msg, actor)
-        if isinstance(msg, P.SiteDependents):
-            return await self.dependents(msg)
-        if isinstance(msg, P.SiteRenameWaypoint):
-            return await self.rename_waypoint(msg, actor)
-        if isinstance(msg, P.SiteRemoveWaypoint):
-            return await self.remove_waypoint(msg, actor)
-        if isinstance(msg, P.SiteSetSettings):
-            return await self.set_settings(msg, actor)
-        if isinstance(msg, P.SiteSettings):
-            return {"settings": self.settings()}
-        if isinstance(msg, P.SiteRemoveZone):
-            return await self.remove_zone(msg, actor)
-        raise InvalidField(f"site {msg.action!r} is not the core's")
 
     async def _order(self, msg: Any) -> dict[str, Any]:
         if getattr(msg, "table", None):

@@ -64,7 +64,32 @@ class SiteActions:
 
         def _robot_view(self, name: str) -> Robot: ...
 
+        def _add_runtime(self, robot: Robot) -> Runtime: ...
+
+        async def remove_zone(self, msg: P.SiteRemoveZone, actor: str | None) -> dict[str, Any]: ...
+
         async def _stop_robot_runtime(self, rt: Runtime) -> None: ...
+
+    async def site(self, msg: Any, actor: str | None) -> dict[str, Any]:
+        """The ``site`` verb's actions the core carries out (the audit search is the
+        server's)."""
+        if isinstance(msg, P.SiteEditRobot):
+            return await self.edit_robot(msg, actor)
+        if isinstance(msg, P.SiteRemoveRobot):
+            return await self.remove_robot(msg, actor)
+        if isinstance(msg, P.SiteDependents):
+            return await self.dependents(msg)
+        if isinstance(msg, P.SiteRenameWaypoint):
+            return await self.rename_waypoint(msg, actor)
+        if isinstance(msg, P.SiteRemoveWaypoint):
+            return await self.remove_waypoint(msg, actor)
+        if isinstance(msg, P.SiteSetSettings):
+            return await self.set_settings(msg, actor)
+        if isinstance(msg, P.SiteSettings):
+            return {"settings": self.settings()}
+        if isinstance(msg, P.SiteRemoveZone):
+            return await self.remove_zone(msg, actor)
+        raise InvalidField(f"site {msg.action!r} is not the core's")
 
     # -- settings ---------------------------------------------------------------------------
 
@@ -110,6 +135,34 @@ class SiteActions:
         return {"settings": self.settings()}
 
     # -- robots -----------------------------------------------------------------------------
+
+    async def register_robot(self, msg: P.CreateRobot) -> dict[str, Any]:
+        """``create robot``: store it (a resend with the same fields returns it) and connect."""
+        if msg.home is not None:
+            self.places.waypoint(msg.home)
+        link = dict(msg.link or {})
+        try:
+            RosNames.from_options(link)
+        except ValueError as exc:
+            raise InvalidField(str(exc), field="link") from None
+        robot = await self.store.add_robot(
+            msg.name,
+            msg.url,
+            home=msg.home,
+            kinematics=msg.kinematics,
+            link=link,
+            now=self.clock.epoch(),
+        )
+        if msg.trays is not None and msg.trays != robot.trays:
+            await self.store.set_trays(robot.name, msg.trays, now=self.clock.epoch())
+            robot = await self.store.get_robot(robot.name)
+            if robot.name in self._robots:
+                self._robots[robot.name] = robot
+        if robot.name not in self._rt:
+            self._add_runtime(robot)
+            self._start_link(self._rt[robot.name])
+        self.publish_robot(robot.name)
+        return {"robot": self._robot_view(robot.name)}
 
     async def edit_robot(self, msg: P.SiteEditRobot, actor: str | None) -> dict[str, Any]:
         rt = self._runtime(msg.robot)
