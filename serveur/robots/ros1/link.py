@@ -48,12 +48,12 @@ import itertools
 import logging
 import secrets
 import ssl as ssl_module
-from collections.abc import Mapping
+from collections.abc import AsyncIterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import websockets
-from websockets.asyncio.client import ClientConnection, connect
+from websockets.asyncio.client import ClientConnection
 
 from serveur.clock import Clock
 from serveur.errors import LinkError, RosbridgeError
@@ -61,6 +61,7 @@ from serveur.robots import rosbridge as rb
 from serveur.robots.deadman import DeadManSwitch
 from serveur.robots.driver import LinkListener, connect_failed
 from serveur.robots.names import RosNames
+from serveur.robots.reconnect import Reconnecting, open_rosbridge
 
 __all__ = ["LinkListener", "RobotLink"]
 
@@ -106,7 +107,7 @@ class _Goal:
     acked: bool = False
 
 
-class RobotLink:
+class RobotLink(Reconnecting):
     """One ROS1 robot's rosbridge connection, kept up for the life of the server."""
 
     kind = "ROS1 move_base"
@@ -207,41 +208,18 @@ class RobotLink:
         if self._ws is not None:
             await self._ws.close(code=1001, reason="dropped")
 
-    async def _run(self) -> None:
-        delay = self._backoff[0]
-        tls: dict[str, Any] = {"ssl": self._ssl} if self._ssl is not None else {}
-        while True:
-            try:
-                async with connect(
-                    self.url,
-                    open_timeout=self._open_timeout,
-                    close_timeout=1.0,
-                    max_size=16 * 2**20,
-                    ping_interval=None,  # the move_base status stream is our heartbeat
-                    compression=None,
-                    **tls,
-                ) as ws:
-                    self._ws = ws
-                    self.connects += 1
-                    delay = self._backoff[0]
-                    self.last_failure = ""
-                    await self._session(ws)
-                    reason = "connection closed"
-            except asyncio.CancelledError:
-                self._set_down("server shutting down")
-                raise
-            except ssl_module.SSLError as exc:
-                # Not a network blip: retrying will not help until someone fixes a certificate
-                # or --robot-cafile.
-                reason = self._connect_failed(f"TLS: {exc}")
-            except (OSError, TimeoutError, websockets.exceptions.WebSocketException) as exc:
-                # A wrong address or a robot switched off.
-                reason = self._connect_failed(f"{type(exc).__name__}: {exc}")
-            finally:
-                self._ws = None
-            self._set_down(reason)
-            await asyncio.sleep(delay)
-            delay = min(delay * 2, self._backoff[1])
+    @contextlib.asynccontextmanager
+    async def _open(self) -> AsyncIterator[None]:
+        async with open_rosbridge(self.url, ssl=self._ssl, open_timeout=self._open_timeout) as ws:
+            self._ws = ws
+            yield
+
+    async def _serve(self) -> None:
+        assert self._ws is not None
+        await self._session(self._ws)
+
+    def _closed(self) -> None:
+        self._ws = None
 
     def _connect_failed(self, reason: str) -> str:
         return connect_failed(self, self._listener, reason, log)

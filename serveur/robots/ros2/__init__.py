@@ -6,7 +6,7 @@ control and a goal connection per robot, goals accepted by their feedback, heart
 calls, reconnect).
 
 May import: serveur.clock, serveur.robots.rosbridge, serveur.robots.names,
-serveur.robots.driver, serveur.robots.deadman.
+serveur.robots.driver, serveur.robots.deadman, serveur.robots.reconnect.
 """
 
 __all__: list[str] = []

@@ -42,12 +42,12 @@ import math
 import ssl as ssl_module
 import uuid
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import AsyncIterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import websockets
-from websockets.asyncio.client import ClientConnection, connect
+from websockets.asyncio.client import ClientConnection
 
 from serveur.clock import Clock
 from serveur.errors import LinkError, RosbridgeError
@@ -55,6 +55,7 @@ from serveur.robots import rosbridge as rb
 from serveur.robots.deadman import DeadManSwitch
 from serveur.robots.driver import LinkListener, connect_failed
 from serveur.robots.names import RosNames
+from serveur.robots.reconnect import Reconnecting, open_rosbridge
 from serveur.robots.ros2 import messages as m2
 
 __all__ = ["PING_PERIOD", "Nav2Link"]
@@ -90,7 +91,7 @@ class _Goal:
     pings: int = 0  # heartbeat answers since it was sent or since its last feedback
 
 
-class Nav2Link:
+class Nav2Link(Reconnecting):
     """One ROS 2 robot's rosbridge 2.x connections, kept up for the life of the server."""
 
     kind = "ROS 2 Nav2"
@@ -177,40 +178,20 @@ class Nav2Link:
                 await ws.close(code=1001, reason="dropped")
 
     def _connect(self) -> Any:
-        tls: dict[str, Any] = {"ssl": self._ssl} if self._ssl is not None else {}
-        return connect(
-            self.url,
-            open_timeout=self._open_timeout,
-            close_timeout=1.0,
-            max_size=16 * 2**20,
-            ping_interval=None,  # the rosapi calls are the heartbeat
-            compression=None,
-            **tls,
-        )
+        return open_rosbridge(self.url, ssl=self._ssl, open_timeout=self._open_timeout)
 
-    async def _run(self) -> None:
-        delay = self._backoff[0]
-        while True:
-            try:
-                async with self._connect() as ctl, self._connect() as nav:
-                    self._ctl, self._nav = ctl, nav
-                    self.connects += 1
-                    delay = self._backoff[0]
-                    self.last_failure = ""
-                    await self._session(ctl, nav)
-                    reason = "connection closed"
-            except asyncio.CancelledError:
-                self._set_down("server shutting down")
-                raise
-            except ssl_module.SSLError as exc:
-                reason = self._connect_failed(f"TLS: {exc}")
-            except (OSError, TimeoutError, websockets.exceptions.WebSocketException) as exc:
-                reason = self._connect_failed(f"{type(exc).__name__}: {exc}")
-            finally:
-                self._ctl = self._nav = None
-            self._set_down(reason)
-            await asyncio.sleep(delay)
-            delay = min(delay * 2, self._backoff[1])
+    @contextlib.asynccontextmanager
+    async def _open(self) -> AsyncIterator[None]:
+        async with self._connect() as ctl, self._connect() as nav:
+            self._ctl, self._nav = ctl, nav
+            yield
+
+    async def _serve(self) -> None:
+        assert self._ctl is not None and self._nav is not None
+        await self._session(self._ctl, self._nav)
+
+    def _closed(self) -> None:
+        self._ctl = self._nav = None
 
     def _connect_failed(self, reason: str) -> str:
         return connect_failed(self, self._listener, reason, log)

@@ -1,0 +1,90 @@
+"""Keeping a robot's rosbridge connections up: the one reconnect loop every driver runs.
+
+A robot's link lives as long as the server: connect, run the session until the connection
+drops, say why (once per distinct reason: :func:`~serveur.robots.driver.connect_failed`), wait
+with exponential backoff, connect again. The ROS1 driver holds one connection and the ROS 2
+driver two (goals on their own, so Humble's blocked queue never delays a Stop); everything
+else about reconnecting is the same, so it is written once here and each driver says only how
+it opens its connections and what its session does.
+
+A TLS failure is reported as such: retrying will not help until someone fixes a certificate or
+``--robot-cafile``, and staff must read that, not "connection refused".
+"""
+
+from __future__ import annotations
+
+import asyncio
+import ssl as ssl_module
+from contextlib import AbstractAsyncContextManager
+from typing import Any
+
+import websockets
+from websockets.asyncio.client import connect
+
+__all__ = ["Reconnecting", "open_rosbridge"]
+
+
+def open_rosbridge(url: str, *, ssl: ssl_module.SSLContext | None, open_timeout: float) -> Any:
+    """One websocket to a rosbridge server, as every driver opens it: no websocket pings (the
+    driver's own heartbeat, over ROS, is the one that matters), no compression (rosbridge does
+    not negotiate it), frames up to 16 MiB (a map)."""
+    tls: dict[str, Any] = {"ssl": ssl} if ssl is not None else {}
+    return connect(
+        url,
+        open_timeout=open_timeout,
+        close_timeout=1.0,
+        max_size=16 * 2**20,
+        ping_interval=None,
+        compression=None,
+        **tls,
+    )
+
+
+class Reconnecting:
+    """The reconnect loop of a driver; the driver provides the four methods below."""
+
+    _backoff: tuple[float, float]
+    connects: int
+    last_failure: str
+
+    def _open(self) -> AbstractAsyncContextManager[None]:
+        """Open the robot's connections and keep them on the driver until the block exits."""
+        raise NotImplementedError
+
+    async def _serve(self) -> None:
+        """The session on the open connections; returns when they close."""
+        raise NotImplementedError
+
+    def _closed(self) -> None:
+        """Forget the connections (they are closed)."""
+        raise NotImplementedError
+
+    def _set_down(self, reason: str) -> None:
+        raise NotImplementedError
+
+    def _connect_failed(self, reason: str) -> str:
+        raise NotImplementedError
+
+    async def _run(self) -> None:
+        delay = self._backoff[0]
+        while True:
+            try:
+                async with self._open():
+                    self.connects += 1
+                    delay = self._backoff[0]
+                    self.last_failure = ""
+                    await self._serve()
+                    reason = "connection closed"
+            except asyncio.CancelledError:
+                self._set_down("server shutting down")
+                raise
+            except ssl_module.SSLError as exc:
+                reason = self._connect_failed(f"TLS: {exc}")
+            except (OSError, TimeoutError, websockets.exceptions.WebSocketException) as exc:
+                # A wrong address or a robot switched off.
+                reason = self._connect_failed(f"{type(exc).__name__}: {exc}")
+            finally:
+                self._closed()
+            self._set_down(reason)
+            await asyncio.sleep(delay)
+            delay = min(delay * 2, self._backoff[1])
