@@ -206,6 +206,11 @@ class ZoneRecord(_Record):
     name: str
     points: list[tuple[float, float]]
     capacity: int = 1
+    wait_at: str | None = Field(
+        default=None,
+        description="a waypoint outside the zone: a robot standing in the zone that cannot get"
+        " the other zones of its next leg goes there to wait, so it holds nothing meanwhile",
+    )
     updated_at: float = 0.0
     removed: bool = Field(default=False, description="true only in the update saying so")
 

@@ -399,6 +399,11 @@ class CreateZone(_ClientMsg):
         Field(min_length=3, max_length=32, description="[[x, y], ...] in map metres"),
     ]
     capacity: Annotated[int, Field(ge=1, le=8)] = 1
+    wait_at: Name | None = Field(
+        default=None,
+        description="A waypoint outside the zone where a robot standing in it waits for the"
+        " other zones of its next leg",
+    )
     replace: bool = Field(default=False, description="Change an existing zone of this name")
 
 

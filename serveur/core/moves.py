@@ -141,6 +141,7 @@ class RobotMoves:
         zones); until then it stays where it is (serveur.core.traffic)."""
         rt.dest = dest
         rt.goal_id = None
+        rt.resume_dest = None
         if await self._lease_leg(rt, dest):
             await self._send_goal(rt, dest)
 
@@ -149,6 +150,8 @@ class RobotMoves:
         async def _lease_leg(self, rt: Runtime, dest: Destination) -> bool: ...
 
         def leg_ended(self, rt: Runtime) -> None: ...
+
+        async def _waited(self, rt: Runtime, succeeded: bool, text: str) -> bool: ...
 
     async def _send_goal(self, rt: Runtime, dest: Destination) -> None:
         assert rt.link is not None
@@ -214,6 +217,10 @@ class RobotMoves:
     async def _goal_ended(self, rt: Runtime, status: rb.GoalStatus, text: str) -> None:
         self.leg_ended(rt)
         dest = rt.dest
+        # Back outside a zone, at its waiting point: the leg it waited for is asked again.
+        succeeded = status is rb.GoalStatus.SUCCEEDED
+        if dest is not None and dest.kind == "wait" and await self._waited(rt, succeeded, text):
+            return
         st = rt.state.status
         if status is rb.GoalStatus.SUCCEEDED and dest is not None:
             if rt.pose is not None:

@@ -101,6 +101,7 @@ class Runtime:
     link_error: str | None = None  # the link's last connection failure, until it connects
     waiting_for: list[str] | None = None  # zones it waits to be leased (its goal not sent)
     waiting_since: float | None = None  # clock.epoch() it started waiting
+    resume_dest: Destination | None = None  # where it goes once back from a zone's waiting spot
     odometer_at: tuple[float, float] | None = None  # where the odometer last counted from
     odometer: float = 0.0  # metres driven since this server started (in each status event)
 

@@ -71,6 +71,8 @@ class Traffic:
 
         async def _send_goal(self, rt: Runtime, dest: Destination) -> None: ...
 
+        async def _drive(self, rt: Runtime, dest: Destination) -> None: ...
+
     # -- zones ------------------------------------------------------------------------------
 
     async def load_zones(self) -> None:
@@ -82,6 +84,7 @@ class Traffic:
             name=msg.name,
             points=[(p[0], p[1]) for p in msg.points],
             capacity=msg.capacity,
+            wait_at=msg.wait_at,
         )
         saved = await self.store.put_zone(
             rec, replace=msg.replace, now=self.clock.epoch(), by=actor
@@ -159,8 +162,47 @@ class Traffic:
                 ", ".join(zones),
                 ", ".join(self.leases.blockers(rt.name)) or "nobody",
             )
+            spot = self._waiting_spot(rt)
+            if spot is not None:
+                await self._wait_outside(rt, dest, spot)
         self._publish_leases()
         return mine
+
+    def _waiting_spot(self, rt: Runtime) -> Destination | None:
+        """Where a refused robot should wait instead of where it stands: the waiting point of a
+        zone it holds and stands in (else it would hold that zone while it waits for others,
+        the one way robots can wait for each other for ever)."""
+        if rt.pose is None:
+            return None
+        x, y = rt.pose[0], rt.pose[1]
+        for name in self.leases.held(rt.name):
+            zone, rec = self.leases.zones.get(name), self.zone_records.get(name)
+            if zone is None or rec is None or rec.wait_at is None or not zone.contains(x, y):
+                continue
+            wp = self.places.waypoints.get(rec.wait_at)
+            if wp is not None:
+                return Destination("wait", wp.name, wp.x, wp.y, wp.yaw)
+        return None
+
+    async def _wait_outside(self, rt: Runtime, dest: Destination, spot: Destination) -> None:
+        """Leave the zone for its waiting point, holding nothing more; ask again from there."""
+        self._granted(self.leases.withdraw(rt.name))
+        log.info("%s: leaves its zone for %s to wait there", rt.name, spot.name)
+        rt.resume_dest = dest
+        rt.waiting_for = [spot.name]
+        rt.dest = spot
+        self.publish_robot(rt.name)
+        await self._send_goal(rt, spot)
+
+    async def _waited(self, rt: Runtime, succeeded: bool, text: str) -> bool:
+        """The goal to a waiting point ended: ask again for the leg it waited to drive.
+        False if the robot did not get there (the caller reports the failure)."""
+        resume, rt.resume_dest = rt.resume_dest, None
+        rt.waiting_for = rt.waiting_since = None
+        if not succeeded or resume is None or rt.state.status not in _MOVING:
+            return succeeded
+        await self._drive(rt, resume)
+        return True
 
     async def _lease_granted(self, rt: Runtime) -> None:
         """A ``lease`` report: the zones it waited for are its own now; drive the leg."""

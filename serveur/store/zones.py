@@ -21,7 +21,7 @@ from serveur.store.site import SiteMixin
 
 __all__ = ["ZonesMixin", "check_zone", "load_zones_file"]
 
-_ZONE = "SELECT name, points, capacity, updated_at FROM zones"
+_ZONE = "SELECT name, points, capacity, wait_at, updated_at FROM zones"
 
 
 def check_zone(points: Sequence[Sequence[float]], capacity: int) -> list[tuple[float, float]]:
@@ -53,7 +53,15 @@ def load_zones_file(path: str | Path) -> list[ZoneRecord]:
         for z in items:
             capacity = z.get("capacity", 1)
             points = check_zone(z["points"], capacity)
-            out.append(ZoneRecord(name=str(z["name"]), points=points, capacity=capacity))
+            wait_at = z.get("wait_at")
+            out.append(
+                ZoneRecord(
+                    name=str(z["name"]),
+                    points=points,
+                    capacity=capacity,
+                    wait_at=None if wait_at is None else str(wait_at),
+                )
+            )
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
         raise InvalidField(f"{path}: not a zones file: {exc}", file=str(path)) from None
     return out
@@ -78,22 +86,40 @@ class ZonesMixin(SiteMixin):
 
         async def work(db: SqlTx) -> ZoneRecord:
             row = await _one(db, f"{_ZONE} WHERE name = ?", (zone.name,))
+            if zone.wait_at is not None and not await _one(
+                db,
+                "SELECT 1 FROM waypoints WHERE removed_at IS NULL AND name = ?",
+                (zone.wait_at,),
+            ):
+                raise NotFound(f"no waypoint named {zone.wait_at!r}", waypoint=zone.wait_at)
             if row is not None:
                 old = ZoneRecord(**row)
-                if (old.points, old.capacity) == (points, zone.capacity):
+                if (old.points, old.capacity, old.wait_at) == (
+                    points,
+                    zone.capacity,
+                    zone.wait_at,
+                ):
                     return old
                 if not replace:
                     raise Conflict(f"a zone named {zone.name!r} exists", zone=zone.name)
                 await db.run(
-                    "UPDATE zones SET points = ?, capacity = ?, updated_at = ? WHERE name = ?",
-                    (body, zone.capacity, now, zone.name),
+                    "UPDATE zones SET points = ?, capacity = ?, wait_at = ?, updated_at = ?"
+                    " WHERE name = ?",
+                    (body, zone.capacity, zone.wait_at, now, zone.name),
                 )
             else:
                 await db.run(
-                    "INSERT INTO zones (name, points, capacity, updated_at) VALUES (?, ?, ?, ?)",
-                    (zone.name, body, zone.capacity, now),
+                    "INSERT INTO zones (name, points, capacity, wait_at, updated_at)"
+                    " VALUES (?, ?, ?, ?, ?)",
+                    (zone.name, body, zone.capacity, zone.wait_at, now),
                 )
-            data = {"name": zone.name, "points": points, "capacity": zone.capacity, "by": by}
+            data = {
+                "name": zone.name,
+                "points": points,
+                "capacity": zone.capacity,
+                "wait_at": zone.wait_at,
+                "by": by,
+            }
             await _event(db, "zone.saved", now, data=data)
             saved = await _one(db, f"{_ZONE} WHERE name = ?", (zone.name,))
             assert saved is not None

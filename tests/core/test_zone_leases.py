@@ -35,6 +35,8 @@ RES = 0.05
 RADIUS = 0.2
 # The aisle: x 3..5 m, y 1.25..1.8 m (0.55 m: one robot of 0.4 m, never two side by side).
 AISLE = [[2.9, 1.0], [5.1, 1.0], [5.1, 2.05], [2.9, 2.05]]
+# A part of the east half the aisle leads into (around "east", clear of the table R).
+HALL = [[5.6, 0.9], [6.9, 0.9], [6.9, 2.0], [5.6, 2.0]]
 
 
 def narrow_room(tmp: Path) -> Path:
@@ -50,6 +52,8 @@ def narrow_room(tmp: Path) -> Path:
         {"name": "home2", "x": 7.0, "y": 1.5, "yaw": math.pi, "kind": "home"},
         {"name": "L", "x": 1.5, "y": 2.4, "yaw": 0.0, "kind": "table"},
         {"name": "R", "x": 6.5, "y": 2.4, "yaw": 0.0, "kind": "table"},
+        {"name": "mid", "x": 4.0, "y": 1.52, "yaw": 0.0, "kind": "other"},  # in the aisle
+        {"name": "east", "x": 6.2, "y": 1.5, "yaw": 0.0, "kind": "other"},
     ]
     (tmp / "narrow_waypoints.json").write_text(json.dumps({"waypoints": wps}))
     return yaml_path
@@ -145,3 +149,42 @@ async def test_without_leases_the_same_meeting_deadlocks(tmp_path: Path) -> None
         r1, r2 = sim.robots
         assert 2.5 < r1.pose[0] < 5.5 and 2.5 < r2.pose[0] < 5.5  # stuck in or at the aisle
         assert closest[0] >= 2 * RADIUS  # they do not collide: they block each other
+
+
+async def test_a_robot_standing_in_the_aisle_waits_at_its_waiting_point(tmp_path: Path) -> None:
+    """r1 stopped inside the aisle wants to go east, where r2 stands in the hall; r2 wants to
+    go west through the aisle. Holding the aisle while it waited, r1 would block r2 for ever
+    (each holds what the other needs). With a waiting point for the aisle, r1 leaves it to
+    wait at L, holding nothing: r2 comes through, then r1 goes."""
+    async with narrow_restaurant(tmp_path, leases=True) as (app, sim, c):
+        token = await app.issue_token("integration", scopes=["site", "read"])
+        owner = Client(
+            await connect(app.url, additional_headers={"Authorization": f"Bearer {token}"})
+        )
+        await owner.ok("create", type="zone", name="aisle", points=AISLE, wait_at="L")
+        await owner.ok("create", type="zone", name="hall", points=HALL)
+        await owner.close()
+        await c.subscribe("robots", "leases", "zones")
+        for name in ("r1", "r2"):
+            await c.until(lambda n=name: c.robot(n).get("status") == "Ready", WAIT, f"{name} up")
+            await c.ok("control", robot=name, action="manual")
+        r1, r2 = sim.robots
+        closest = watch_closest(sim)
+        assert app.core is not None
+        await c.ok("control", robot="r1", action="goto", waypoint="mid")
+        await poll_until(lambda: math.dist(r1.pose[:2], (4.0, 1.52)) < 0.2, WAIT, "r1 in the aisle")
+        await c.ok("control", robot="r2", action="goto", waypoint="east")
+        await poll_until(lambda: math.dist(r2.pose[:2], (6.2, 1.5)) < 0.2, WAIT, "r2 in the hall")
+        assert app.core.leases.holders("aisle") == ["r1"]
+        assert app.core.leases.holders("hall") == ["r2"]
+        # r1 cannot have the hall: it leaves the aisle for L instead of holding it.
+        await c.ok("control", robot="r1", action="goto", waypoint="R")
+        await poll_until(lambda: math.dist(r1.pose[:2], (1.5, 2.4)) < 0.25, WAIT, "r1 waits at L")
+        await poll_until(lambda: app.core.leases.holders("aisle") == [], WAIT, "aisle free")
+        # r2 goes west through the aisle; then r1 gets both zones and reaches R.
+        await c.ok("control", robot="r2", action="goto", waypoint="home1")
+        await poll_until(lambda: math.dist(r2.pose[:2], (1.0, 1.5)) < 0.2, WAIT, "r2 home")
+        await poll_until(lambda: math.dist(r1.pose[:2], (6.5, 2.4)) < 0.2, WAIT, "r1 at R")
+        assert app.core.leases.cycles() == []
+        assert closest[0] >= 2 * RADIUS
+        assert c.robot("r1").get("last_error") is None, c.robot("r1")
