@@ -182,9 +182,12 @@ async def test_zones_drawn_imported_leased_released_and_removed(
         form = owner.get_by_role("dialog", name="New zone")
         await expect(form.get_by_label("Robots allowed in it at once")).to_have_value("1")
         await form.get_by_label("Name").fill("aisle")
+        # Its waiting point: a robot stopped in the aisle that cannot go on waits at L.
+        await form.get_by_label("Where robots wait to enter").select_option("L")
         await form.get_by_role("button", name="Save zone").click()
         await expect(form).to_have_count(0)
         await poll_until(lambda: "aisle" in core.zone_records, WAIT, "aisle stored")
+        assert core.zone_records["aisle"].wait_at == "L"
         stored = [list(p) for p in core.zone_records["aisle"].points]
         assert all(math.dist(p, q) < 0.05 for p, q in zip(stored, AISLE, strict=True)), stored
         assert core.zone_records["aisle"].capacity == 1
@@ -217,7 +220,7 @@ async def test_zones_drawn_imported_leased_released_and_removed(
         await expect(form).to_have_count(0)
         await poll_until(lambda: "corner" in core.zone_records, WAIT, "corner stored")
         got = core.zone_records["corner"]
-        assert got.capacity == 2
+        assert got.capacity == 2 and got.wait_at is None
         assert all(math.dist(p, q) < 0.02 for p, q in zip(got.points, corners, strict=True)), (
             got.points,
             corners,

@@ -163,12 +163,19 @@ export class MapTools {
       id: "zone-capacity", type: "number", min: 1, max: MAX_CAPACITY, step: 1, inputmode: "numeric", required: true,
       value: String(old ? old.capacity : 1),
     });
+    // Where a robot standing in the zone waits when it cannot go on (docs/zones.md): a place.
+    const waitAt = el("select", { id: "zone-wait-at" }, el("option", { value: "", text: t("map.zone.waitNone") }));
+    for (const wp of [...this.live.waypoints.values()].sort((a, b) => a.name.localeCompare(b.name))) {
+      waitAt.append(el("option", { value: wp.name, text: wp.name }));
+    }
+    waitAt.value = old && old.wait_at ? old.wait_at : "";
     await formDialog({
       title: editing ? t("map.zone.editTitle", { zone: editing }) : t("map.zone.newTitle"),
       yes: t("map.zone.save"),
       fields: [
         field("zone-name", "map.zone.name", name),
         field("zone-capacity", "map.zone.capacity", capacity),
+        field("zone-wait-at", "map.zone.waitAt", waitAt),
         el("p", { class: "muted rest-hint", text: t("map.zone.corners", { count: points.length }) }),
         el("p", { class: "muted rest-hint", text: t("map.zone.capacityNote") }),
       ],
@@ -181,6 +188,7 @@ export class MapTools {
           capacity: Number(capacity.value),
           replace: Boolean(editing),
         };
+        if (waitAt.value) msg.wait_at = waitAt.value;
         const reply = await this.conn.request(msg);
         toast(t("map.zone.saved", { zone: reply.zone.name }));
         return true;

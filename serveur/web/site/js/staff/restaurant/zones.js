@@ -1,7 +1,7 @@
 // The Restaurant tab's zones (issue 21, docs/zones.md): each zone with its capacity, who holds
 // it and who waits; draw it again on the map (maptools.js, `create zone` with `replace`), remove
 // it (`site remove_zone`), release a lease stuck on a robot (`release`), and import a file of
-// zones ({"zones": [{name, points, capacity}]}: each sent as `create zone` with `replace`, those
+// zones ({"zones": [{name, points, capacity, wait_at}]}: each sent as `create zone` with `replace`, those
 // refused listed with the reason). Its own module so that the panel (restaurant.js) only lays
 // the sections out.
 
@@ -92,6 +92,7 @@ export class ZonesSection {
       const name = z && typeof z.name === "string" && z.name ? z.name : t("owner.zones.importNth", { n: i + 1 });
       const msg = { clientmsg: "create", type: "zone", name: z && z.name, points: z && z.points, replace: true };
       if (z && z.capacity !== undefined) msg.capacity = z.capacity;
+      if (z && z.wait_at) msg.wait_at = z.wait_at;
       try {
         await this.conn.request(msg);
         done.push(name);
