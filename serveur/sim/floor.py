@@ -1,0 +1,246 @@
+"""Other robots on a simulated robot's floor: seen, waited for, planned around, given up on.
+
+Split from :mod:`serveur.sim.robot` (the robot's part for sharing the floor).
+
+Other robots are not obstacles unless the fleet says so (:meth:`SimRobot.share_floor`, the
+fleet's ``robots_see_each_other``; off by default). Then each robot's footprint, a disc of the
+planner's robot radius, shows in the others' ``/scan`` (ray-disc intersection) and stops them:
+a robot slows down to stop :data:`ROBOT_GAP` short of one in its way and waits, as a local
+planner whose costmap holds the other robot does; after :data:`ROBOT_REPLAN_AFTER` s it plans
+around the robots standing still (their discs marked on a copy of the map, as a costmap's
+obstacle layer marks them) and takes the detour if one exists; after the patience
+(:data:`ROBOT_PATIENCE`, 30 s of sim time: move_base aborts after ``controller_patience``, 15 s
+by default in move_base.cpp, plus its default recoveries; Nav2's default navigate_to_pose tree
+retries 6 times, with a progress checker allowing 10 s per 0.5 m, docs.nav2.org) its goal
+ABORTs with "blocked by another robot (NAME) for N s": move_base ABORTED (4), Nav2 status 6
+with error code 105 (FAILED_TO_MAKE_PROGRESS). What is not modelled: the recoveries' own motion
+(in-place rotations, backing up), other robots' velocities (only where they are now), and any
+rule about who gives way, so two robots meeting head-on in an aisle one robot wide deadlock
+until both goals abort.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import itertools
+import logging
+import math
+from collections.abc import Sequence
+from typing import Final
+
+import numpy as np
+
+from serveur.errors import ServeurError
+from serveur.maps.navigation import OccupancyMap, Planner
+from serveur.robots.rosbridge import GoalStatus
+from serveur.sim import ros2
+from serveur.sim.base import Goal, RobotBase
+from serveur.sim.kinematics import PathFollower
+from serveur.sim.navigator import Navigator
+
+__all__ = [
+    "ROBOT_GAP",
+    "ROBOT_PATIENCE",
+    "ROBOT_PROGRESS",
+    "ROBOT_REPLAN_AFTER",
+    "ROBOT_REPLAN_EVERY",
+    "ROBOT_REPLAN_TAKES",
+    "Floor",
+]
+
+log = logging.getLogger("serveur.robot_sim")
+
+#: Other robots as obstacles (opt-in, :meth:`SimRobot.share_floor`). A robot blocked by another
+#: waits this long (s sim) before its goal ABORTs. move_base gives up after controller_patience
+#: (15 s by default, move_base.cpp) then its default recoveries (two costmap clearings, two
+#: in-place rotations); Nav2's default tree retries 6 times with Wait 5 s among its recoveries
+#: and a progress checker allowing 10 s per 0.5 m. Some tens of seconds either way: 30 s.
+ROBOT_PATIENCE: Final = 30.0
+#: s sim blocked by a robot standing still before planning around it (a costmap marks it and
+#: the planner routes around it), then at most every 5 s (move_base's planner_patience).
+ROBOT_REPLAN_AFTER: Final = 2.0
+ROBOT_REPLAN_EVERY: Final = 5.0
+#: m a robot's footprint stops short of another's (a local planner's safety margin).
+ROBOT_GAP: Final = 0.05
+_ROBOT_STOP: Final = 0.02  # m of room left under which a robot counts as blocked
+#: m a blocked robot must get from where it stopped to count as progressing again (Nav2's
+#: SimpleProgressChecker ``required_movement_radius`` default).
+ROBOT_PROGRESS: Final = 0.5
+_ROBOT_STILL: Final = 0.05  # m/s: a robot slower than this is standing still (planned around)
+#: s sim between asking for a plan around robots and taking it: the planning runs in a worker
+#: thread meanwhile (~40 ms on the demo room), and the robot, standing still, takes the detour
+#: exactly this long after it asked whatever the load (a run stays deterministic).
+ROBOT_REPLAN_TAKES: Final = 0.5
+_DETOURS: concurrent.futures.ThreadPoolExecutor | None = None
+
+
+def _detour_pool() -> concurrent.futures.ThreadPoolExecutor:
+    global _DETOURS
+    if _DETOURS is None:
+        _DETOURS = concurrent.futures.ThreadPoolExecutor(2, thread_name_prefix="sim-detour")
+    return _DETOURS
+
+
+class Floor(Navigator):
+    """The robot among other robots (:meth:`share_floor`; see the module's docstring)."""
+
+    def share_floor(self, others: Sequence[RobotBase], patience: float = ROBOT_PATIENCE) -> None:
+        """Make ``others`` solid for this robot: their footprints (discs of their
+        :attr:`radius`) show in its ``/scan`` and it never drives its own into theirs.
+
+        Driving a goal, the robot slows down to stop :data:`ROBOT_GAP` short of a robot in its
+        way and waits; after :data:`ROBOT_REPLAN_AFTER` s, if the robots in the way stand still,
+        it plans around their footprints (again at most every :data:`ROBOT_REPLAN_EVERY` s)
+        and follows the detour if there is one. Blocked ``patience`` s (sim) without getting
+        :data:`ROBOT_PROGRESS` m from where it stopped, its goal ABORTs ("blocked by another
+        robot"). Any other motion (teleop) into another robot is simply not taken. Nothing
+        decides who gives way: two robots meeting head-on in an aisle one robot wide deadlock
+        until both goals abort, as two move_base/Nav2 robots without a fleet manager would.
+        """
+        if not (math.isfinite(patience) and patience > 0):
+            raise ValueError("patience must be a positive number of seconds")
+        self._others = tuple(o for o in others if o is not self)
+        self._patience = float(patience)
+        self._wait_since = None
+
+    # -- other robots (share_floor) ----------------------------------------------------------
+
+    def _gap_ahead(self, dx: float, dy: float) -> tuple[float, RobotBase | None]:
+        """How far (m) this robot's footprint can go along the unit vector (dx, dy) before it
+        touches another robot's, and which robot that is (inf, None: nothing in the way)."""
+        m = self._motion
+        best, who = math.inf, None
+        for o in self._others:
+            om = o._motion
+            px, py = om.x - m.x, om.y - m.y
+            s = px * dx + py * dy
+            if s <= 0.0:
+                continue  # beside or behind
+            reach = self.radius + o.radius
+            h2 = px * px + py * py - s * s
+            if h2 >= reach * reach:
+                continue  # passes clear of it
+            gap = max(0.0, s - math.sqrt(reach * reach - h2))
+            if gap < best:
+                best, who = gap, o
+        return best, who
+
+    def _mind_robots(self, g: Goal, cmd: tuple[float, float, float]) -> tuple[float, float, float]:
+        """The local planner facing other robots: slow down to stop short of one in the way,
+        wait, plan around robots standing still, and abort after the patience."""
+        m = self._motion
+        if self._detour is not None and self._t >= self._detour[0] - 1e-9:
+            self._take_detour(g)
+            cmd = self._follower.command(m.x, m.y, m.yaw) if self._follower else (0.0, 0.0, 0.0)
+        vx, vy, wz = cmd
+        speed = math.hypot(vx, vy)
+        gap, who = math.inf, None
+        if speed > 1e-9:
+            c, s = math.cos(m.yaw), math.sin(m.yaw)
+            gap, who = self._gap_ahead((vx * c - vy * s) / speed, (vx * s + vy * c) / speed)
+        room = gap - ROBOT_GAP
+        if room > _ROBOT_STOP:
+            if self._wait_since is not None and (
+                math.hypot(m.x - self._wait_at[0], m.y - self._wait_at[1]) >= ROBOT_PROGRESS
+            ):
+                self._wait_since = None  # got away: a new block starts a new wait
+            if gap < math.inf:
+                lim = self.limits
+                v = min(math.sqrt(2.0 * 0.8 * lim.max_accel * room), 2.0 * room)
+                if v < speed:
+                    k = v / speed
+                    return vx * k, vy * k, wz
+            return cmd
+        t = self._t
+        if self._wait_since is None:
+            self._wait_since, self._wait_at = t, (m.x, m.y)
+            # waiting for a robot is not slowness: the goal's deadline leaves room for it
+            self._goal_deadline = max(self._goal_deadline, t + self._patience + 1.0)
+        waited = t - self._wait_since
+        if waited >= self._patience:
+            name = who.name if who is not None else "?"
+            self._finish(
+                g,
+                GoalStatus.ABORTED,
+                f"blocked by another robot ({name}) for {waited:.0f} s",
+                code=ros2.FAILED_TO_MAKE_PROGRESS,
+            )
+        elif (
+            waited >= ROBOT_REPLAN_AFTER
+            and t - self._replanned >= ROBOT_REPLAN_EVERY
+            and self._detour is None
+        ):
+            self._replanned = t
+            self._plan_around(g)
+        return 0.0, 0.0, 0.0
+
+    def _plan_around(self, g: Goal) -> None:
+        """Ask for a plan to ``g`` with the footprints of the robots standing still marked as
+        obstacles (a costmap's obstacle layer); :meth:`_take_detour` follows it if there is
+        one, else the robot keeps waiting.
+
+        The map and the robots are copied now and planned on in a worker thread (a fresh
+        planner, one distance field: ~40 ms on the demo room), taken :data:`ROBOT_REPLAN_TAKES`
+        s of sim time later, so neither the physics loop stalls nor a run's outcome depends on
+        the machine's speed (a slow plan is waited for then).
+        """
+        still = [o for o in self._others if o._motion.speed < _ROBOT_STILL]
+        if not still:
+            return
+        base = self._map
+        grid = base.grid.copy()
+        res, (ox, oy, _) = base.resolution, base.origin
+        rows, cols = np.ogrid[0 : base.height, 0 : base.width]
+        for o in still:
+            om = o._motion
+            cx, cy = (om.x - ox) / res - 0.5, (om.y - oy) / res - 0.5  # in cell-centre units
+            r = o.radius / res
+            grid[(rows - cy) ** 2 + (cols - cx) ** 2 <= r * r] = 100
+        m = self._motion
+        start, goal = (m.x, m.y), (g.x, g.y)
+        radius, clearance = self._planner.robot_radius, self._planner.clearance
+
+        def work() -> list[tuple[float, float]]:
+            planner = Planner(
+                OccupancyMap(grid, res, base.origin), radius, clearance=clearance, cache_size=1
+            )
+            return planner.plan(start, goal)
+
+        fut = _detour_pool().submit(work)
+        fut.add_done_callback(lambda f: f.cancelled() or f.exception())
+        self._detour = (self._t + ROBOT_REPLAN_TAKES, start, fut)
+
+    def _take_detour(self, g: Goal) -> None:
+        """Follow the plan :meth:`_plan_around` asked for (waiting for it if it is late), unless
+        there is none or the robot moved since it asked."""
+        due = self._detour
+        self._detour = None
+        assert due is not None
+        _, (x0, y0), fut = due
+        m = self._motion
+        try:
+            path = fut.result()
+        except ServeurError as exc:
+            log.debug("%s: no way around the robots in the way: %s", self.name, exc)
+            return
+        except Exception:
+            log.exception("%s: planning around the robots in the way failed", self.name)
+            return
+        if math.hypot(m.x - x0, m.y - y0) > 0.05:
+            return  # the way cleared meanwhile and the robot drove on
+        self._follower = PathFollower(path, g.yaw, self.kinematics, self.limits)
+        length = sum(math.dist(a, b) for a, b in itertools.pairwise(path))
+        self._goal_deadline = max(
+            self._goal_deadline, self._t + 30.0 + 3.0 * length / self.limits.max_speed
+        )
+
+    def _into_robot(self, x0: float, y0: float, x1: float, y1: float) -> bool:
+        """Whether moving from (x0, y0) to (x1, y1) drives this robot's footprint into another
+        robot's (robots already overlapping may still move apart)."""
+        for o in self._others:
+            om = o._motion
+            reach = self.radius + o.radius
+            d1 = math.hypot(x1 - om.x, y1 - om.y)
+            if d1 < reach and d1 < math.hypot(x0 - om.x, y0 - om.y):
+                return True
+        return False
