@@ -60,9 +60,18 @@ def narrow_room(tmp: Path) -> Path:
 
 
 @contextlib.asynccontextmanager
-async def narrow_restaurant(tmp: Path, *, leases: bool) -> AsyncIterator[tuple[App, Any, Client]]:
+async def narrow_restaurant(
+    tmp: Path,
+    *,
+    leases: bool,
+    scale: float = SCALE,
+    heartbeat: float = 2.0,
+    ack_timeout: float = 3.0,
+) -> AsyncIterator[tuple[App, Any, Client]]:
+    """The narrow room on a real server, two simulated robots that see each other at home1 and
+    home2, and a staff client. (A slower ``scale`` and a longer ``heartbeat`` suit Chromium.)"""
     yaml_path = narrow_room(tmp)
-    clock = ScaledClock(SCALE)
+    clock = ScaledClock(scale)
     sim = await start_simulation(
         2,
         port=0,
@@ -83,7 +92,9 @@ async def narrow_restaurant(tmp: Path, *, leases: bool) -> AsyncIterator[tuple[A
         map_path=yaml_path,
         waypoints=load_waypoints(tmp / "narrow_waypoints.json"),
         robots=specs,
-        config=CoreConfig(heartbeat=2.0, ack_timeout=3.0, auto_depart=True, leases=leases),
+        config=CoreConfig(
+            heartbeat=heartbeat, ack_timeout=ack_timeout, auto_depart=True, leases=leases
+        ),
         plan_in_child=False,
     )
     await app.start()

@@ -11,13 +11,9 @@ from pathlib import Path
 import pytest
 from websockets.asyncio.client import connect
 
-from serveur.app import App
-from serveur.clock import FakeClock
 from serveur.errors import InvalidField
-from serveur.maps.navigation import load_demo
-from serveur.security.sessions import SecurityConfig
 from serveur.store.zones import load_zones_file
-from tests.security.test_security import login, request
+from tests.security.test_security import bare_server, login, request
 
 AISLE = [[2.0, 1.0], [4.0, 1.0], [4.0, 1.6], [2.0, 1.6]]
 
@@ -49,17 +45,7 @@ def test_a_zones_file_is_read_and_checked(tmp_path: Path) -> None:
 async def test_zones_given_at_start_are_served_and_edited(tmp_path: Path) -> None:
     path = tmp_path / "zones.json"
     path.write_text(json.dumps({"zones": [{"name": "aisle", "points": AISLE, "capacity": 1}]}))
-    _, waypoints = load_demo()
-    app = App(
-        tmp_path / "s.db",
-        port=0,
-        clock=FakeClock(),
-        waypoints=waypoints,
-        zones=load_zones_file(path),
-        security=SecurityConfig(),
-    )
-    await app.start()
-    try:
+    async with bare_server(tmp_path, app={"zones": load_zones_file(path)}) as app:
         ws = await connect(app.url)
         await login(ws, username="owner", password=app.first_owner_password)
         snap = await request(ws, {"clientmsg": "data", "topics": ["zones", "leases"]})
@@ -88,5 +74,3 @@ async def test_zones_given_at_start_are_served_and_edited(tmp_path: Path) -> Non
         removed = await request(ws, gone)
         assert removed["zone"]["removed"] is True
         await ws.close()
-    finally:
-        await app.close()

@@ -1,4 +1,4 @@
-""""How many robots do I need?" over the protocol: a recorded day replayed with other fleets.
+""" "How many robots do I need?" over the protocol: a recorded day replayed with other fleets.
 
 A real server on a database holding a short service day (its dishes stored with their ready
 times, as a service records them); the owner asks for a forecast with 1 and 2 robots, and each
@@ -16,11 +16,9 @@ from typing import Any
 
 from websockets.asyncio.client import ClientConnection, connect
 
-from serveur.app import App
 from serveur.clock import FakeClock
 from serveur.maps.navigation import load_demo
-from serveur.security.sessions import SecurityConfig
-from tests.security.test_security import login, request
+from tests.security.test_security import bare_server, login, request
 
 DAY = "2023-11-14"  # FakeClock's epoch 1_700_000_000 is 2023-11-14 22:13 UTC
 WAIT = 120.0
@@ -36,33 +34,28 @@ async def _until(ws: ClientConnection, pred: Any) -> dict[str, Any]:
     return await asyncio.wait_for(wait(), WAIT)
 
 
+async def record_day(ws: ClientConnection, clock: FakeClock) -> None:
+    """A recorded service day: six dishes for five tables, ready at the pass a minute apart
+    (on DAY, by the FakeClock), created by ``ws``'s owner session."""
+    for i, table in enumerate(["T1", "T2", "T5", "T9", "T1", "T12"]):
+        made = await request(
+            ws, {"clientmsg": "create", "type": "order", "dish": "Laksa", "table": table}
+        )
+        assert made["servermsg"] == "ok", made
+        await clock.advance(60.0 if i < 5 else 1.0)
+
+
 async def test_a_recorded_day_replayed_with_one_and_two_robots(tmp_path: Path) -> None:
-    grid, waypoints = load_demo()
-    app = App(
-        tmp_path / "s.db",
-        port=0,
-        clock=FakeClock(),
-        nav_map=grid,
-        waypoints=waypoints,
-        security=SecurityConfig(),
-        plan_in_child=False,
-    )
-    await app.start()
-    try:
+    grid, _ = load_demo()
+    async with bare_server(tmp_path, app={"nav_map": grid, "plan_in_child": False}) as app:
         ws = await connect(app.url)
         await login(ws, username="owner", password=app.first_owner_password)
         empty = await request(
             ws, {"clientmsg": "stats", "action": "forecast", "day": "2020-01-01", "robots": [1]}
         )
         assert empty["code"] == "not_found", empty
-        # The day's service: six dishes for four tables, ready at the pass a minute apart.
-        for i, table in enumerate(["T1", "T2", "T5", "T9", "T1", "T12"]):
-            made = await request(
-                ws, {"clientmsg": "create", "type": "order", "dish": "Laksa", "table": table}
-            )
-            assert made["servermsg"] == "ok", made
-            assert isinstance(app.clock, FakeClock)
-            await app.clock.advance(60.0 if i < 5 else 1.0)
+        assert isinstance(app.clock, FakeClock)
+        await record_day(ws, app.clock)
         await request(ws, {"clientmsg": "data", "topics": ["forecast"]})
         started = await request(
             ws, {"clientmsg": "stats", "action": "forecast", "day": DAY, "robots": [1, 2]}
@@ -103,5 +96,3 @@ async def test_a_recorded_day_replayed_with_one_and_two_robots(tmp_path: Path) -
         assert refused["code"] == "forbidden"
         await staff.close()
         await ws.close()
-    finally:
-        await app.close()

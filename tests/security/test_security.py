@@ -9,7 +9,7 @@ import logging
 import os
 import sqlite3
 import sys
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -26,23 +26,28 @@ from tests.conftest import WAIT, Client, Restaurant
 
 
 @contextlib.asynccontextmanager
-async def bare_server(tmp_path: Path, **security: Any) -> AsyncIterator[App]:
-    """A server with no robots on a fresh database, on a clock the test moves."""
+async def bare_server(
+    tmp_path: Path, *, app: Mapping[str, Any] | None = None, **security: Any
+) -> AsyncIterator[App]:
+    """A server with no robots (unless ``app`` gives some) on a fresh database and the demo
+    room's waypoints, on a clock the test moves; ``app``: more of App's options (its map,
+    zones, robots...)."""
     from serveur.maps.navigation import load_demo
 
     _, waypoints = load_demo()
-    app = App(
+    server = App(
         tmp_path / "s.db",
         port=0,
         clock=FakeClock(),
         waypoints=waypoints,
         security=SecurityConfig(**security),
+        **(app or {}),
     )
-    await app.start()
+    await server.start()
     try:
-        yield app
+        yield server
     finally:
-        await app.close()
+        await server.close()
 
 
 async def request(ws: ClientConnection, body: dict[str, Any]) -> dict[str, Any]:

@@ -25,10 +25,12 @@ from typing import Any
 
 from websockets.asyncio.client import connect
 
-from serveur.app import App, RobotSpec
+from serveur.app import RobotSpec
 from serveur.clock import FakeClock
 from serveur.maps.navigation import load_demo
-from tests.security.test_security import login, request
+from tests.replay.test_forecast import record_day
+from tests.security.test_security import bare_server, login
+from tests.web.conftest import sideways, too_small
 from tests.web.test_a11y import AXE, violations
 from tests.web.test_ui import (
     SHOTS,
@@ -53,29 +55,14 @@ def minutes(seconds: float) -> str:
 async def test_the_owner_asks_how_many_robots_a_recorded_day_needed(
     tmp_path: Path, browser: Any
 ) -> None:
-    grid, waypoints = load_demo()
+    grid, _ = load_demo()
     dead = [RobotSpec(f"r{i}", "ws://127.0.0.1:9", f"home{i}") for i in (1, 2)]
-    app = App(
-        tmp_path / "serveur.db",
-        port=0,
-        clock=FakeClock(),
-        nav_map=grid,
-        waypoints=waypoints,
-        robots=dead,
-        plan_in_child=False,
-    )
-    await app.start()
-    try:
-        # The recorded day: six dishes for five tables, ready at the pass a minute apart.
+    app_options = {"nav_map": grid, "robots": dead, "plan_in_child": False}
+    async with bare_server(tmp_path, app=app_options) as app:
         ws = await connect(app.url)
         await login(ws, username="owner", password=app.first_owner_password)
-        for i, table in enumerate(["T1", "T2", "T5", "T9", "T1", "T12"]):
-            made = await request(
-                ws, {"clientmsg": "create", "type": "order", "dish": "Laksa", "table": table}
-            )
-            assert made["servermsg"] == "ok", made
-            assert isinstance(app.clock, FakeClock)
-            await app.clock.advance(60.0 if i < 5 else 1.0)
+        assert isinstance(app.clock, FakeClock)
+        await record_day(ws, app.clock)
         await ws.close()
 
         context = await browser.new_context(viewport=TABLET, timezone_id=ZONE, bypass_csp=True)
@@ -193,15 +180,10 @@ async def test_the_owner_asks_how_many_robots_a_recorded_day_needed(
             "() => Number(document.querySelector('#panel-stats svg.chart-fleets')"
             ".getAttribute('width')) <= 390"
         )
-        wide = await page.evaluate("() => document.documentElement.scrollWidth")
-        assert wide <= PHONE["width"], wide
-        small = await page.evaluate(
-            """() => [...document.querySelectorAll(
-                   '#panel-stats .stats-forecast :is(button, select, input, summary)')]
-                 .filter((n) => n.offsetParent !== null)
-                 .map((n) => [n.textContent.trim() || n.id, n.getBoundingClientRect()])
-                 .filter(([, r]) => r.height < 44 || r.width < 44)
-                 .map(([name, r]) => `${name}: ${r.width}x${r.height}`)"""
+        wide, inner = await sideways(page)
+        assert wide <= inner == PHONE["width"], wide
+        small = await too_small(
+            page, "#panel-stats .stats-forecast :is(button, select, input, summary)"
         )
         assert small == [], small
         await section.screenshot(path=str(SHOTS / "forecast-phone.png"))
@@ -216,5 +198,3 @@ async def test_the_owner_asks_how_many_robots_a_recorded_day_needed(
         await expect(section.get_by_role("button", name="Start")).to_be_enabled()
         assert errors == [], errors
         await context.close()
-    finally:
-        await app.close()

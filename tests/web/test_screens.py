@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 
+from tests.web.conftest import sideways, too_small
 from tests.web.test_ui import (
     SHOTS,
     expect,
@@ -30,15 +31,6 @@ SIZES = {
     "desktop": {"width": 1440, "height": 900},
 }
 
-NO_SIDEWAYS_SCROLL = "() => [document.scrollingElement.scrollWidth, window.innerWidth]"
-
-# Controls a waiter's finger aims at: their boxes (hidden ones skipped).
-TARGETS = """(sel) => [...document.querySelectorAll(sel)]
-  .filter((e) => e.offsetParent !== null)
-  .map((e) => {
-    const r = e.getBoundingClientRect();
-    return [e.getAttribute("aria-label") || e.textContent.trim(), r.width, r.height];
-  })"""
 TOPBAR = """() => [...document.querySelectorAll(".topbar > *, .tabs > *")]
   .filter((e) => e.offsetParent !== null && !e.classList.contains("tabs"))
   .map((e) => {
@@ -76,7 +68,7 @@ async def test_every_screen_size(tmp_path: Path, browser: Any, name: str) -> Non
 
         for tab in ("Map", "Send food", "New order", "Kitchen"):
             await page.get_by_role("tab", name=tab).click()
-            width, inner = await page.evaluate(NO_SIDEWAYS_SCROLL)
+            width, inner = await sideways(page)
             assert width <= inner, f"{name} {tab}: page {width} px wide in {inner}"
             tab_box = await page.get_by_role("tab", name=tab).bounding_box()
             assert tab_box and tab_box["height"] < 70, f"{name}: tab label wraps ({tab_box})"
@@ -91,11 +83,7 @@ async def test_every_screen_size(tmp_path: Path, browser: Any, name: str) -> Non
                 apart = ra[2] <= rb[0] or rb[2] <= ra[0] or ra[3] <= rb[1] or rb[3] <= ra[1]
                 assert apart, f"{name}: {a!r} and {b!r} overlap"
 
-        small = [
-            (label, w, h)
-            for label, w, h in await page.evaluate(TARGETS, MAIN_BUTTONS)
-            if w < 44 or h < 44
-        ]
+        small = await too_small(page, MAIN_BUTTONS)
         assert small == [], f"{name}: touch targets under 44 px: {small}"
 
         if name.startswith("tablet"):
@@ -116,7 +104,7 @@ async def test_every_screen_size(tmp_path: Path, browser: Any, name: str) -> Non
             token = await r.app.issue_token(role, **bound)
             await page.goto(f"{http_base(r)}{path}#token={token}")
             await expect(page.locator("body")).to_have_attribute("data-connection", "online")
-            width, inner = await page.evaluate(NO_SIDEWAYS_SCROLL)
+            width, inner = await sideways(page)
             assert width <= inner, f"{name} {path}: page {width} px wide in {inner}"
             await page.screenshot(path=str(SHOTS / f"size-{role}-{name}.png"))
 
@@ -130,7 +118,7 @@ async def test_every_screen_size(tmp_path: Path, browser: Any, name: str) -> Non
             await expect(page.locator("body")).to_have_attribute("data-connection", "online")
             for tab in ("Map", "Send food", "New order", "Kitchen", "Menu"):
                 await page.get_by_role("tab", name=tab).click()
-                width, inner = await page.evaluate(NO_SIDEWAYS_SCROLL)
+                width, inner = await sideways(page)
                 assert width <= inner, f"owner's {tab}: page {width} px wide in {inner}"
             logout = page.get_by_role("button", name="Log out")
             assert in_view(await logout.bounding_box(), size), "owner: Log out off screen"

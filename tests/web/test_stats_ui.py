@@ -32,6 +32,7 @@ from serveur.stats.document import trips_in
 from serveur.stats.load import load_events
 from serveur.stats.periods import parse_offset, parse_when
 from tests.stats.events import service
+from tests.web.conftest import sideways, too_small
 from tests.web.test_a11y import need_axe, violations
 from tests.web.test_ui import (
     TABLET,
@@ -233,16 +234,9 @@ async def test_the_owner_reads_the_statistics_and_downloads_them(
             "() => [...document.querySelectorAll('#panel-stats svg.chart')]"
             ".every((s) => Number(s.getAttribute('width')) <= 390)"
         )
-        wide = await page.evaluate("() => document.documentElement.scrollWidth")
-        assert wide <= PHONE["width"], wide
-        small = await page.evaluate(
-            """() => [...document.querySelectorAll(
-                   '#panel-stats :is(button, select, input, summary)')]
-                 .filter((n) => n.offsetParent !== null)
-                 .map((n) => [n.textContent.trim() || n.id, n.getBoundingClientRect()])
-                 .filter(([, r]) => r.height < 44 || r.width < 44)
-                 .map(([name, r]) => `${name}: ${r.width}x${r.height}`)"""
-        )
+        wide, inner = await sideways(page)
+        assert wide <= inner == PHONE["width"], wide
+        small = await too_small(page, "#panel-stats :is(button, select, input, summary)")
         assert small == [], small
         assert errors == [], errors
         await context.close()

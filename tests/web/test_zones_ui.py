@@ -28,13 +28,10 @@ from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
-from serveur.app import App, RobotSpec
-from serveur.clock import ScaledClock
-from serveur.core.engine import CoreConfig
-from serveur.maps.mapio import load_waypoints
-from serveur.robot_sim import start_simulation
+from serveur.app import App
 from tests.conftest import Client, poll_until
-from tests.core.test_zone_leases import AISLE, narrow_room
+from tests.core.test_zone_leases import AISLE, narrow_restaurant
+from tests.web.conftest import sideways, too_small
 from tests.web.test_a11y import need_axe, open_page, violations
 from tests.web.test_ui import (
     TABLET,
@@ -60,58 +57,21 @@ ZONES_DRAWN = """(want) => {
   const drawn = JSON.parse(document.getElementById("map").dataset.zones || "{}");
   return JSON.stringify(drawn) === JSON.stringify(want);
 }"""
-# No sideways scroll, and every visible button of `selector` at least 44 px for a finger.
-FITS = """(selector) => {
-  const wide = document.scrollingElement.scrollWidth > window.innerWidth;
-  const small = [...document.querySelectorAll(selector)]
-    .filter((b) => b.offsetParent !== null)
-    .map((b) => b.getBoundingClientRect())
-    .filter((r) => r.height < 44 || r.width < 44);
-  return { wide, small: small.length };
-}"""
 ZONE_STATE = """([zone, state]) =>
   JSON.parse(document.getElementById("map").dataset.zones || "{}")[zone] === state"""
 
 
 @contextlib.asynccontextmanager
 async def narrow_console(tmp: Path) -> AsyncIterator[tuple[App, Any, Client, str]]:
-    """The narrow room on a real server (leases on) and two simulated robots that see each
-    other; a staff client subscribed to the robots, zones and leases; the console's address."""
-    yaml_path = narrow_room(tmp)
-    clock = ScaledClock(SCALE)
-    sim = await start_simulation(
-        2, port=0, clock=clock, map_path=yaml_path, seed=5, robots_see_each_other=True,
-        blocked_patience=8.0,
-    )  # fmt: skip
-    specs = [
-        RobotSpec(r.name, url, f"home{i + 1}")
-        for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
-    ]
-    app = App(
-        tmp / "s.db",
-        port=0,
-        clock=clock,
-        map_path=yaml_path,
-        waypoints=load_waypoints(tmp / "narrow_waypoints.json"),
-        robots=specs,
-        config=CoreConfig(heartbeat=10.0, ack_timeout=5.0, auto_depart=True, leases=True),
-        plan_in_child=False,
-    )
-    await app.start()
-    c: Client | None = None
-    try:
-        from websockets.asyncio.client import connect
-
+    """The narrow room of tests/core/test_zone_leases.py (leases on, two robots that see each
+    other); a staff client subscribed to the robots, zones and leases; the console's address."""
+    async with narrow_restaurant(
+        tmp, leases=True, scale=SCALE, heartbeat=10.0, ack_timeout=5.0
+    ) as (app, sim, c):
         token = await app.issue_token("staff", label="zones ui")
-        c = Client(await connect(app.url, additional_headers={"Authorization": f"Bearer {token}"}))
         await c.subscribe("robots", "zones", "leases")
         base = app.url.replace("ws://", "http://").removesuffix("/ws")
         yield app, sim, c, f"{base}|{token}"
-    finally:
-        if c is not None:
-            await c.close()
-        await app.close()
-        await sim.close()
 
 
 def watch(page: Any, errors: list[str]) -> Any:
@@ -123,7 +83,9 @@ def watch(page: Any, errors: list[str]) -> Any:
 async def on_a_phone(page: Any, selector: str, size: dict[str, int] = PHONE) -> None:
     """At a phone's width: nothing scrolls sideways, the buttons are finger-sized."""
     await page.set_viewport_size(size)
-    assert await page.evaluate(FITS, selector) == {"wide": False, "small": 0}
+    wide, inner = await sideways(page)
+    assert wide <= inner, wide
+    assert await too_small(page, selector) == []
     await page.set_viewport_size(TABLET)
 
 
