@@ -17,6 +17,7 @@ from typing import Any, Protocol, TypeVar
 
 from serveur.domain import AuditRecord
 from serveur.errors import Conflict, InvalidField, NotFound
+from serveur.store.live import ROBOT_NAMED, WAYPOINT_NAMED
 
 __all__ = ["AccountsMixin", "SqlTx", "TokenRecord", "UserRecord"]
 
@@ -243,15 +244,10 @@ class AccountsMixin:
         expires_at: float | None = None,
     ) -> TokenRecord:
         async def work(db: SqlTx) -> TokenRecord:
-            if robot is not None and not await _one(
-                db, "SELECT name FROM robot_info WHERE removed_at IS NULL AND name = ?", (robot,)
-            ):
+            if robot is not None and not await _one(db, ROBOT_NAMED, (robot,)):
                 raise NotFound(f"no robot named {robot!r}", robot=robot)
             if table is not None and not await _one(
-                db,
-                "SELECT name FROM waypoints"
-                " WHERE removed_at IS NULL AND name = ? AND kind = 'table'",
-                (table,),
+                db, f"{WAYPOINT_NAMED} AND kind = 'table'", (table,)
             ):
                 raise NotFound(f"no table named {table!r}", table=table)
             tid = await db.insert(

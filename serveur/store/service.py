@@ -25,12 +25,12 @@ from serveur.domain import (
 )
 from serveur.errors import Conflict, InvalidField, NotFound
 from serveur.store.accounts import AccountsMixin, SqlTx
+from serveur.store.live import WAYPOINT_NAMED
 
 __all__ = ["ServiceMixin", "check_note", "check_quantity"]
 
 _MENU = "SELECT dish, category, price_cents, available, position FROM menu"
 _BLOCK = "SELECT waypoint, reason, robot, since FROM table_block"
-_LIVE_WAYPOINT = "SELECT 1 FROM waypoints WHERE removed_at IS NULL AND name = ?"
 
 
 def check_quantity(value: object) -> int:
@@ -139,7 +139,7 @@ class ServiceMixin(AccountsMixin):
         """Keep ``table`` out of every trip; a table already blocked keeps its first reason."""
 
         async def work(db: SqlTx) -> TableBlock:
-            if not await _one(db, _LIVE_WAYPOINT, (table,)):
+            if not await _one(db, WAYPOINT_NAMED, (table,)):
                 raise NotFound(f"no waypoint named {table!r}", waypoint=table)
             row = await _one(db, f"{_BLOCK} WHERE waypoint = ?", (table,))
             if row is None:
@@ -212,7 +212,7 @@ class ServiceMixin(AccountsMixin):
                     params.append(note)
                     data["note"] = note
                 if table is not None and table != row["res_table"]:
-                    if not await _one(db, _LIVE_WAYPOINT, (table,)):
+                    if not await _one(db, WAYPOINT_NAMED, (table,)):
                         raise NotFound(f"no waypoint named {table!r}", waypoint=table)
                     sets.append("res_table = ?")
                     params.append(table)

@@ -24,6 +24,7 @@ from typing import Any
 from serveur.domain import AuditRecord, Robot, WaypointRecord
 from serveur.errors import Conflict, InvalidField, NotFound
 from serveur.store.accounts import SqlTx, _audit, _revoke_where
+from serveur.store.live import ROBOT, ROBOT_NAMED, WAYPOINT_NAMED
 from serveur.store.service import ServiceMixin, _event, _one
 
 __all__ = [
@@ -52,7 +53,6 @@ REVIVE_WAYPOINT = (
     " WHERE name = ? AND removed_at IS NOT NULL"
 )
 
-_LIVE_WP = "SELECT name, x, y, yaw, kind FROM waypoints WHERE removed_at IS NULL AND name = ?"
 _OPEN = ", ".join(f"'{s}'" for s in OPEN_ORDER_STATUSES)
 
 
@@ -97,9 +97,7 @@ class AuditQuery:
 
 
 async def _dependents(db: SqlTx, name: str) -> Dependents:
-    homes = await db.all(
-        "SELECT name FROM robot_info WHERE removed_at IS NULL AND home = ? ORDER BY name", (name,)
-    )
+    homes = await db.all(f"{ROBOT} AND home = ? ORDER BY name", (name,))
     orders = await db.all(
         f"SELECT id FROM orders WHERE res_table = ? AND status IN ({_OPEN}) ORDER BY id", (name,)
     )
@@ -124,7 +122,7 @@ async def _dependents(db: SqlTx, name: str) -> Dependents:
 
 
 async def _live_waypoint(db: SqlTx, name: str) -> WaypointRecord:
-    row = await _one(db, _LIVE_WP, (name,))
+    row = await _one(db, WAYPOINT_NAMED, (name,))
     if row is None:
         raise NotFound(f"no waypoint named {name!r}", waypoint=name)
     return WaypointRecord(**row)
@@ -146,12 +144,7 @@ class SiteMixin(ServiceMixin):
             raise InvalidField(f"a robot edit changes some of {sorted(allowed)}", field="changes")
 
         async def work(db: SqlTx) -> Robot:
-            row = await _one(
-                db,
-                "SELECT name, url, home, kinematics, link, trays FROM robot_info"
-                " WHERE removed_at IS NULL AND name = ?",
-                (name,),
-            )
+            row = await _one(db, ROBOT_NAMED, (name,))
             if row is None:
                 raise NotFound(f"no robot named {name!r}", robot=name)
             old = {**row, "link": json.loads(row["link"] or "{}")}
@@ -177,11 +170,7 @@ class SiteMixin(ServiceMixin):
         Returns the revoked token ids."""
 
         async def work(db: SqlTx) -> list[int]:
-            row = await _one(
-                db,
-                "SELECT current_task FROM robot_info WHERE removed_at IS NULL AND name = ?",
-                (name,),
-            )
+            row = await _one(db, ROBOT_NAMED, (name,))
             if row is None:
                 raise NotFound(f"no robot named {name!r}", robot=name)
             if row["current_task"] is not None:
@@ -202,13 +191,7 @@ class SiteMixin(ServiceMixin):
         return await self._portable(work, write=True)
 
     async def _robot_tx(self, db: SqlTx, name: str) -> Robot:
-        row = await _one(
-            db,
-            "SELECT name, url, home, kinematics, link, mode, status, resume, current_task,"
-            " battery, x, y, yaw, last_error, updated_at, status_since, trays FROM robot_info"
-            " WHERE name = ?",
-            (name,),
-        )
+        row = await _one(db, ROBOT_NAMED, (name,))
         assert row is not None
         return Robot(**row)
 
@@ -240,7 +223,7 @@ class SiteMixin(ServiceMixin):
                     waypoint=old,
                     trips=deps.trips,
                 )
-            if await _one(db, _LIVE_WP, (new,)):
+            if await _one(db, WAYPOINT_NAMED, (new,)):
                 raise Conflict(f"a waypoint named {new!r} exists", waypoint=new)
             pose = (wp.x, wp.y, wp.yaw, wp.kind.value, new)
             if not await db.run(REVIVE_WAYPOINT, pose):

@@ -16,6 +16,7 @@ from pathlib import Path
 from serveur.domain import ZoneRecord
 from serveur.errors import Conflict, InvalidField, NotFound
 from serveur.store.accounts import SqlTx
+from serveur.store.live import WAYPOINT_NAMED
 from serveur.store.service import _event, _one
 from serveur.store.site import SiteMixin
 
@@ -86,11 +87,7 @@ class ZonesMixin(SiteMixin):
 
         async def work(db: SqlTx) -> ZoneRecord:
             row = await _one(db, f"{_ZONE} WHERE name = ?", (zone.name,))
-            if zone.wait_at is not None and not await _one(
-                db,
-                "SELECT 1 FROM waypoints WHERE removed_at IS NULL AND name = ?",
-                (zone.wait_at,),
-            ):
+            if zone.wait_at is not None and not await _one(db, WAYPOINT_NAMED, (zone.wait_at,)):
                 raise NotFound(f"no waypoint named {zone.wait_at!r}", waypoint=zone.wait_at)
             if row is not None:
                 old = ZoneRecord(**row)

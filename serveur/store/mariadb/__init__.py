@@ -6,7 +6,7 @@ Owns :mod:`~serveur.store.mariadb.db` (URL, pool, retries, migrations),
 opens, so it may use that backend.
 
 May import: serveur.domain, serveur.status, serveur.store.base, serveur.store.accounts,
-serveur.store.service, serveur.store.site,
+serveur.store.service, serveur.store.site, serveur.store.live,
 serveur.store.migrations, serveur.store.sqlite.
 """
 

@@ -16,6 +16,7 @@ from typing import Any
 from serveur.domain import EventRecord, Order, Robot, Stop, Task, WaypointRecord
 from serveur.errors import Conflict, InvalidField, NotFound
 from serveur.store.base import Store, check_text, to_json
+from serveur.store.live import ROBOT, WAYPOINT
 from serveur.store.mariadb.db import Database, Tx
 
 __all__ = [
@@ -36,12 +37,6 @@ __all__ = [
 #: Names, tables, keys and event kinds are VARCHAR(255): longer ones are refused up front.
 MAX_NAME = 255
 
-ROBOT = (
-    "SELECT name, url, home, kinematics, link, mode, status, resume, current_task, battery,"
-    " x, y, yaw, last_error, updated_at, status_since, trays FROM robot_info"
-    " WHERE removed_at IS NULL"
-)
-WAYPOINT = "SELECT name, x, y, yaw, kind FROM waypoints WHERE removed_at IS NULL"
 ORDER = (
     "SELECT id, dish, res_table AS `table`, status, task_num AS task_id, `key`, ready_at,"
     " dispatched_at, delivered_at, quantity, note, ordered_at, returned_at, voided_at FROM orders"

@@ -5,7 +5,7 @@ Owns :mod:`~serveur.store.sqlite.store` (:class:`~serveur.store.sqlite.store.SQL
 connection, transactions, the SELECTs both share).
 
 May import: serveur.domain, serveur.status, serveur.store.base, serveur.store.accounts,
-serveur.store.service, serveur.store.site,
+serveur.store.service, serveur.store.site, serveur.store.live,
 serveur.store.migrations.
 """
 

@@ -25,6 +25,7 @@ import aiosqlite
 from serveur.domain import EventRecord, Order, Robot, Stop, Task, WaypointRecord
 from serveur.errors import Conflict, NotFound, StoreError
 from serveur.store.base import SqlTx, Store, to_json
+from serveur.store.live import ROBOT, WAYPOINT
 from serveur.store.migrations import load_migrations
 
 __all__ = [
@@ -51,12 +52,6 @@ _MIN_SQLITE = (3, 37, 0)
 #: The line by which a migration asks to run with foreign keys off (a table rebuild).
 _FK_OFF = "-- serveur: foreign_keys off"
 
-ROBOT = (
-    "SELECT name, url, home, kinematics, link, mode, status, resume, current_task, battery,"
-    " x, y, yaw, last_error, updated_at, status_since, trays FROM robot_info"
-    " WHERE removed_at IS NULL"
-)
-WAYPOINT = "SELECT name, x, y, yaw, kind FROM waypoints WHERE removed_at IS NULL"
 ORDER = (
     'SELECT id, dish, res_table AS "table", status, task_num AS task_id, key, ready_at,'
     " dispatched_at, delivered_at, quantity, note, ordered_at, returned_at, voided_at FROM orders"
