@@ -34,8 +34,7 @@ from serveur.replay.forecast import Forecaster, SiteFiles
 from serveur.security.accounts import handle_account
 from serveur.security.auth import Principal, RateLimiter, Role, authorize, visible
 from serveur.security.sessions import CLOSE_AUTH, Sessions
-from serveur.stats.periods import parse_offset, parse_when
-from serveur.stats.remote import StatsService
+from serveur.stats.remote import StatsService, when_range
 from serveur.store.site import AuditQuery
 from serveur.web.static import default_site
 
@@ -366,11 +365,8 @@ class Server:
         return reply
 
     async def _forecast(self, msg: P.StatsForecast) -> dict[str, Any]:
-        try:
-            tz = None if msg.utc_offset is None else parse_offset(msg.utc_offset)
-            start, end = parse_when(msg.day, tz), parse_when(msg.day, tz, end=True)
-        except ValueError as exc:
-            raise InvalidField(str(exc), field="day") from None
+        _, start, end = when_range(msg.utc_offset, msg.day, msg.day, ("day", "day"))
+        assert start is not None and end is not None
         fc = await self.forecaster.start(msg.day, start, end, list(msg.robots), msg.policy)
         return {"forecast": _forecast_info(fc.as_dict())}
 

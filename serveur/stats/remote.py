@@ -28,12 +28,32 @@ from serveur.errors import InvalidField, ServeurError
 from serveur.stats.periods import parse_offset, parse_when
 from serveur.store.base import Store
 
-__all__ = ["StatsService"]
+__all__ = ["StatsService", "when_range"]
 
 log = logging.getLogger(__name__)
 
 #: The longest a computation may take before it is given up (wall seconds).
 TIMEOUT = 120.0
+
+
+def when_range(
+    utc_offset: str | None,
+    start: str | None,
+    end: str | None,
+    names: tuple[str, str] = ("start", "end"),
+) -> tuple[tzinfo | None, float | None, float | None]:
+    """A request's time zone and ``[start, end)`` in epoch seconds (a day alone: from its
+    start, to its end); InvalidField naming the field (``names``) that does not parse."""
+    field = "utc_offset"
+    try:
+        tz = None if utc_offset is None else parse_offset(utc_offset)
+        field = names[0]
+        lo = None if start is None else parse_when(start, tz)
+        field = names[1]
+        hi = None if end is None else parse_when(end, tz, end=True)
+    except ValueError as exc:
+        raise InvalidField(str(exc), field=field) from None
+    return tz, lo, hi
 
 
 def _in_memory(db: str | None) -> bool:
@@ -50,15 +70,7 @@ class StatsService:
         self._one = asyncio.Lock()
 
     async def handle(self, msg: P.StatsFigures | P.StatsTrips) -> dict[str, Any]:
-        field = "utc_offset"
-        try:
-            tz = None if msg.utc_offset is None else parse_offset(msg.utc_offset)
-            field = "start"
-            start = None if msg.start is None else parse_when(msg.start, tz)
-            field = "end"
-            end = None if msg.end is None else parse_when(msg.end, tz, end=True)
-        except ValueError as exc:
-            raise InvalidField(str(exc), field=field) from None
+        tz, start, end = when_range(msg.utc_offset, msg.start, msg.end)
         if start is not None and end is not None and end <= start:
             raise InvalidField("end is not after start", field="end")
         async with self._one:
