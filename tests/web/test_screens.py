@@ -37,6 +37,10 @@ TOPBAR = """() => [...document.querySelectorAll(".topbar > *, .tabs > *")]
     const r = e.getBoundingClientRect();
     return [e.textContent.trim().slice(0, 20), [r.left, r.top, r.right, r.bottom]];
   })"""
+# Visible controls whose words do not fit in them (cut off by their box).
+CLIPPED = """(sel) => [...document.querySelectorAll(sel)]
+  .filter((e) => e.offsetParent !== null && e.scrollWidth > e.clientWidth + 1)
+  .map((e) => e.textContent.trim())"""
 MAIN_BUTTONS = (
     '[role="tab"], .logout, .actions button, .robot-name, .map-toolbar button, '
     ".goto-list button, .alert-mute, button.go"
@@ -85,6 +89,9 @@ async def test_every_screen_size(tmp_path: Path, browser: Any, name: str) -> Non
 
         small = await too_small(page, MAIN_BUTTONS)
         assert small == [], f"{name}: touch targets under 44 px: {small}"
+        # No tool's words cut off: every map tool shows its whole label.
+        clipped = await page.evaluate(CLIPPED, ".map-toolbar button")
+        assert clipped == [], f"{name}: map tools clipped: {clipped}"
 
         if name.startswith("tablet"):
             # Teleop open (the robot is Manual): the map and the joystick on screen together.
