@@ -15,6 +15,7 @@ experimental rule: a button whose accessible name does not contain its visible w
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +61,9 @@ async def open_page(b: Any, url: str, *, online: bool = True) -> Any:
     context = await b.new_context(viewport=TABLET, bypass_csp=True)
     page = await context.new_page()
     await page.goto(url)
+    # The page's words are in (i18n.js marks <html data-lang> once its catalogs are applied):
+    # axe must not judge the bare markup of a page still fetching its catalogs.
+    await expect(page.locator("html")).to_have_attribute("data-lang", re.compile(r"^\w+$"))
     if online:
         await expect(page.locator("body")).to_have_attribute("data-connection", "online")
     return page
