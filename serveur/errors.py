@@ -8,6 +8,7 @@ callers only ever handle ``ServeurError``.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 __all__ = [
@@ -29,6 +30,7 @@ __all__ = [
     "Unauthorized",
     "UnknownMessage",
     "Unreachable",
+    "round_up",
 ]
 
 
@@ -148,9 +150,28 @@ class Forbidden(ServeurError):
 
 
 class RateLimited(ServeurError):
-    """Too many requests (or failed logins); ``details.retry_after`` says when to try again."""
+    """Too many requests (or failed logins); ``details.retry_after`` says when to try again.
+
+    ``retry_after`` is the real ``wait`` rounded *up* to ``step`` seconds: a client told to wait
+    0.0 s (a wait of 4 ms rounded to the nearest hundredth) retried at once and was refused
+    again, so the figure given is never below the wait and never 0.
+    """
 
     code = "rate_limited"
+
+    def __init__(self, message: str, *, wait: float, step: float = 0.01, **details: Any) -> None:
+        super().__init__(message, retry_after=round_up(wait, step), **details)
+
+
+def round_up(value: float, step: float) -> float:
+    """``value`` rounded up to a multiple of ``step`` (at least one step), as a short decimal."""
+    digits = max(0, -math.floor(math.log10(step)))
+    k = max(1, math.ceil(value / step))
+    out = round(k * step, digits)
+    while out < value:  # k * step rounded to ``digits`` can land a hair below ``value``
+        k += 1
+        out = round(k * step, digits)
+    return out
 
 
 class TlsError(ServeurError):

@@ -305,9 +305,7 @@ class Server:
             conn.active_at = self.sessions.monotonic()
             wait = conn.limiter.allow(conn.active_at)
             if wait:
-                raise RateLimited(
-                    "too many requests on this connection", retry_after=round(wait, 2)
-                )
+                raise RateLimited("too many requests on this connection", wait=wait)
             payload = await self._dispatch(conn, msg)
             sub_reply, outcome = P.ok_frame(request_id, **payload), "ok"
         except ServeurError as exc:

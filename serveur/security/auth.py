@@ -343,7 +343,7 @@ class LoginThrottle:
         wait = max((self._keys.get(k, (0, 0.0))[1] - now for k in keys), default=0.0)
         if wait > 0:
             raise RateLimited(
-                "too many failed logins: wait before trying again", retry_after=round(wait, 1)
+                "too many failed logins: wait before trying again", wait=wait, step=0.1
             )
 
     def failure(self, keys: Iterable[str], now: float) -> None:

@@ -6,6 +6,8 @@ import json
 from typing import Any
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from serveur import protocol as P
 from serveur.errors import Forbidden, InvalidField, RateLimited, Unauthorized
@@ -197,6 +199,35 @@ def test_topics_per_role() -> None:
     for who in (STAFF, R1_SCREEN, T1_SCREEN, POS, SITE_SCRIPT):
         assert not auth.topic_allowed(who, "forecast"), who
     assert auth.topic_allowed(AUDIT_SCRIPT, "audit") and not auth.topic_allowed(STAFF, "audit")
+
+
+@given(st.floats(min_value=1e-6, max_value=600.0), st.sampled_from([0.01, 0.1]))
+def test_retry_after_is_never_below_the_wait(wait: float, step: float) -> None:
+    after = RateLimited("slow down", wait=wait, step=step).details["retry_after"]
+    assert after >= wait and after > 0
+    assert after - wait < step + 1e-9  # rounded up by less than a step
+    assert after == round(after, 2)  # a short decimal on the wire
+
+
+def test_a_client_that_waits_retry_after_is_let_through() -> None:
+    """The 300-request burst of issue 26 on virtual time: 4 ms waits were said as 0.0."""
+    lim = auth.RateLimiter(rate=20.0, burst=40.0, now=0.0)
+    now, refusals = 0.0, 0
+    for _ in range(300):
+        now += 0.0037  # a script sending as fast as it can
+        wait = lim.allow(now)
+        if wait:
+            refusals += 1
+            after = RateLimited("slow down", wait=wait).details["retry_after"]
+            assert after > 0
+            now += after  # the client does as told ...
+            assert lim.allow(now) == 0.0  # ... and is served
+    assert refusals > 100
+    throttle = auth.LoginThrottle(free=1, base=1.0)
+    throttle.failure(["k"], 0.0)  # locked 1 s
+    with pytest.raises(RateLimited) as exc:
+        throttle.check(["k"], 0.97)  # 30 ms left: said as 0.1 s, not 0.0
+    assert exc.value.details["retry_after"] == 0.1
 
 
 class _Rec:

@@ -391,6 +391,22 @@ async def test_connections_per_address_are_capped(tmp_path: Path) -> None:
             pass
 
 
+async def test_a_burst_is_never_told_to_retry_at_once(tmp_path: Path) -> None:
+    """300 requests as fast as a script sends them, at 200/s: the refusals' waits are a few
+    ms, and each must still say a wait above zero (it said ``retry_after: 0.0`` for 16-23 %
+    of them), never below the bucket's real wait."""
+    async with bare_server(tmp_path, rate=200.0, burst=2.0) as app:
+        token = await app.issue_token("staff")
+        headers = {"Authorization": f"Bearer {token}"}
+        async with connect(app.url, additional_headers=headers) as ws:
+            for i in range(300):
+                await ws.send(json.dumps({"clientmsg": "ping", "id": i}))
+            replies = [json.loads(await asyncio.wait_for(ws.recv(), WAIT)) for _ in range(300)]
+        limited = [m["details"]["retry_after"] for m in replies if m.get("code") == "rate_limited"]
+        assert limited, "the burst was never limited: nothing was measured"
+        assert min(limited) >= 0.01, sorted(limited)[:10]
+
+
 async def test_requests_are_rate_limited_per_connection(tmp_path: Path) -> None:
     async with bare_server(tmp_path, rate=2.0, burst=5.0) as app:
         token = await app.issue_token("staff")
