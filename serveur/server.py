@@ -9,7 +9,6 @@ time per connection, so each client's requests are answered in order.
 from __future__ import annotations
 
 import asyncio
-import functools
 import http
 import json
 import logging
@@ -32,7 +31,7 @@ from serveur.core.hub import Subscriber
 from serveur.errors import InvalidField, NotFound, RateLimited, ServeurError, Unauthorized
 from serveur.replay.forecast import Forecaster, SiteFiles
 from serveur.security.accounts import handle_account
-from serveur.security.auth import Principal, RateLimiter, Role, authorize, visible
+from serveur.security.auth import Principal, RateLimiter, Role, ScreenView, authorize
 from serveur.security.sessions import CLOSE_AUTH, Sessions
 from serveur.stats.remote import StatsService, when_range
 from serveur.store.site import AuditQuery
@@ -289,7 +288,7 @@ class Server:
         conn.principal = p
         self.sessions.bind(p, conn.ws.close)
         if p.role in (Role.ROBOT_SCREEN, Role.TABLE_SCREEN):
-            conn.sub.view = functools.partial(visible, p, task_robot=self.core.task_robot)
+            conn.sub.view = ScreenView(p, self.core.task_robot)
         else:
             conn.sub.view = None
         if conn.deadline is not None:
@@ -446,7 +445,7 @@ class Server:
         view = sub.view
         if view is not None:
             snapshot = {
-                t: [r for r in snap if view(t, r)] if isinstance(snap, list) else snap
+                t: view.snapshot(t, snap) if isinstance(snap, list) else snap
                 for t, snap in snapshot.items()
             }
         return {"data": snapshot}

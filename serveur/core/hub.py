@@ -37,11 +37,11 @@ import contextlib
 import logging
 from collections import deque
 from collections.abc import Awaitable, Callable, Coroutine, Iterable, Iterator
-from typing import Any
+from typing import Any, Protocol
 
 from serveur import protocol
 
-__all__ = ["CLOSE_TOO_SLOW", "PER_TURN", "Hub", "Pacer", "Subscriber", "is_stream_topic"]
+__all__ = ["CLOSE_TOO_SLOW", "PER_TURN", "Hub", "Pacer", "Subscriber", "View", "is_stream_topic"]
 
 log = logging.getLogger(__name__)
 
@@ -54,6 +54,16 @@ _CLOSE = "\x00close"  # queue marker: close here (an identity-compared sentinel,
 #: 0.74-0.75 at 8, 0.92-1.06 at 16, 1.14-1.66 at 32 and 1.4-1.9 unpaced; below 8 the extra
 #: loop turns (an epoll call each) buy nothing more.
 PER_TURN = 8
+
+
+class View(Protocol):
+    """A client's filter over records (a screen bound to one robot or table)."""
+
+    def __call__(self, topic: str, record: Any) -> bool:
+        """Does this pushed update of ``record`` on ``topic`` go to the client?"""
+
+    def snapshot(self, topic: str, records: list[Any]) -> list[Any]:
+        """The part of a topic's snapshot the client sees."""
 
 
 def is_stream_topic(topic: str) -> bool:
@@ -138,7 +148,7 @@ class Subscriber:
         self.dropped_stream_frames = 0
         #: Which records this client may see (a screen bound to one robot or table): called
         #: with (topic, record) for each update that carries its record; None sees all.
-        self.view: Callable[[str, Any], bool] | None = None
+        self.view: View | None = None
         self._closing: tuple[int, str] | None = None
         # Updates held back while a snapshot is being taken (see hold()).
         self._held: list[tuple[str, str]] | None = None

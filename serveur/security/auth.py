@@ -1,7 +1,8 @@
 """Who may do what: roles, scopes, the authorisation rules, password and token hashing.
 
 Pure code, no I/O: the server asks :func:`authorize` before every instruction and
-:func:`visible` before pushing a record, and the tests check the whole table without sockets.
+:func:`visible` (through a screen's :class:`ScreenView`) before pushing a record, and the
+tests check the whole table without sockets.
 
 The roles (docs/security.md has the threat model behind them):
 
@@ -46,6 +47,7 @@ __all__ = [
     "RateLimiter",
     "Role",
     "Scope",
+    "ScreenView",
     "authorize",
     "check_password_strength",
     "hash_password",
@@ -260,6 +262,63 @@ def visible(p: Principal, topic: str, record: Any, task_robot: Callable[[int], s
             return True
         return topic == "orders" and getattr(record, "table", None) == p.table
     return True
+
+
+#: Records a screen's view remembers having shown (a night's dishes and trips are hundreds).
+_VIEW_MEMORY: Final = 10_000
+
+
+class ScreenView:
+    """A screen's view of its topics: :func:`visible`, plus the update that moves a record out.
+
+    A robot screen showed a dish on its trip; the trip is cancelled and the dish goes back to
+    ``pending`` with no trip. By :func:`visible` alone that update is not the screen's any
+    more, so it was filtered out and the screen kept the dish ``assigned`` for good. The view
+    remembers which records it has let through (by topic and id or name) and lets the one
+    update that takes such a record out of scope through too, then forgets it.
+    """
+
+    def __init__(
+        self, p: Principal, task_robot: Callable[[int], str | None], *, memory: int = _VIEW_MEMORY
+    ) -> None:
+        self.principal = p
+        self._task_robot = task_robot
+        self._memory = memory
+        self._shown: OrderedDict[tuple[str, object], None] = OrderedDict()
+
+    def __call__(self, topic: str, record: Any) -> bool:
+        """Does this pushed update go to the screen? In scope, or leaving it."""
+        key = _record_key(topic, record)
+        if visible(self.principal, topic, record, self._task_robot):
+            self._remember(key)
+            return True
+        if key is not None and key in self._shown:
+            del self._shown[key]
+            return True
+        return False
+
+    def snapshot(self, topic: str, records: list[Any]) -> list[Any]:
+        """The records of a snapshot in scope now (remembered as shown)."""
+        out = [r for r in records if visible(self.principal, topic, r, self._task_robot)]
+        for r in out:
+            self._remember(_record_key(topic, r))
+        return out
+
+    def _remember(self, key: tuple[str, object] | None) -> None:
+        if key is None:
+            return
+        self._shown[key] = None
+        self._shown.move_to_end(key)
+        while len(self._shown) > self._memory:
+            self._shown.popitem(last=False)
+
+
+def _record_key(topic: str, record: Any) -> tuple[str, object] | None:
+    """What names a record across its updates: a dish's or trip's id, a robot's name."""
+    key = getattr(record, "id", None) if topic in ("orders", "tasks") else None
+    if topic == "robots":
+        key = getattr(record, "name", None)
+    return None if key is None else (topic, key)
 
 
 # --------------------------------------------------------------------------- secrets
