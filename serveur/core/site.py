@@ -27,6 +27,7 @@ from serveur.core.service import Service
 from serveur.domain import Robot, WaypointRecord
 from serveur.errors import Conflict, InvalidField
 from serveur.robots.names import RosNames
+from serveur.status import Event, RobotState, RobotStatus, apply
 from serveur.store.base import Store
 
 __all__ = ["SiteActions"]
@@ -69,6 +70,10 @@ class SiteActions:
         async def remove_zone(self, msg: P.SiteRemoveZone, actor: str | None) -> dict[str, Any]: ...
 
         async def _stop_robot_runtime(self, rt: Runtime) -> None: ...
+
+        async def _save_state(
+            self, name: str, st: RobotState, *, error: str | None = None, data: Any = None
+        ) -> Robot: ...
 
     async def site(self, msg: Any, actor: str | None) -> dict[str, Any]:
         """The ``site`` verb's actions the core carries out (the audit search is the
@@ -193,6 +198,17 @@ class SiteActions:
                 log.info("%s: reconnecting to %s (edited by %s)", rt.name, robot.url, actor)
                 await rt.link.close()
                 rt.link_error = None
+                if rt.state.status is not RobotStatus.OFFLINE:
+                    # The old link is closed now: the reply says Offline, as the robot is
+                    # until the new address answers (it then resumes what it was doing),
+                    # instead of the status of a link that no longer exists.
+                    edited = sorted(k for k in _RELINK if k in changes)
+                    await self._save_state(
+                        rt.name,
+                        apply(rt.state, Event.LINK_DOWN),
+                        error=f"reconnecting: {', '.join(edited)} edited",
+                        data={"event": Event.LINK_DOWN.value},
+                    )
                 self._start_link(rt)
         self.publish_robot(rt.name)
         self._kick()

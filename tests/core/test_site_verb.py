@@ -204,3 +204,28 @@ async def test_audit_search_and_who_may_ask(tmp_path: Path) -> None:
             assert reply["code"] == "forbidden", (action, reply)
         await staff.close()
         await ws.close()
+
+
+async def test_a_new_address_replies_offline_until_the_robot_answers(tmp_path: Path) -> None:
+    """The reply to an address change is the robot after the edit: its old link is closed,
+    so it is Offline (it said Ready while the link was already gone, Offline following on the
+    topic), and it comes back to what it was doing once the new address answers."""
+    from tests.conftest import Client, restaurant
+
+    async with restaurant(tmp_path, robots=1) as r:
+        token = await r.app.issue_token("integration", scopes=["site", "read", "control"])
+        owner = Client(
+            await connect(r.app.url, additional_headers={"Authorization": f"Bearer {token}"})
+        )
+        r.clients.append(owner)
+        await owner.subscribe("robots")
+        ready = await owner.status("r1", "Ready")
+        url = ready["url"]
+        moved = await owner.ok("site", action="edit_robot", robot="r1", url="ws://127.0.0.1:9")
+        assert moved["robot"]["status"] == "Offline", moved
+        assert owner.robot("r1")["status"] == "Offline"  # pushed before the reply
+        await owner.until(lambda: owner.robot("r1").get("link_error"), what="the new link fails")
+        assert owner.robot("r1")["status"] == "Offline"
+        back = await owner.ok("site", action="edit_robot", robot="r1", url=url)
+        assert back["robot"]["status"] == "Offline" and back["robot"]["url"] == url
+        await owner.status("r1", "Ready")
