@@ -66,6 +66,7 @@ from typing import Any
 
 from websockets.asyncio.client import connect
 
+from serveur.domain import StopStatus
 from serveur.replay.client import WAIT, Console, ProtocolClient, ReplayError
 from serveur.replay.guests import Guests
 from serveur.replay.model import (
@@ -450,7 +451,8 @@ class _Service:
                     "robot": t.robot,
                     "status": t.status.value,
                     "tables": len(stops),
-                    "dishes": sum(len(s.orders) for s in stops),
+                    # Delivered: a skipped stop lists what it carried back too.
+                    "dishes": sum(len(s.orders) for s in stops if s.status is StopStatus.DONE),
                     "stops": [s.table for s in stops],
                     "started": None if t.started_at is None else t.started_at - epoch0,
                     "finished": None if t.finished_at is None else t.finished_at - epoch0,

@@ -62,6 +62,7 @@ __all__ = [
     "digest",
     "link_json",
     "plan_stop_order",
+    "returned_rows",
     "status_values",
     "to_json",
     "trips_fingerprint",
@@ -392,6 +393,17 @@ def status_values(value: _E | Collection[_E] | None, enum: type[_E]) -> list[str
         return [enum(v).value for v in items]
     except ValueError as exc:
         raise InvalidField(str(exc), field="status") from exc
+
+
+def returned_rows(task: Task) -> list[tuple[str, int, int]]:
+    """``(returned, task_id, seq)`` for each stop of ``task`` not served yet that holds dishes:
+    what a cancelled trip's stops keep of what they carried (``task_stop.returned``, migration
+    008), read before the dishes leave the trip."""
+    return [
+        (to_json(stop.orders), task.id, stop.seq)
+        for stop in task.stops
+        if stop.status in (StopStatus.PENDING, StopStatus.ARRIVED) and stop.orders
+    ]
 
 
 def trips_fingerprint(trips: Iterable[Iterable[tuple[str, Iterable[int]]]]) -> str:

@@ -282,11 +282,6 @@ class ServiceMixin(AccountsMixin):
             )
             if moved != 1:
                 raise Conflict(f"task {task_id} moved on meanwhile", task=task_id, seq=seq)
-            await db.run(
-                "UPDATE task_stop SET status = 'skipped', done_at = ?"
-                " WHERE task_id = ? AND seq = ?",
-                (now, task_id, seq),
-            )
             table = stop["waypoint"]
             returned = [
                 r["id"]
@@ -296,6 +291,12 @@ class ServiceMixin(AccountsMixin):
                     (task_id, table),
                 )
             ]
+            # The stop keeps the ids of what it carried (migration 008), the dishes leave.
+            await db.run(
+                "UPDATE task_stop SET status = 'skipped', done_at = ?, returned = ?"
+                " WHERE task_id = ? AND seq = ?",
+                (now, json.dumps(returned), task_id, seq),
+            )
             await db.run(
                 "UPDATE orders SET status = 'returned', task_num = NULL, returned_at = ?"
                 " WHERE task_num = ? AND res_table = ? AND status = 'assigned'",

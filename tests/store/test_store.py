@@ -734,9 +734,27 @@ async def test_cancel_task_returns_exactly_the_undelivered_orders(store: Store) 
     assert event.data == {"reason": "robot stuck", "orders_returned": [b, c, d]}
     with pytest.raises(Conflict):
         await store.cancel_task(task.id, now=T0)
+    # The stops not served keep what they carried: the trip's history says it.
+    assert [s.orders for s in cancelled.stops] == [[a], [b, c], [d]]
     # The returned dishes can go out again, and the robot can take them.
     (again,) = await store.create_tasks([[("T2", [b, c]), ("T3", [d])]], now=T0 + 4)
     assert (await store.start_task(again.id, "r1", now=T0 + 5)).robot == "r1"
+    assert [s.orders for s in (await store.get_task(task.id)).stops] == [[a], [b, c], [d]]
+    assert [s.orders for s in (await store.get_task(again.id)).stops] == [[b, c], [d]]
+
+
+async def test_a_skipped_stop_keeps_the_dishes_it_carried(store: Store) -> None:
+    await seed(store)
+    a, b, c = await orders(store, "T1", "T1", "T2")
+    (task,) = await store.create_tasks([[("T1", [a, b]), ("T2", [c])]], now=T0)
+    await store.start_task(task.id, "r1", now=T0)
+    await store.arrive_stop(task.id, 0, now=T0 + 1)
+    skipped = await store.skip_stop(task.id, 0, now=T0 + 2, reason="timeout")
+    assert skipped.stops[0].status is StopStatus.SKIPPED and skipped.stops[0].orders == [a, b]
+    assert {(o.status, o.task_id) for o in await store.list_orders(table="T1")} == {
+        (OrderStatus.RETURNED, None)
+    }
+    assert [s.orders for s in (await store.list_tasks(robot="r1"))[0].stops] == [[a, b], [c]]
 
 
 async def test_cancel_queued_task(store: Store) -> None:

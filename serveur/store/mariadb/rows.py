@@ -138,13 +138,14 @@ class MariaDBRows(Store):
 
     @staticmethod
     async def _tasks(db: Tx, where: str, params: Sequence[Any] = ()) -> list[Task]:
-        """Tasks with their stops and each stop's order ids: three statements in all."""
+        """Tasks with their stops and each stop's order ids (those it carried before it was
+        skipped included, migration 008): three statements in all."""
         tasks = await db.all(f"{TASK} WHERE {where} ORDER BY id", params)
         if not tasks:
             return []
         ids = [t["id"] for t in tasks]
         stops = await db.all(
-            "SELECT task_id, seq, waypoint AS `table`, status, arrived_at, done_at"
+            "SELECT task_id, seq, waypoint AS `table`, status, arrived_at, done_at, returned"
             f" FROM task_stop WHERE {sql_in('task_id', ids)} ORDER BY task_id, seq",
             ids,
         )
@@ -157,7 +158,8 @@ class MariaDBRows(Store):
         by_task: dict[int, list[Stop]] = {}
         for stop in stops:
             task_id = stop.pop("task_id")
-            stop["orders"] = dishes.get((task_id, stop["table"]), [])
+            carried = {*dishes.get((task_id, stop["table"]), []), *json.loads(stop.pop("returned"))}
+            stop["orders"] = sorted(carried)
             by_task.setdefault(task_id, []).append(Stop(**stop))
         return [Task(**t, stops=by_task.get(t["id"], [])) for t in tasks]
 

@@ -13,7 +13,13 @@ from typing import Any
 
 from serveur.domain import Stop, StopStatus, Task, TaskStatus
 from serveur.errors import Conflict, InvalidField, NotFound
-from serveur.store.base import check_trips, plan_stop_order, status_values, trips_fingerprint
+from serveur.store.base import (
+    check_trips,
+    plan_stop_order,
+    returned_rows,
+    status_values,
+    trips_fingerprint,
+)
 from serveur.store.mariadb.db import Tx
 from serveur.store.mariadb.rows import MariaDBRows, check_name, sql_in
 
@@ -304,6 +310,10 @@ class MariaDBTasks(MariaDBRows):
                 " WHERE task_id = %s AND status IN ('pending', 'arrived')",
                 (task_id,),
             )
+            for row in returned_rows(task):
+                await db.run(
+                    "UPDATE task_stop SET returned = %s WHERE task_id = %s AND seq = %s", row
+                )
             await self._free_robot(db, task_id, now)
             data = {"reason": reason, "orders_returned": returned}
             await self._event(

@@ -61,11 +61,12 @@ TASK = (
     "SELECT id, robot_name AS robot, status, current_stop, created_at, started_at, finished_at"
     " FROM task"
 )
-# A stop's dishes are the trip's orders for its table (see 001_init): gathered per stop in the
-# same query, so a task list costs two statements whatever its size.
+# A stop's dishes are the trip's orders for its table (see 001_init), and those it carried
+# before it was skipped (returned, 008): gathered per stop in the same query, so a task list
+# costs two statements whatever its size.
 _STOPS = (
     'SELECT s.task_id, s.seq, s.waypoint AS "table", s.status, s.arrived_at, s.done_at,'
-    " (SELECT json_group_array(o.id) FROM orders AS o"
+    " s.returned, (SELECT json_group_array(o.id) FROM orders AS o"
     "   WHERE o.task_num = s.task_id AND o.res_table = s.waypoint) AS orders"
     " FROM task_stop AS s WHERE s.task_id IN (SELECT id FROM task WHERE {where})"
     " ORDER BY s.task_id, s.seq"
@@ -361,7 +362,8 @@ class SQLiteRows(Store):
         stops: dict[int, list[dict[str, Any]]] = {}
         for row in await sql_all(db, _STOPS.format(where=where), params):
             stop = dict(row)
-            stop["orders"] = sorted(json.loads(stop["orders"]))
+            carried = {*json.loads(stop["orders"]), *json.loads(stop.pop("returned"))}
+            stop["orders"] = sorted(carried)
             stops.setdefault(stop.pop("task_id"), []).append(stop)
         return [Task(**dict(t), stops=[Stop(**s) for s in stops.get(t["id"], [])]) for t in tasks]
 

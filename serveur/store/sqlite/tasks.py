@@ -19,6 +19,7 @@ from serveur.store.base import (
     check_text,
     check_trips,
     plan_stop_order,
+    returned_rows,
     status_values,
     trips_fingerprint,
 )
@@ -318,6 +319,10 @@ class SQLiteTasks(SQLiteRows):
                 " WHERE task_id = ? AND status IN ('pending', 'arrived')",
                 (task_id,),
             )
+            for row in returned_rows(task):
+                await sql_run(
+                    db, "UPDATE task_stop SET returned = ? WHERE task_id = ? AND seq = ?", row
+                )
             await self._free_robot(db, task_id, now)
             data = {"reason": reason, "orders_returned": returned}
             await self._event(
