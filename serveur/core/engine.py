@@ -282,6 +282,7 @@ class Core(RobotMoves, SiteActions, Traffic):
             names=RosNames.from_options(robot.link),
         )
         rt.link.start()
+        rt.link_started = self.clock.epoch()
 
     def _kick(self) -> None:
         self.dispatcher.kick()
@@ -700,12 +701,19 @@ class Core(RobotMoves, SiteActions, Traffic):
         for name, rt in sorted(self._rt.items()):
             robot = self._robots[name]
             dest = rt.dest
+            since = robot.status_since
+            if rt.state.status is S.OFFLINE:
+                # "Not connected" counts from when this server started trying: the start's
+                # path planning (15 s of a demo's scaled clock) and a robot registered long ago
+                # raised, and at once cleared, an offline alert per robot at every start.
+                tried = rt.link_started if rt.link_started is not None else self.clock.epoch()
+                since = max(since, tried)
             facts.append(
                 RobotFact(
                     name=name,
                     status=rt.state.status,
                     mode=rt.state.mode,
-                    since=robot.status_since,
+                    since=since,
                     battery=rt.battery,
                     table=dest.name if dest is not None and dest.kind == "table" else None,
                     error=robot.last_error,

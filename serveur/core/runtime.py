@@ -97,6 +97,7 @@ class Runtime:
     pose_saved_at: float = -1e9
     handover: asyncio.Task[None] | None = None  # the hand-over timer while Offline with a trip
     offline_since: float | None = None  # epoch (clock) the robot was last seen, while Offline
+    link_started: float | None = None  # epoch (clock) its link was last (re)started
     timed_out: float | None = None  # the arrival (status_since) a table timeout was posted for
     link_error: str | None = None  # the link's last connection failure, until it connects
     waiting_for: list[str] | None = None  # zones it waits to be leased (its goal not sent)
