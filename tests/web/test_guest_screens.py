@@ -29,16 +29,14 @@ from serveur.maps.navigation import demo_map_path
 from serveur.robot_sim import start_simulation
 from tests.conftest import TIME_SCALE, Client, Restaurant, make_app
 from tests.test_e2e import activate
+from tests.web.conftest import needs_browser
 from tests.web.test_i18n import tr
-from tests.web.test_ui import CHROMIUM, Screens, http_base
+from tests.web.test_ui import Screens, http_base
 
 playwright_api = pytest.importorskip("playwright.async_api")
 expect = playwright_api.expect
 
-pytestmark = [
-    pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium package"),
-    pytest.mark.asyncio(loop_scope="module"),
-]
+pytestmark = [needs_browser, pytest.mark.asyncio(loop_scope="module")]
 expect.set_options(timeout=20_000)
 
 

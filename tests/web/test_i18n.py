@@ -22,6 +22,7 @@ from typing import Any
 import pytest
 
 from serveur.web.static import StaticSite
+from tests.web.conftest import needs_browser
 
 SITE = Path(__file__).resolve().parents[2] / "serveur" / "web" / "site"
 LANGS = ("en", "zh", "ms")
@@ -61,14 +62,12 @@ try:
     from playwright.async_api import expect
 
     from tests.web.test_ui import (
-        CHROMIUM,
         Screens,
         http_base,
         staff_client,
         ui_restaurant,
     )
-except (ImportError, pytest.skip.Exception):  # no playwright: the static checks still run
-    CHROMIUM = Path("/nonexistent")
+except (ImportError, pytest.skip.Exception):  # no browser here: the static checks still run
     expect = None
 
 
@@ -180,10 +179,7 @@ def test_catalogs_are_served_as_json() -> None:
 
 # --- in Chromium -----------------------------------------------------------------------------
 
-chromium = [
-    pytest.mark.skipif(expect is None or not CHROMIUM.exists(), reason="needs chromium"),
-    pytest.mark.asyncio(loop_scope="module"),
-]
+chromium = [needs_browser, pytest.mark.asyncio(loop_scope="module")]
 
 
 def in_chromium(f: Any) -> Any:

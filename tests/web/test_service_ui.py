@@ -27,15 +27,13 @@ from serveur.core.engine import CoreConfig
 from serveur.maps.navigation import demo_map_path
 from serveur.robot_sim import start_simulation
 from tests.conftest import TIME_SCALE, Client, Restaurant, make_app
-from tests.web.test_ui import CHROMIUM, Screens, dismiss_toasts, http_base, log_in
+from tests.web.conftest import needs_browser
+from tests.web.test_ui import Screens, dismiss_toasts, http_base, log_in
 
 playwright_api = pytest.importorskip("playwright.async_api")
 expect = playwright_api.expect
 
-pytestmark = [
-    pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium package"),
-    pytest.mark.asyncio(loop_scope="module"),
-]
+pytestmark = [needs_browser, pytest.mark.asyncio(loop_scope="module")]
 expect.set_options(timeout=20_000)
 
 #: The console writes a quantity as "Laksa", this sign, "2": a multiplication sign, not an x.

@@ -30,9 +30,9 @@ from serveur.core.engine import CoreConfig
 from serveur.maps.navigation import demo_map_path, load_demo
 from serveur.robot_sim import start_simulation
 from tests.conftest import TIME_SCALE, Client, Restaurant
-from tests.web.conftest import CHROMIUM
+from tests.web.conftest import import_playwright, needs_browser
 
-playwright_api = pytest.importorskip("playwright.async_api")
+playwright_api = import_playwright()
 Browser = playwright_api.Browser
 Page = playwright_api.Page
 expect = playwright_api.expect
@@ -45,11 +45,9 @@ SHOTS = Path(os.environ.get("SERVEUR_SCREENSHOTS") or tempfile.mkdtemp(prefix="s
 _, WAYPOINTS = load_demo()
 
 # One browser for the module (each test opens its own windows), so every test runs on the
-# module's event loop.
-pytestmark = [
-    pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium package"),
-    pytest.mark.asyncio(loop_scope="module"),
-]
+# module's event loop. Without Debian's chromium each test is skipped, the reason naming what
+# to install (in CI each fails instead). The other modules of browser tests import this.
+pytestmark = [needs_browser, pytest.mark.asyncio(loop_scope="module")]
 expect.set_options(timeout=20_000)
 
 
