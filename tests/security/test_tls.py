@@ -208,11 +208,11 @@ async def test_healthz_and_ui_over_https(tmp_path: Path, pki: Pki) -> None:
 async def test_staff_console_over_https_opens_wss(tmp_path: Path, pki: Pki) -> None:
     """The page chooses its socket's scheme from its own: loaded over https, it must use wss
     (a ws:// socket from an https page is blocked by browsers as mixed content)."""
-    pw = pytest.importorskip("playwright.async_api")
-    from tests.web.conftest import CHROMIUM, CHROMIUM_ARGS
+    from tests.web.conftest import CHROMIUM, CHROMIUM_ARGS, need_browser
 
-    if not CHROMIUM.exists():
-        pytest.skip("needs Debian's chromium package")
+    need_browser()  # skipped without chromium or playwright, saying which; failed in CI
+    import playwright.async_api as pw
+
     async with tls_restaurant(tmp_path, server_tls=pki.server()) as r, pw.async_playwright() as p:
         browser = await p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
         try:

@@ -114,21 +114,26 @@ async def test_roslibpy_action_client_cancel_is_canceled(sim: Simulation) -> Non
 @pytest.fixture(scope="module")
 def node() -> str:
     """The ``node`` binary, with tests/node's packages installed."""
+
+    def missing(what: str) -> None:
+        if os.environ.get("CI"):
+            pytest.fail(f"the Node test must run in CI: {what} (.ci/run installs nodejs and npm)")
+        pytest.skip(what)
+
     exe = shutil.which("node")
     if exe is None:
-        if os.environ.get("CI"):
-            pytest.fail("node is not installed (.ci/run installs nodejs and npm)")
-        pytest.skip("node is not installed")
+        missing("node not found: the roslibjs test needs Debian's nodejs package")
     if not (NODE_DIR / "node_modules" / "roslib").is_dir():
         npm = shutil.which("npm")
         if npm is None:
-            pytest.fail("tests/node has no node_modules and npm is not installed")
+            missing("tests/node has no node_modules and npm is not found: apt-get install npm")
         subprocess.run(
             [npm, "ci", "--no-audit", "--no-fund", "--silent"],
             cwd=NODE_DIR,
             check=True,
             timeout=300,
         )
+    assert exe is not None
     return exe
 
 
