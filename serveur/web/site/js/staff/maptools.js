@@ -14,11 +14,12 @@
 // zones with who holds and who waits for each, and staff break a lease stuck on a robot pushed
 // out of the zone by hand (Release, `release`).
 
-import { act, byName, confirmDialog, el, KeyedList, toast } from "../ui.js";
+import { act, byName, el, KeyedList, toast } from "../ui.js";
 import { allowed, statusColour } from "../status.js";
 import { WAYPOINT_COLOURS, ZONE_COLOURS, zoneState } from "../map/draw.js";
 import { onLangChange, t } from "../i18n.js";
-import { field, formDialog } from "./restaurant.js";
+import { field, formDialog } from "./forms.js";
+import { leaseWords, releaseButtons } from "./leases.js";
 
 // hint: a catalog key.
 const TOOLS = {
@@ -27,40 +28,6 @@ const TOOLS = {
 };
 const REACHED_M = 0.3;
 const MAX_CAPACITY = 8;
-
-/** A zone's lease in words: who is in it and who waits for it. */
-export function leaseWords(lease) {
-  const holders = (lease && lease.holders) || [];
-  const waiting = (lease && lease.waiting) || [];
-  const parts = [holders.length ? t("zones.heldBy", { robots: holders.join(", ") }) : t("zones.free")];
-  if (waiting.length) parts.push(t("zones.waiting", { robots: waiting.join(", ") }));
-  return parts.join(" · ");
-}
-
-/** Break `robot`'s lease on `zone`, once staff confirm the robot is out of the zone. */
-export async function releaseLease(conn, zone, robot, button) {
-  const yes = await confirmDialog(t("zones.releaseQuestion", { zone, robot }), {
-    yes: t("zones.releaseYes"),
-    no: t("zones.releaseNo"),
-    detail: t("zones.releaseDetail", { zone, robot }),
-  });
-  if (!yes) return;
-  const reply = await act(button, () => conn.request({ clientmsg: "release", zone, robot }));
-  if (reply) toast(t("zones.released", { zone, robot }));
-}
-
-/** The Release buttons of a zone's row: one per robot holding it. */
-export function releaseButtons(conn, zone, lease) {
-  return ((lease && lease.holders) || []).map((robot) =>
-    el("button", {
-      class: "secondary",
-      "data-needs-online": true,
-      "aria-label": t("zones.releaseFor", { zone, robot }),
-      text: t("zones.release"),
-      onclick: (e) => releaseLease(conn, zone, robot, e.currentTarget),
-    }),
-  );
-}
 
 export class MapTools {
   constructor(conn, live, view, selection, goals) {

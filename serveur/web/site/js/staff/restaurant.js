@@ -8,8 +8,7 @@
 // This module is the panel: it lays out the sections (restaurant/robots.js, places.js, zones.js,
 // settings.js) and keeps them live. It also follows the `settings` topic (every role may read
 // it): the language pickers offer the site's languages and a device with no choice of its own
-// speaks the site's default. The form pieces (restaurant/form.js) are re-exported for
-// maptools.js.
+// speaks the site's default.
 
 import { el, showError } from "../ui.js";
 import { applySiteLanguages, onLangChange } from "../i18n.js";
@@ -17,8 +16,6 @@ import { PlacesSection } from "./restaurant/places.js";
 import { RobotsSection } from "./restaurant/robots.js";
 import { SettingsSection } from "./restaurant/settings.js";
 import { ZonesSection } from "./restaurant/zones.js";
-
-export { field, formDialog } from "./restaurant/form.js";
 
 export class RestaurantPanel {
   constructor(root, conn, live) {

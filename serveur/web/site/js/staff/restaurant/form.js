@@ -1,52 +1,10 @@
-// The Restaurant tab's pieces, shared by its sections (the form ones by maptools.js too, through
-// restaurant.js): a section listing things by name, the modal form an edit opens, a labelled
-// field, a row's action button, and "ask, then remove" — written once here so that every section builds them the same way.
+// The Restaurant tab's pieces, shared by its sections: a section listing things by name, a
+// row's action button, and "ask, then remove" — written once here so that every section builds
+// them the same way. (The modal form an edit opens and its labelled fields are ../forms.js: the
+// map's zone tool uses them too.)
 
-import { act, confirmDialog, describeError, el, KeyedList, toast } from "../../ui.js";
+import { act, confirmDialog, el, KeyedList, toast } from "../../ui.js";
 import { t } from "../../i18n.js";
-
-/** A modal form: resolves with true when submitted (and `submit` did not return false). */
-export function formDialog({ title, fields, yes, danger = false, submit }) {
-  return new Promise((resolve) => {
-    const titleId = `dlg-${Math.random().toString(36).slice(2)}`;
-    const yesBtn = el("button", { type: "submit", class: danger ? "danger" : "primary", "data-needs-online": true, text: yes });
-    const noBtn = el("button", { type: "button", class: "secondary", text: t("owner.cancel") });
-    const why = el("p", { class: "rest-error", role: "alert" });
-    const form = el("form", { class: "rest-form", method: "dialog" }, ...fields, why, el("div", { class: "dialog-buttons" }, noBtn, yesBtn));
-    const dialog = el("dialog", { class: "confirm rest-dialog", "aria-labelledby": titleId }, el("h2", { id: titleId }, title), form);
-    const finish = (answer) => {
-      dialog.close();
-      dialog.remove();
-      resolve(answer);
-    };
-    form.addEventListener("submit", async (e) => {
-      e.preventDefault();
-      if (!form.reportValidity() || yesBtn.disabled) return;
-      why.textContent = "";
-      yesBtn.disabled = true;
-      try {
-        if (await submit()) finish(true);
-      } catch (err) {
-        why.textContent = describeError(err); // the server's refusal, in the form it refuses
-      } finally {
-        yesBtn.disabled = false;
-      }
-    });
-    noBtn.addEventListener("click", () => finish(false));
-    dialog.addEventListener("cancel", (e) => {
-      e.preventDefault();
-      finish(false);
-    });
-    document.body.append(dialog);
-    dialog.showModal();
-    const first = form.querySelector("input, select");
-    (first || noBtn).focus();
-  });
-}
-
-export function field(id, labelKey, control, hint = null) {
-  return el("div", { class: "rest-field" }, el("label", { for: id, "data-i18n": labelKey }), control, hint);
-}
 
 /** A list row's action button: its words, the aria-label naming its row, `onclick`; a
  *  "danger" one (remove) or a "secondary" one, disabled while offline. */

@@ -5,7 +5,8 @@
 
 import { act, byName, describeError, el, toast } from "../../ui.js";
 import { t } from "../../i18n.js";
-import { field, formDialog, listSection, rowButton } from "./form.js";
+import { field, formDialog } from "../forms.js";
+import { listSection, rowButton } from "./form.js";
 
 const KINDS = ["table", "home", "pass", "other"];
 

@@ -4,7 +4,8 @@
 
 import { byName, el, toast } from "../../ui.js";
 import { statusName, t } from "../../i18n.js";
-import { confirmRemove, field, formDialog, listSection, rowButton } from "./form.js";
+import { field, formDialog } from "../forms.js";
+import { confirmRemove, listSection, rowButton } from "./form.js";
 import { MAX_TRAYS } from "./settings.js";
 
 const KINEMATICS = { omni: "owner.drive.omni", diff: "owner.drive.diff" };

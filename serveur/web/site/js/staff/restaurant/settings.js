@@ -5,7 +5,7 @@
 
 import { act, el, toast } from "../../ui.js";
 import { LANGS, t } from "../../i18n.js";
-import { field } from "./form.js";
+import { field } from "../forms.js";
 
 export const MAX_TRAYS = 12;
 

@@ -7,7 +7,7 @@
 
 import { byName, describeError, el, toast } from "../../ui.js";
 import { t } from "../../i18n.js";
-import { leaseWords, releaseButtons } from "../maptools.js";
+import { leaseWords, releaseButtons } from "../leases.js";
 import { confirmRemove, listSection, rowButton } from "./form.js";
 
 export class ZonesSection {
