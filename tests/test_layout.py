@@ -1,5 +1,5 @@
-"""The package layout holds: no import circle, a short top level, declared imports, a wheel
-that carries every module, migration and page.
+"""The package layout holds: no import circle (Python modules and the web UI's scripts), a short
+top level, declared imports, a wheel that carries every module, migration and page.
 
 ``tools/check_layout.py`` is the rule book (``.ci/run`` runs it too); these tests run it on
 serveur itself and on small made-up trees, so a checker that stopped seeing circles fails here.
@@ -108,6 +108,66 @@ def test_a_pure_rule_that_reaches_io_is_found(tmp_path: Path) -> None:
 def test_a_long_top_level_is_found(tmp_path: Path) -> None:
     root = _tree(tmp_path, {f"m{i}.py": "" for i in range(check_layout.MAX_TOP)})
     assert any("modules directly under serveur/" in p for p in check_layout.check(root))
+
+
+def _scripts(tmp_path: Path, files: dict[str, str]) -> Path:
+    site = tmp_path / "serveur" / "web" / "site"
+    for name, text in files.items():
+        path = site / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    return site
+
+
+def test_the_web_scripts_import_no_circle() -> None:
+    site = ROOT / "serveur" / "web" / "site"
+    graph = check_layout.js_graph(site)
+    # The checker reads the real imports (a checker that saw none would find no circle either).
+    assert "js/staff/maptools.js" in graph["js/staff/main.js"]
+    assert {"js/staff/forms.js", "js/staff/leases.js"} <= graph["js/staff/maptools.js"]
+    assert "js/staff/maptools.js" not in graph["js/staff/restaurant/zones.js"]
+    assert sum(len(e) for e in graph.values()) > 100
+    assert check_layout.check_js(site) == []
+
+
+def test_a_js_circle_is_found_and_named(tmp_path: Path) -> None:
+    site = _scripts(
+        tmp_path,
+        {
+            "js/a.js": 'import { b } from "./sub/b.js";\nexport const a = 1;\n',
+            # A re-export, over several lines, is an import too.
+            "js/sub/b.js": 'export {\n  c,\n} from "../c.js";\nexport const b = 2;\n',
+            # A dynamic import closes the circle a -> b -> c -> a.
+            "js/c.js": 'export const c = 3;\nexport const later = () => import("./a.js");\n',
+        },
+    )
+    problems = check_layout.check_js(site)
+    assert problems == ["JS import circle: js/a.js -> js/sub/b.js -> js/c.js -> js/a.js"]
+    # And through the whole check, on a serveur tree that holds the site.
+    (tmp_path / "serveur" / "__init__.py").write_text('"""root."""\n')
+    assert problems[0] in check_layout.check(tmp_path / "serveur")
+
+
+def test_comments_strings_and_bare_names_are_no_js_import(tmp_path: Path) -> None:
+    site = _scripts(
+        tmp_path,
+        {
+            "js/a.js": (
+                'import "./b.js";\n'
+                "// import { a } from './a.js';\n"
+                '/* import("./a.js") */\n'
+                "export const s = 'import x from \"./a.js\"';\n"
+                'import { x } from "lib";\n'
+            ),
+            "js/b.js": '// once: import { a } from "./a.js";\nexport const url = "http://x/a.js";\n',
+        },
+    )
+    graph = check_layout.js_graph(site)
+    assert graph == {"js/a.js": {"js/b.js"}, "js/b.js": set()}
+    assert check_layout.check_js(site) == []
+    # A module importing itself is a circle too.
+    (site / "js" / "b.js").write_text('import { b } from "./b.js";\nexport const b = 1;\n')
+    assert check_layout.check_js(site) == ["JS import circle: js/b.js -> js/b.js"]
 
 
 def test_tests_mirror_the_packages() -> None:

@@ -15,7 +15,12 @@ design. Importing ``serveur.a.b`` also imports the packages ``serveur`` and ``se
    module inside it imports, outside the subpackage, only what that line names (a module
    or a package prefix; ``serveur.errors`` is always allowed);
 4. the pure rules (``PURE``) import, directly or not, only pure serveur modules and no I/O
-   library.
+   library;
+5. no circle of imports among the web UI's scripts (``serveur/web/site/**/*.js``): every static
+   ``import … from "./x.js"`` / ``export … from "./x.js"`` / ``import "./x.js"`` and every
+   dynamic ``import("./x.js")`` with a relative path counts (comments and other strings do not).
+   A browser runs a circle of ES modules, but in an order that depends on which module a page
+   loads first, so a name read at load time can be unset in one page and fine in another.
 
 Exit status 0 when all hold; otherwise each broken rule is printed and the status is 1.
 """
@@ -198,6 +203,115 @@ def check(root: Path) -> list[str]:
             if bad:
                 problems.append(f"{pure} (pure) reaches {m}, which imports {sorted(bad)}")
             todo.extend(graph[m])
+    site = root / "web" / "site"
+    if site.is_dir():
+        problems += check_js(site)
+    return problems
+
+
+# --- the web UI's scripts ---------------------------------------------------------------------
+
+_JS_STATIC = re.compile(
+    r"""(?:^|[;}])\s*(?:import|export)\b[^;"'`]*?\bfrom\s*(["'])([^"'\n]+)\1"""
+    r"""|(?:^|[;}])\s*import\s*(["'])([^"'\n]+)\3""",
+    re.M,
+)
+_JS_DYNAMIC = re.compile(r"""\bimport\s*\(\s*(["'])([^"'\n]+)\1\s*\)""")
+
+
+def js_code(text: str) -> str:
+    """``text`` with its comments blanked (strings kept), so a commented-out import is no edge.
+
+    A small scanner: string and template literals are skipped whole (an import path is one), a
+    ``//`` or ``/* */`` outside them is blanked. Regular-expression literals are not recognised;
+    the site's scripts hold none with a quote or a comment marker in it.
+    """
+    out: list[str] = []
+    i, n = 0, len(text)
+    while i < n:
+        c = text[i]
+        if c in "\"'`":
+            j = i + 1
+            while j < n and text[j] != c:
+                j += 2 if text[j] == "\\" else 1
+            out.append(text[i : j + 1])
+            i = j + 1
+        elif text.startswith("//", i):
+            j = text.find("\n", i)
+            i = n if j < 0 else j
+        elif text.startswith("/*", i):
+            j = text.find("*/", i + 2)
+            j = n if j < 0 else j + 2
+            out.append("\n" * text.count("\n", i, j))  # line numbers kept
+            i = j
+        else:
+            out.append(c)
+            i += 1
+    return "".join(out)
+
+
+def js_imports(text: str) -> list[str]:
+    """The module paths a script imports (static and dynamic), as written, in order."""
+    code = js_code(text)
+    found = [m.group(2) or m.group(4) for m in _JS_STATIC.finditer(code)]
+    found += [m.group(2) for m in _JS_DYNAMIC.finditer(code)]
+    return found
+
+
+def js_graph(site: Path) -> dict[str, set[str]]:
+    """Script -> the scripts it imports by a relative path, named from ``site`` ("js/ui.js").
+
+    A path that leaves ``site`` or names no file (``js/status-table.js`` is made by static.py
+    when the server starts) is a leaf: it imports nothing here.
+    """
+    base = site.resolve()
+    graph: dict[str, set[str]] = {}
+    for path in sorted(site.rglob("*.js")):
+        name = path.relative_to(site).as_posix()
+        edges = graph.setdefault(name, set())
+        for spec in js_imports(path.read_text("utf-8")):
+            if not spec.startswith(("./", "../")):
+                continue  # a bare name or a URL: not one of ours
+            target = (path.parent / spec).resolve()
+            if target.is_relative_to(base):
+                edges.add(target.relative_to(base).as_posix())
+    return graph
+
+
+def _circle_through(graph: dict[str, set[str]], comp: list[str]) -> list[str]:
+    """One shortest circle inside the tangle ``comp``, from its first module back to it."""
+    inside = set(comp)
+    start = comp[0]
+    came: dict[str, str] = {}
+    todo = [start]
+    while todo:
+        nxt: list[str] = []
+        for m in todo:
+            for child in sorted(graph.get(m, ())):
+                if child == start:
+                    path = [m]
+                    while path[-1] != start:
+                        path.append(came[path[-1]])
+                    return [*reversed(path), start]
+                if child in inside and child not in came:
+                    came[child] = m
+                    nxt.append(child)
+        todo = nxt
+    return [start, start]  # unreachable for a strongly connected comp
+
+
+def check_js(site: Path) -> list[str]:
+    """Rule 5: the scripts under ``site`` import no circle; each found is named."""
+    graph = js_graph(site)
+    problems: list[str] = []
+    for comp in cycles(graph):
+        circle = _circle_through(graph, comp)
+        # A tangle wider than the one circle named: its other modules are said too.
+        more = f" (the tangle: {', '.join(comp)})" if len(comp) > len(circle) - 1 else ""
+        problems.append(f"JS import circle: {' -> '.join(circle)}{more}")
+    for name in sorted(graph):
+        if name in graph[name]:
+            problems.append(f"JS import circle: {name} -> {name}")
     return problems
 
 
@@ -208,9 +322,10 @@ def main() -> int:
     for p in problems:
         print(p)
     modules = discover(root)
+    scripts = sum(1 for _ in (root / "web" / "site").rglob("*.js"))
     print(
         f"{len(modules)} modules, {sum(1 for p in root.glob('*.py'))} at the top, "
-        f"{len(problems)} problem(s)"
+        f"{scripts} scripts, {len(problems)} problem(s)"
     )
     return 1 if problems else 0
 
