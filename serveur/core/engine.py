@@ -34,7 +34,7 @@ import asyncio
 import contextlib
 import logging
 import ssl
-from collections.abc import Mapping
+from collections.abc import Awaitable, Callable, Mapping
 from dataclasses import replace
 from typing import Any
 
@@ -42,6 +42,17 @@ from serveur import protocol as P
 from serveur.clock import Clock
 from serveur.core.alerts import RobotFact, Thresholds
 from serveur.core.creation import Creation
+from serveur.core.events import (
+    GoalEnded,
+    HandoverDue,
+    LeaseGranted,
+    LinkDown,
+    LinkFailed,
+    LinkUp,
+    PersistPose,
+    RobotEvent,
+    TableTimeout,
+)
 from serveur.core.hub import Hub
 from serveur.core.leases import LeaseBook
 from serveur.core.link_reports import HANDOVER_GRACE, LinkReports
@@ -88,7 +99,7 @@ class Core(RobotMoves, SiteActions, Traffic):
     Collaborators it owns: :class:`~serveur.core.places.Places` (waypoints, map, path distances),
     :class:`~serveur.core.publisher.Publisher` (topics and the events feed),
     :class:`~serveur.core.link_reports.LinkReports` (every robot link's listener, feeding each
-    robot's report queue to :meth:`on_report`, and the hand-over timers),
+    robot's event queue to :meth:`on_event`, and the hand-over timers),
     :class:`~serveur.core.trips.Trips` (each step of a trip in the store) and
     :class:`~serveur.core.creation.Creation` (orders, trips and waypoints for ``create``). The core
     keeps what ties them together: each robot's status, changed under its lock.
@@ -287,8 +298,8 @@ class Core(RobotMoves, SiteActions, Traffic):
     def _kick(self) -> None:
         self.dispatcher.kick()
 
-    def _post(self, robot: str, kind: str) -> None:
-        self.reports.post(robot, kind)
+    def _post(self, robot: str, event: RobotEvent) -> None:
+        self.reports.post(robot, event)
 
     async def _stop_robot_runtime(self, rt: Runtime) -> None:
         """A removed robot: its link closed (the robot stopped), its worker ended, forgotten."""
@@ -741,40 +752,62 @@ class Core(RobotMoves, SiteActions, Traffic):
                 and rt.timed_out != since
             ):
                 rt.timed_out = since
-                self.reports.post(name, "table_timeout", robot.current_task, since)
+                self.reports.post(name, TableTimeout(robot.current_task, since))
 
-    # -- link reports, queued per robot (link_reports.ReportHandler) --------------------------
+    # -- robot events, queued per robot (link_reports.ReportHandler) ---------------------------
 
-    async def on_report(self, rt: Runtime, kind: str, args: tuple[Any, ...]) -> None:
-        """One queued link report, under the robot's lock."""
-        if kind == "up":
-            rt.link_error = None
-            await self._event(rt, Event.LINK_UP)
-            if rt.state.status is S.AWAITING:
-                await self._go_home_if_away(rt)
-            else:
-                await self._resume_move(rt)
-        elif kind == "lease":
-            await self._lease_granted(rt)
-        elif kind == "failed":
-            # The link cannot connect (a wrong address, a robot switched off): shown to staff
-            # with the robot, once per distinct reason.
-            rt.link_error = args[0]
-            self.publish_robot(rt.name)
-        elif kind == "down":
-            rt.goal_id = None
-            if rt.state.status is not S.OFFLINE:
-                await self._save_state(
-                    rt.name,
-                    apply(rt.state, Event.LINK_DOWN),
-                    error=f"link lost: {args[0]}",
-                    data={"event": Event.LINK_DOWN.value},
-                )
-        elif kind == "goal":
-            await self._on_goal(rt, *args)
-        elif kind == "handover":
-            await self._hand_over(rt)
-        elif kind == "persist_pose":
-            await self._save_pose(rt)
-        elif kind == "table_timeout":
-            await self._table_timeout(rt, *args)
+    async def on_event(self, rt: Runtime, event: RobotEvent) -> None:
+        """One queued robot event, under the robot's lock: dispatched on its type."""
+        await _ON_EVENT[type(event)](self, rt, event)
+
+    async def _on_up(self, rt: Runtime, _: LinkUp) -> None:
+        rt.link_error = None
+        await self._event(rt, Event.LINK_UP)
+        if rt.state.status is S.AWAITING:
+            await self._go_home_if_away(rt)
+        else:
+            await self._resume_move(rt)
+
+    async def _on_down(self, rt: Runtime, ev: LinkDown) -> None:
+        rt.goal_id = None
+        if rt.state.status is not S.OFFLINE:
+            await self._save_state(
+                rt.name,
+                apply(rt.state, Event.LINK_DOWN),
+                error=f"link lost: {ev.reason}",
+                data={"event": Event.LINK_DOWN.value},
+            )
+
+    async def _on_failed(self, rt: Runtime, ev: LinkFailed) -> None:
+        # The link cannot connect (a wrong address, a robot switched off): shown to staff
+        # with the robot, once per distinct reason.
+        rt.link_error = ev.reason
+        self.publish_robot(rt.name)
+
+    async def _on_goal_ended(self, rt: Runtime, ev: GoalEnded) -> None:
+        await self._on_goal(rt, ev.goal_id, ev.status, ev.text)
+
+    async def _on_lease(self, rt: Runtime, _: LeaseGranted) -> None:
+        await self._lease_granted(rt)
+
+    async def _on_handover(self, rt: Runtime, _: HandoverDue) -> None:
+        await self._hand_over(rt)
+
+    async def _on_persist(self, rt: Runtime, _: PersistPose) -> None:
+        await self._save_pose(rt)
+
+    async def _on_table_timeout(self, rt: Runtime, ev: TableTimeout) -> None:
+        await self._table_timeout(rt, ev.task_id, ev.since)
+
+
+#: Robot event type -> what the core does with it.
+_ON_EVENT: dict[type, Callable[[Core, Runtime, Any], Awaitable[None]]] = {
+    LinkUp: Core._on_up,
+    LinkDown: Core._on_down,
+    LinkFailed: Core._on_failed,
+    GoalEnded: Core._on_goal_ended,
+    LeaseGranted: Core._on_lease,
+    HandoverDue: Core._on_handover,
+    PersistPose: Core._on_persist,
+    TableTimeout: Core._on_table_timeout,
+}

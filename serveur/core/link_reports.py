@@ -29,6 +29,15 @@ from typing import Any, Protocol
 
 from serveur import protocol as P
 from serveur.clock import Clock
+from serveur.core.events import (
+    GoalEnded,
+    HandoverDue,
+    LinkDown,
+    LinkFailed,
+    LinkUp,
+    PersistPose,
+    RobotEvent,
+)
 from serveur.core.hub import Hub
 from serveur.core.places import Places
 from serveur.core.pose_rate import Pose, PoseGate
@@ -59,8 +68,8 @@ STORE_RETRY = (0.5, 10.0)
 class ReportHandler(Protocol):
     """What a queued report becomes: the core's decision, made under the robot's lock."""
 
-    async def on_report(self, rt: Runtime, kind: str, args: tuple[Any, ...]) -> None:
-        """Handle one report: ``up``, ``down``, ``goal``, ``handover`` or ``persist_pose``."""
+    async def on_event(self, rt: Runtime, event: RobotEvent) -> None:
+        """Handle one event (:mod:`serveur.core.events`)."""
 
     def moved(self, name: str, x: float, y: float) -> None:
         """A pose: the zones the robot has left are released (serveur.core.traffic)."""
@@ -117,11 +126,11 @@ class LinkReports:
 
     # -- the per-robot queue and worker ------------------------------------------------------
 
-    def post(self, robot: str, kind: str, *args: Any) -> None:
-        """Queue a report for the robot's worker (dropped once shutting down)."""
+    def post(self, robot: str, event: RobotEvent) -> None:
+        """Queue an event for the robot's worker (dropped once shutting down)."""
         rt = self._rt.get(robot)
         if rt is not None and not self._closing:
-            rt.events.put_nowait((kind, args))
+            rt.events.put_nowait(event)
 
     def start_worker(self, rt: Runtime) -> asyncio.Task[None]:
         """The task that handles the robot's queued reports, for the life of the server."""
@@ -165,14 +174,13 @@ class LinkReports:
         rt.handover = None
         # Through the robot's queue, like a link report: a link-up already queued is handled
         # first, and the hand-over then sees the robot back and does nothing.
-        self.post(rt.name, "handover")
+        self.post(rt.name, HandoverDue())
 
     async def _worker(self, rt: Runtime) -> None:
         while True:
-            kind, args = await rt.events.get()
-            await self._apply(rt, kind, args)
+            await self._apply(rt, await rt.events.get())
 
-    async def _apply(self, rt: Runtime, kind: str, args: tuple[Any, ...]) -> None:
+    async def _apply(self, rt: Runtime, event: RobotEvent) -> None:
         """Handle one report; one the store could not write is kept and tried again.
 
         A goal result is what moves a trip on: dropped because the disk was full, the trip
@@ -187,39 +195,39 @@ class LinkReports:
         while True:
             try:
                 async with rt.lock:
-                    await self._handler.on_report(rt, kind, args)
+                    await self._handler.on_event(rt, event)
                 await self._publisher.flush_events()
             except asyncio.CancelledError:
                 raise
             except StoreError as exc:
                 if not failing:
-                    log.error("%s: %s report not stored, retrying: %s", rt.name, kind, exc)
+                    log.error("%s: %s report not stored, retrying: %s", rt.name, event, exc)
                     failing = True
                 await self._clock.sleep(delay * self._clock.time_scale)
                 delay = min(delay * 2.0, longest)
                 continue
             except Exception:
-                log.exception("%s: handling %s failed", rt.name, kind)
+                log.exception("%s: handling %s failed", rt.name, event)
             if failing:
-                log.warning("%s: %s report stored after the store recovered", rt.name, kind)
+                log.warning("%s: %s report stored after the store recovered", rt.name, event)
             return
 
     # -- robot_link.LinkListener -------------------------------------------------------------
 
     def link_up(self, robot: str) -> None:
-        self.post(robot, "up")
+        self.post(robot, LinkUp())
 
     def link_down(self, robot: str, reason: str) -> None:
-        self.post(robot, "down", reason)
+        self.post(robot, LinkDown(reason))
 
     def link_failed(self, robot: str, reason: str) -> None:
-        self.post(robot, "failed", reason)
+        self.post(robot, LinkFailed(reason))
 
     def goal_done(self, robot: str, goal_id: str, status: rb.GoalStatus, text: str) -> None:
-        self.post(robot, "goal", goal_id, status, text)
+        self.post(robot, GoalEnded(goal_id, status, text))
 
     def goal_lost(self, robot: str, goal_id: str, reason: str) -> None:
-        self.post(robot, "goal", goal_id, rb.GoalStatus.LOST, reason)
+        self.post(robot, GoalEnded(goal_id, rb.GoalStatus.LOST, reason))
 
     def pose(self, robot: str, x: float, y: float, yaw: float, stamp: float) -> None:
         rt = self._rt.get(robot)
@@ -232,7 +240,7 @@ class LinkReports:
             self._poses.offer(robot, rt.pose, stamp)
         if self._clock.now() - rt.pose_saved_at > self._config.pose_persist_period:
             rt.pose_saved_at = self._clock.now()
-            self.post(robot, "persist_pose")
+            self.post(robot, PersistPose())
 
     def _publish_pose(self, robot: str, pose: Pose, stamp: float) -> None:
         topic = f"pose:{robot}"

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import asyncio
 from dataclasses import dataclass, field
-from typing import Any
 
+from serveur.core.events import RobotEvent
 from serveur.robots.driver import RobotDriver
 from serveur.status import RobotState
 
@@ -87,7 +87,7 @@ class Runtime:
     state: RobotState
     link: RobotDriver | None = None
     lock: asyncio.Lock = field(default_factory=asyncio.Lock)
-    events: asyncio.Queue[tuple[str, tuple[Any, ...]]] = field(default_factory=asyncio.Queue)
+    events: asyncio.Queue[RobotEvent] = field(default_factory=asyncio.Queue)
     worker: asyncio.Task[None] | None = None
     dest: Destination | None = None
     goal_id: str | None = None

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 from serveur import protocol as P
 from serveur.clock import Clock
+from serveur.core.events import LeaseGranted, RobotEvent
 from serveur.core.leases import Grant, LeaseBook, Zone, path_zones
 from serveur.core.places import Places
 from serveur.core.publisher import Publisher
@@ -67,7 +68,7 @@ class Traffic:
 
         def publish_robot(self, name: str) -> None: ...
 
-        def _post(self, robot: str, kind: str) -> None: ...
+        def _post(self, robot: str, event: RobotEvent) -> None: ...
 
         async def _send_goal(self, rt: Runtime, dest: Destination) -> None: ...
 
@@ -257,7 +258,7 @@ class Traffic:
 
     def _granted(self, grants: list[Grant]) -> None:
         for g in grants:
-            self._post(g.robot, "lease")
+            self._post(g.robot, LeaseGranted())
         self._publish_leases()
 
     def _publish_leases(self) -> None:
