@@ -18,6 +18,12 @@ a catalog never goes stale after an upgrade (new body, new ETag; a restart, a ne
 Last-Modified), and a reload costs a few hundred bytes a file. Text files (pages, scripts,
 styles, catalogs, SVG) are gzipped once at load and sent compressed to a client that accepts
 gzip (``Vary: Accept-Encoding``; the gzipped body has its own ETag).
+
+Made, not copied: ``/js/status-table.js`` is no file of ``site/``. It is written from
+:data:`serveur.status.ALLOWED` (which instructions each robot status accepts) when the site is
+loaded (:func:`generated`), and served like the other scripts (same ETag, gzip, 304s); the
+pages' ``js/status.js`` imports it. So the browser greys out exactly the buttons the server
+would refuse, and a change to the table in ``status.py`` reaches the pages at the next start.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ import functools
 import gzip
 import hashlib
 import http
+import json
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -36,7 +43,17 @@ from urllib.parse import unquote
 from websockets.datastructures import Headers
 from websockets.http11 import Request, Response
 
-__all__ = ["SECURITY_HEADERS", "Asset", "StaticSite", "default_site"]
+from serveur.status import ALLOWED, Action, RobotStatus
+
+__all__ = [
+    "SECURITY_HEADERS",
+    "STATUS_TABLE",
+    "Asset",
+    "StaticSite",
+    "default_site",
+    "generated",
+    "status_table_js",
+]
 
 WEB_ROOT = Path(__file__).with_name("site")
 
@@ -70,6 +87,36 @@ CONTENT_TYPES = {
 NAMED_PAGES = {"robot": "/robot.html", "table": "/table.html"}
 ALIASES = {"/": "/staff.html", "/staff": "/staff.html"}
 MAX_NAME = 64
+
+
+#: The allowed-actions table as a script (status_table_js), served at this path.
+STATUS_TABLE = "/js/status-table.js"
+
+
+def status_table_js(
+    allowed: Mapping[RobotStatus, frozenset[Action]] = ALLOWED,
+) -> bytes:
+    """``allowed`` (the server's table) as an ES module: ``ALLOWED``, status -> its actions.
+
+    Statuses and actions come in the order ``status.py`` declares them, so the same table
+    always makes the same bytes (and ETag).
+    """
+    rows = {s.value: [a.value for a in Action if a in allowed[s]] for s in RobotStatus}
+    lines = [
+        "// Made by serveur/web/static.py from serveur/status.py (ALLOWED) when the server",
+        "// started: which instructions a robot accepts in each status. No file holds it.",
+        f"export const ACTIONS = {json.dumps([a.value for a in Action])};",
+        "export const ALLOWED = {",
+        *(f"  {json.dumps(status)}: {json.dumps(actions)}," for status, actions in rows.items()),
+        "};",
+        "",
+    ]
+    return "\n".join(lines).encode()
+
+
+def generated() -> dict[str, bytes]:
+    """The site's files made from the server's own code (path -> body), not read from disk."""
+    return {STATUS_TABLE: status_table_js()}
 
 
 # Worth compressing: text. Images and fonts are compressed already.
@@ -135,8 +182,9 @@ class StaticSite:
         self.assets = dict(assets)
 
     @classmethod
-    def load(cls, root: Path = WEB_ROOT) -> StaticSite:
-        """Read every regular file under ``root`` (not following symlinks out of it)."""
+    def load(cls, root: Path = WEB_ROOT, made: Mapping[str, bytes] | None = None) -> StaticSite:
+        """Read every regular file under ``root`` (not following symlinks out of it), plus
+        ``made`` (path -> body: files written by the server, such as :func:`generated`)."""
         assets: dict[str, Asset] = {}
         base = root.resolve()
         loaded = float(int(time.time()))  # Last-Modified: HTTP dates have whole seconds
@@ -148,6 +196,10 @@ class StaticSite:
                 continue  # a symlink pointing outside the web root is not served
             name = "/" + path.relative_to(root).as_posix()
             assets[name] = Asset.of(name, real.read_bytes(), loaded)
+        for name, body in (made or {}).items():
+            if name in assets:
+                raise ValueError(f"{name} is made by the server and is also a file of {root}")
+            assets[name] = Asset.of(name, body, loaded)
         return cls(assets)
 
     def resolve(self, raw_path: str) -> Asset | None:
@@ -249,5 +301,6 @@ def _etags(header: str) -> set[str]:
 
 @functools.cache
 def default_site() -> StaticSite:
-    """The packaged UI, read from disk once per process (at the first server's start)."""
-    return StaticSite.load(WEB_ROOT)
+    """The packaged UI, read from disk once per process (at the first server's start), with
+    the files made from the server's code (the allowed-actions table)."""
+    return StaticSite.load(WEB_ROOT, generated())

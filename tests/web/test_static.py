@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import json
 import re
 from pathlib import Path
 
@@ -198,20 +199,29 @@ async def test_served_by_the_real_server(one_robot: Restaurant) -> None:
     await c.subscribe("robots")
 
 
-def test_the_ui_mirrors_the_allowed_actions_table() -> None:
-    """status.js's table is the server's (serveur.status.ALLOWED), row by row."""
-    from serveur.status import ALLOWED, Action, RobotStatus
+def served_table(body: bytes) -> dict[str, set[str]]:
+    """The allowed-actions table as /js/status-table.js writes it: status -> its actions."""
+    rows = re.findall(r'^  "(\w+)": (\[.*\]),$', body.decode(), re.M)
+    return {status: set(json.loads(actions)) for status, actions in rows}
 
+
+def test_the_ui_takes_the_allowed_actions_table_from_the_server() -> None:
+    """The pages' table is the server's (serveur.status.ALLOWED), row by row: served, not copied."""
+    from serveur.status import ALLOWED, Action, RobotStatus
+    from serveur.web.static import STATUS_TABLE, default_site, status_table_js
+
+    status, headers, body = get(default_site(), STATUS_TABLE)
+    assert status == 200 and headers["Content-Type"] == "text/javascript; charset=utf-8"
+    assert served_table(body) == {s.value: {a.value for a in ALLOWED[s]} for s in RobotStatus}
+    assert not (WEB_ROOT / STATUS_TABLE.lstrip("/")).exists()  # made by the server, no file
+    # status.js reads it and holds no copy: no action of the table is named there.
     js = (WEB_ROOT / "js" / "status.js").read_text()
-    actions = re.search(r"const ACTIONS = \[(.*?)\];", js, re.S)
-    assert actions is not None
-    names = re.findall(r'"(\w+)"', actions.group(1))
-    assert sorted(names) == sorted(a.value for a in Action)
-    rows = dict(re.findall(r"^\s+(\w+):\s+\[([T_, ]+)\],", js, re.M))
-    assert sorted(rows) == sorted(s.value for s in RobotStatus)
-    for status, cells in rows.items():
-        ticked = {n for n, c in zip(names, cells.split(","), strict=True) if c.strip() == "T"}
-        assert ticked == {a.value for a in ALLOWED[RobotStatus(status)]}, status
+    assert 'import { ALLOWED } from "./status-table.js";' in js
+    assert [a.value for a in Action if f'"{a.value}"' in js] == []
+    # A change to the table in status.py is what the pages get.
+    changed = {**ALLOWED, RobotStatus.OFFLINE: frozenset({Action.STOP})}
+    assert served_table(status_table_js(changed))["Offline"] == {"stop"}
+    assert status_table_js(changed) != body
 
 
 def test_text_files_are_gzipped_for_a_client_that_accepts_it(site: StaticSite) -> None:

@@ -1,34 +1,17 @@
-// The robot status machine as the UI needs it: which instructions each status accepts
-// (mirrors the allowed-actions table of docs/protocol.md) and how each status looks.
+// The robot status machine as the UI needs it: which instructions each status accepts, and how
+// each status looks. The table is the server's own (serveur/status.py ALLOWED), served as
+// /js/status-table.js by serveur/web/static.py: no copy of it lives here.
 // The server still has the last word: a refused instruction comes back as an error and is shown.
 
-const T = true;
-const _ = false;
-const ACTIONS = [
-  "auto", "manual", "teleop", "initialpose", "goal", "goto",
-  "ready", "next", "stop", "continue", "cancel", "save_waypoint", "go", "skip",
-];
-// prettier-ignore
-const TABLE = {
-  //          auto man tele init goal goto ready next stop cont canc save go skip
-  Offline:    [_, _, _, _, _, _, _, _, _, _, _, _, _, _],
-  Ready:      [T, T, _, _, _, _, _, _, _, _, _, T, _, _],
-  Awaiting:   [_, _, _, _, _, _, T, _, _, _, _, T, _, _],
-  Loading:    [_, T, _, _, _, _, _, _, _, _, T, T, T, _],
-  Delivering: [_, _, _, _, _, _, _, _, T, _, _, T, _, _],
-  Delivered:  [_, _, _, _, _, _, _, T, _, _, _, T, _, T],
-  Stopped:    [_, _, _, _, _, _, _, _, _, T, T, T, _, T],
-  Transit:    [_, _, _, _, _, _, _, _, T, _, _, T, _, _],
-  Manual:     [_, _, T, T, T, T, T, _, _, _, _, T, _, _],
-  Error:      [_, T, _, _, _, _, _, _, _, T, T, T, _, T],
-};
+import { ALLOWED } from "./status-table.js";
 
-export const STATUSES = Object.keys(TABLE);
+const TABLE = new Map(Object.entries(ALLOWED).map(([status, actions]) => [status, new Set(actions)]));
+
+export const STATUSES = [...TABLE.keys()];
 
 export function allowed(status, action) {
-  const row = TABLE[status];
-  const i = ACTIONS.indexOf(action);
-  return Boolean(row && i >= 0 && row[i]);
+  const row = TABLE.get(status);
+  return Boolean(row && row.has(action));
 }
 
 // Colours are paired with the status word (i18n.js statusName: the wire value stays English)
