@@ -8,10 +8,11 @@ a simulated robot of its dialect on a scaled clock, and the fake driver on a
 made by :func:`~serveur.robots.factory.make_driver`, as the core makes them.
 
 What is asserted is what the core relies on: the link comes up only with a pose; a goal ends
-SUCCEEDED at the goal; a cancelled goal is never reported and the robot stops; a goal replaced
-by another is never reported as a failure; halt stops the robot and refuses what follows; a
-joystick command with none after it is stopped by the dead man's switch; a dropped link is
-reported down once and up once (what Home Assistant and the staff console show as
+SUCCEEDED at the goal; a goal the robot never takes is lost, once; a blocked way ends a goal
+ABORTED with the robot's reason; a cancelled goal is never reported and the robot stops; a goal
+replaced by another is never reported as a failure; halt stops the robot and refuses what
+follows; a joystick command with none after it is stopped by the dead man's switch; a dropped
+link is reported down once and up once (what Home Assistant and the staff console show as
 availability); close() leaves no task of the driver running.
 """
 
@@ -140,6 +141,14 @@ class Rig:
         """The network comes back."""
         raise NotImplementedError
 
+    def refuse_goals(self, on: bool) -> None:
+        """The robot's navigation takes no goal: none is ever acknowledged."""
+        raise NotImplementedError
+
+    def block(self, on: bool) -> None:
+        """The robot's way is blocked: its navigation gives its goal up."""
+        raise NotImplementedError
+
     async def close(self) -> None:
         await self.driver.close()
 
@@ -171,6 +180,12 @@ class SimRig(Rig):
     def speed(self) -> float:
         vx, vy, wz = self.sim.robots[0].velocity
         return math.hypot(vx, vy) + abs(wz)
+
+    def refuse_goals(self, on: bool) -> None:
+        self.sim.robots[0].ignore_goals(on)
+
+    def block(self, on: bool) -> None:
+        self.sim.robots[0].block_path(on)
 
     async def cut(self) -> None:
         await self.sim.stop_endpoint(0)
@@ -215,6 +230,13 @@ class FakeRig(Rig):
     def speed(self) -> float:
         vx, vy, wz = self.fake.velocity
         return math.hypot(vx, vy) + abs(wz)
+
+    def refuse_goals(self, on: bool) -> None:
+        if on:
+            self.fake.refuse_next_goal()
+
+    def block(self, on: bool) -> None:
+        self.fake.block_path(on)
 
     async def cut(self) -> None:
         self.fake.drop_link("network unreachable")
@@ -306,6 +328,34 @@ async def test_a_new_goal_replaces_the_one_under_way_without_a_failure(rig: Rig)
     assert distance(rig.where(), NEAR) < 0.25
     await rig.pass_time(1.0)
     assert rig.rec.ends(first) == [], "the replaced goal was reported"
+
+
+async def test_a_goal_the_robot_never_takes_is_lost_once(rig: Rig) -> None:
+    await up(rig)
+    rig.refuse_goals(True)
+    handle = await rig.driver.send_goal(*NEAR)
+    await rig.until(lambda: rig.rec.ends(handle), 30.0, "the goal lost")
+    [(kind, (_, reason))] = rig.rec.ends(handle)
+    assert kind == "lost" and reason, reason
+    assert rig.driver.goal_id is None
+    assert distance(rig.where(), (HOME.x, HOME.y)) < 0.05, "the robot drove"
+    rig.refuse_goals(False)
+    await rig.pass_time(1.0)
+    assert len(rig.rec.ends(handle)) == 1
+
+
+async def test_a_blocked_way_ends_the_goal_aborted_with_the_robots_reason(rig: Rig) -> None:
+    await up(rig)
+    rig.block(True)
+    handle = await rig.driver.send_goal(*FAR)
+    await rig.until(lambda: rig.rec.ends(handle), 30.0, "the goal's end")
+    [(kind, (_, status, text))] = rig.rec.ends(handle)
+    assert (kind, status) == ("done", rb.GoalStatus.ABORTED) and text, text
+    assert rig.driver.goal_id is None
+    rig.block(False)
+    again = await rig.driver.send_goal(*NEAR)  # a failed goal leaves the link usable
+    await rig.until(lambda: rig.rec.ends(again), 30.0, "the next goal's end")
+    assert rig.rec.ends(again)[0][1][1] is rb.GoalStatus.SUCCEEDED
 
 
 async def test_halt_stops_the_robot_and_refuses_what_follows(rig: Rig) -> None:
