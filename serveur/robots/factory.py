@@ -7,8 +7,10 @@ inside the server's process, with no socket and no ROS, for tests of the core an
 replays that need robots that drive but no simulator. Its query sets where it starts and how
 it drives: ``fake://r1?x=4.0&y=10.8&yaw=1.57&speed=0.5&battery=0.9`` (metres, radians, m/s of
 clock time, 0..1; the defaults: the map's origin facing +x, :data:`~serveur.robots.fake.SPEED`,
-full). Clients cannot register one (the protocol takes ``ws://`` and ``wss://`` URLs only): it
-is given to :class:`~serveur.app.App` as a ``RobotSpec`` by the code that starts the server.
+full). A fake robot has no map to send: the server takes its map from its own files. Clients
+cannot register one (the protocol takes ``ws://`` and ``wss://`` URLs only): it is given by
+whoever starts the server, as an :class:`~serveur.app.App` ``RobotSpec`` or on the command
+line (``--robot 'r1=fake://r1?x=4.0&y=10.8,home=home1'``).
 """
 
 from __future__ import annotations
