@@ -1,5 +1,5 @@
-"""The zones robots take turns through, stored (migration 007); written once for every SQL
-backend like :mod:`serveur.store.site`.
+"""The zones robots take turns through, stored (migration 007): one part of
+:class:`~serveur.store.base.Store`, written once for every backend.
 
 Zones are the owner's drawing, saved and removed whole; leases on them live in the server
 (:mod:`serveur.core.leases`), not here. A zone removed is deleted outright: nothing refers to
@@ -15,12 +15,11 @@ from pathlib import Path
 
 from serveur.domain import ZoneRecord
 from serveur.errors import Conflict, InvalidField, NotFound
-from serveur.store.accounts import SqlTx
+from serveur.store import rows
 from serveur.store.live import WAYPOINT_NAMED
-from serveur.store.service import _event, _one
-from serveur.store.site import SiteMixin
+from serveur.store.sql import Db, Tx, one
 
-__all__ = ["ZonesMixin", "check_zone", "load_zones_file"]
+__all__ = ["Zones", "check_zone", "load_zones_file"]
 
 _ZONE = "SELECT name, points, capacity, wait_at, updated_at FROM zones"
 
@@ -68,14 +67,17 @@ def load_zones_file(path: str | Path) -> list[ZoneRecord]:
     return out
 
 
-class ZonesMixin(SiteMixin):
-    """Zone methods of :class:`~serveur.store.base.Store`."""
+class Zones:
+    """Zone methods of the store (``store.zones``)."""
+
+    def __init__(self, db: Db) -> None:
+        self._db = db
 
     async def list_zones(self) -> list[ZoneRecord]:
-        async def work(db: SqlTx) -> list[ZoneRecord]:
-            return [ZoneRecord(**r) for r in await db.all(f"{_ZONE} ORDER BY name")]
+        async def work(tx: Tx) -> list[ZoneRecord]:
+            return [ZoneRecord(**r) for r in await tx.all(f"{_ZONE} ORDER BY name")]
 
-        return await self._portable(work, write=False)
+        return await self._db.transact(work, "read")
 
     async def put_zone(
         self, zone: ZoneRecord, *, replace: bool, now: float, by: str | None = None
@@ -85,9 +87,9 @@ class ZonesMixin(SiteMixin):
         points = check_zone(zone.points, zone.capacity)
         body = json.dumps([list(p) for p in points])
 
-        async def work(db: SqlTx) -> ZoneRecord:
-            row = await _one(db, f"{_ZONE} WHERE name = ?", (zone.name,))
-            if zone.wait_at is not None and not await _one(db, WAYPOINT_NAMED, (zone.wait_at,)):
+        async def work(tx: Tx) -> ZoneRecord:
+            row = await one(tx, f"{_ZONE} WHERE name = ?", (zone.name,))
+            if zone.wait_at is not None and not await one(tx, WAYPOINT_NAMED, (zone.wait_at,)):
                 raise NotFound(f"no waypoint named {zone.wait_at!r}", waypoint=zone.wait_at)
             if row is not None:
                 old = ZoneRecord(**row)
@@ -99,13 +101,13 @@ class ZonesMixin(SiteMixin):
                     return old
                 if not replace:
                     raise Conflict(f"a zone named {zone.name!r} exists", zone=zone.name)
-                await db.run(
+                await tx.run(
                     "UPDATE zones SET points = ?, capacity = ?, wait_at = ?, updated_at = ?"
                     " WHERE name = ?",
                     (body, zone.capacity, zone.wait_at, now, zone.name),
                 )
             else:
-                await db.run(
+                await tx.run(
                     "INSERT INTO zones (name, points, capacity, wait_at, updated_at)"
                     " VALUES (?, ?, ?, ?, ?)",
                     (zone.name, body, zone.capacity, zone.wait_at, now),
@@ -117,20 +119,20 @@ class ZonesMixin(SiteMixin):
                 "wait_at": zone.wait_at,
                 "by": by,
             }
-            await _event(db, "zone.saved", now, data=data)
-            saved = await _one(db, f"{_ZONE} WHERE name = ?", (zone.name,))
+            await rows.add_event(tx, "zone.saved", now, data=data)
+            saved = await one(tx, f"{_ZONE} WHERE name = ?", (zone.name,))
             assert saved is not None
             return ZoneRecord(**saved)
 
-        return await self._portable(work, write=True)
+        return await self._db.transact(work, "write")
 
     async def delete_zone(self, name: str, *, now: float, by: str | None = None) -> ZoneRecord:
-        async def work(db: SqlTx) -> ZoneRecord:
-            row = await _one(db, f"{_ZONE} WHERE name = ?", (name,))
+        async def work(tx: Tx) -> ZoneRecord:
+            row = await one(tx, f"{_ZONE} WHERE name = ?", (name,))
             if row is None:
                 raise NotFound(f"no zone named {name!r}", zone=name)
-            await db.run("DELETE FROM zones WHERE name = ?", (name,))
-            await _event(db, "zone.removed", now, data={"name": name, "by": by})
+            await tx.run("DELETE FROM zones WHERE name = ?", (name,))
+            await rows.add_event(tx, "zone.removed", now, data={"name": name, "by": by})
             return ZoneRecord(**row)
 
-        return await self._portable(work, write=True)
+        return await self._db.transact(work, "write")

@@ -45,6 +45,7 @@ import re
 import time
 from collections.abc import Awaitable, Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Literal, TypeVar
 from urllib.parse import parse_qsl, unquote, urlsplit
 
@@ -53,7 +54,9 @@ from asyncmy.constants import CLIENT
 from asyncmy.cursors import DictCursor
 
 from serveur.errors import Conflict, ServeurError, StoreError
+from serveur.store.mariadb import backup as maintenance
 from serveur.store.migrations import Migration, load_migrations
+from serveur.store.sql import MARIADB, Dialect, Mode
 
 __all__ = [
     "DEFAULT_PORT",
@@ -203,14 +206,19 @@ def split_statements(script: str) -> list[str]:
 
 
 class Tx:
-    """One connection inside one unit of work: run statements, read rows as dicts."""
+    """One connection inside one unit of work: :class:`~serveur.store.sql.Tx` in portable SQL
+    (``?`` placeholders, turned into asyncmy's ``%s``), rows as dicts."""
 
     def __init__(self, conn: asyncmy.Connection) -> None:
         self.conn = conn
 
+    @property
+    def dialect(self) -> Dialect:
+        return MARIADB
+
     async def all(self, sql: str, params: Sequence[Any] = ()) -> list[dict[str, Any]]:
         async with self.conn.cursor(DictCursor) as cur:
-            await cur.execute(sql, tuple(params) or None)
+            await cur.execute(MARIADB.sql(sql), tuple(params))
             rows: list[dict[str, Any]] = list(await cur.fetchall())
             return rows
 
@@ -221,18 +229,23 @@ class Tx:
     async def run(self, sql: str, params: Sequence[Any] = ()) -> int:
         """Execute a write; the number of rows its WHERE matched."""
         async with self.conn.cursor() as cur:
-            return int(await cur.execute(sql, tuple(params) or None))
+            return int(await cur.execute(MARIADB.sql(sql), tuple(params)))
 
     async def insert(self, sql: str, params: Sequence[Any]) -> int:
         """Execute an INSERT; the AUTO_INCREMENT id it was given."""
         async with self.conn.cursor() as cur:
-            await cur.execute(sql, tuple(params))
+            await cur.execute(MARIADB.sql(sql), tuple(params))
             return int(cur.lastrowid)
 
     async def many(self, sql: str, rows: Sequence[Sequence[Any]]) -> None:
         if rows:
             async with self.conn.cursor() as cur:
-                await cur.executemany(sql, [tuple(r) for r in rows])
+                await cur.executemany(MARIADB.sql(sql), [tuple(r) for r in rows])
+
+    async def script(self, sql: str) -> None:
+        """Execute one statement of a migration as it is written (no parameters)."""
+        async with self.conn.cursor() as cur:
+            await cur.execute(sql)
 
 
 class _Retry(Exception):
@@ -271,6 +284,14 @@ class Database:
     @property
     def is_open(self) -> bool:
         return self._pool is not None
+
+    @property
+    def dialect(self) -> Dialect:
+        return MARIADB
+
+    def busy(self) -> bool:
+        """Queries run on the event loop (asyncmy is asynchronous): never busy elsewhere."""
+        return False
 
     async def open(self) -> None:
         """Create the pool (retrying while the server starts) and apply the migrations."""
@@ -320,6 +341,12 @@ class Database:
                 await pool.wait_closed()
 
     # -- units of work ------------------------------------------------------------------
+
+    async def transact(self, work: Callable[[Tx], Awaitable[T]], mode: Mode) -> T:
+        """Run ``work`` as a ``write``, ``read`` or ``auto`` unit of work (see below)."""
+        if mode == "write":
+            return await self.write(work)
+        return await (self.read(work) if mode == "read" else self.auto(work))
 
     async def write(self, work: Callable[[Tx], Awaitable[T]]) -> T:
         """Run ``work`` in one READ COMMITTED transaction, re-run while surely uncommitted."""
@@ -429,6 +456,15 @@ class Database:
     def _error(self, exc: BaseException, what: str) -> StoreError:
         return StoreError(f"{what} on {self.config.describe()}: {exc}", code=_code(exc))
 
+    # -- maintenance ----------------------------------------------------------------------
+
+    async def backup(self, path: str | Path) -> None:
+        """A SQLite copy of every row (:func:`serveur.store.mariadb.backup.backup`)."""
+        await maintenance.backup(self, path)
+
+    async def integrity_check(self) -> str:
+        return await maintenance.integrity_check(self)
+
     # -- migrations -----------------------------------------------------------------------
 
     async def _migrate(self) -> None:
@@ -447,7 +483,7 @@ class Database:
                 db = Tx(conn)
                 try:
                     got = await db.one(
-                        "SELECT GET_LOCK(%s, %s) AS got", (lock, MIGRATION_LOCK_TIMEOUT)
+                        "SELECT GET_LOCK(?, ?) AS got", (lock, MIGRATION_LOCK_TIMEOUT)
                     )
                     if not got or got["got"] != 1:
                         raise StoreError(
@@ -457,7 +493,7 @@ class Database:
                     await self._apply(db, history)
                 finally:
                     if conn.connected:
-                        await db.all("SELECT RELEASE_LOCK(%s)", (lock,))
+                        await db.all("SELECT RELEASE_LOCK(?)", (lock,))
         except ServeurError:
             raise
         except Exception as exc:
@@ -489,15 +525,15 @@ class Database:
             # DDL commits statement by statement; every statement of a MariaDB migration can
             # run again, so a version cut short by a crash is simply applied again.
             for statement in split_statements(m.sql):
-                await db.run(statement)
+                await db.script(statement)
             await db.run(
-                "INSERT INTO schema_migrations (version, name, applied_at) VALUES (%s, %s, %s)",
+                "INSERT INTO schema_migrations (version, name, applied_at) VALUES (?, ?, ?)",
                 (m.version, m.name, time.time()),
             )
 
     @staticmethod
     async def _create_history(db: Tx) -> None:
-        await db.run(
+        await db.script(
             "CREATE TABLE IF NOT EXISTS schema_migrations ("
             " version INT NOT NULL PRIMARY KEY, name VARCHAR(255) NOT NULL,"
             " applied_at DOUBLE NOT NULL"
