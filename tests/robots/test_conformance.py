@@ -13,7 +13,8 @@ ABORTED with the robot's reason; a cancelled goal is never reported and the robo
 replaced by another is never reported as a failure; halt stops the robot and refuses what
 follows; a joystick command with none after it is stopped by the dead man's switch; a dropped
 link is reported down once and up once (what Home Assistant and the staff console show as
-availability); close() leaves no task of the driver running.
+availability); an initial pose puts the robot there; scans come only while wanted; close()
+leaves no task of the driver running.
 """
 
 from __future__ import annotations
@@ -389,6 +390,35 @@ async def test_a_joystick_that_goes_quiet_stops_the_robot(
     there = rig.where()
     await rig.pass_time(1.0)
     assert abs(math.remainder(rig.where()[2] - there[2], math.tau)) < 0.02
+
+
+async def test_initial_pose_puts_the_robot_there(rig: Rig) -> None:
+    await up(rig)
+    # Not in the link's first second: a ROS1 link subscribes to an idle robot's /amcl_pose at
+    # one message a second, and rosbridge's throttle drops (not delays) the one pose AMCL
+    # publishes after /initialpose if it comes sooner than that after the latched first one.
+    await rig.pass_time(1.5)
+    spot = (HOME.x + 0.5, HOME.y - 0.5, 0.0)
+    await rig.driver.initial_pose(*spot)
+    await rig.until(
+        lambda: rig.driver.pose is not None and distance(rig.driver.pose, spot) < 0.1,
+        10.0,
+        "the new pose reported",
+    )
+    assert distance(rig.where(), spot) < 0.1
+
+
+async def test_scans_come_while_wanted_and_stop_after(rig: Rig) -> None:
+    await up(rig)
+    await rig.driver.want_scan(True)
+    await rig.until(lambda: rig.rec.count("scan") >= 3, 10.0, "scans")
+    await rig.driver.want_scan(False)
+    await rig.pass_time(0.5)  # one may be on its way
+    mark = len(rig.rec.events)
+    await rig.pass_time(1.0)
+    assert rig.rec.count("scan", mark) == 0
+    await rig.driver.want_pose(True)  # accepted by every driver, whatever it does with it
+    await rig.driver.want_pose(False)
 
 
 @pytest.mark.cuts_links
