@@ -170,6 +170,13 @@ class Simulation:
         """Reopen robot i's websocket server on the same port."""
         await self._endpoints[i].start()
 
+    async def restart_rosbridge(self, i: int) -> None:
+        """Robot i's rosbridge is restarted (the old process killed, its connections closed,
+        a new one started): heals :meth:`SimRobot.stop_bridge_ros_side`."""
+        await self._endpoints[i].stop()
+        self.robots[i].bridge_restarted()
+        await self._endpoints[i].start()
+
     async def warm_plans(self, goals: Sequence[tuple[float, float]]) -> int:
         """Plan once to each goal now (in a worker thread); how many were reachable.
 

@@ -12,17 +12,50 @@ stop for good, steer, set the pose; reports of pose, battery, goal outcomes and 
 Goal outcomes use one vocabulary, :class:`~serveur.robots.rosbridge.GoalStatus` (actionlib's,
 the richer of the two): a driver for another stack maps its own outcomes onto it (Nav2's
 CANCELED is PREEMPTED, a goal that never got an answer is LOST).
+
+A lost goal also says *why* it was lost, typed (:class:`GoalLoss`): the link failed (the table
+is fine), the robot never took the goal, or it navigated and could not finish. A driver reports
+it with :func:`report_goal_lost`, which passes ``cause=`` to a listener whose ``goal_lost``
+takes it (:class:`GoalLossListener`) and leaves it out for one that does not yet.
 """
 
 from __future__ import annotations
 
+import inspect
 import logging
 from collections.abc import Mapping
-from typing import Any, Protocol
+from enum import Enum
+from typing import Any, Protocol, cast
 
 from serveur.robots import rosbridge as rb
 
-__all__ = ["LinkListener", "RobotDriver", "connect_failed"]
+__all__ = [
+    "GoalLoss",
+    "GoalLossListener",
+    "LinkListener",
+    "RobotDriver",
+    "connect_failed",
+    "report_goal_lost",
+]
+
+
+class GoalLoss(Enum):
+    """Why a goal was lost: what the core may conclude about the place it was going to.
+
+    * ``LINK``: the link to the robot failed while the goal ran (or the bridge could not carry
+      it): nothing is known about the way or the table; the robot is Offline or soon will be.
+      Not a reason to block a table.
+    * ``NOT_ACCEPTED``: the robot never took the goal (no acknowledgement after every re-send,
+      or its navigator refused it): the robot's navigation is not working, not the table's way.
+    * ``NAVIGATION``: the robot took the goal and its end never came (it stopped reporting
+      progress away from the goal): as a navigation failure, the way may be at fault.
+
+    A goal whose end came (SUCCEEDED, ABORTED...) is not lost: ``goal_done`` says it.
+    """
+
+    LINK = "link"
+    NOT_ACCEPTED = "not_accepted"
+    NAVIGATION = "navigation"
 
 
 class LinkListener(Protocol):
@@ -45,11 +78,51 @@ class LinkListener(Protocol):
         ``text`` says it in the robot's own terms ("move_base ABORTED: ...")."""
 
     def goal_lost(self, robot: str, goal_id: str, reason: str) -> None:
-        """The goal was never acknowledged after every re-send, or its end never came."""
+        """The goal was never acknowledged after every re-send, or its end never came;
+        ``reason`` says it in the robot's own terms ("goal not acknowledged by Nav2 ...").
+        The driver has already asked the robot to cancel it (a goal nobody watches drives
+        on). A listener that also takes ``cause`` is a :class:`GoalLossListener`."""
 
     def scan(self, robot: str, msg: Mapping[str, Any]) -> None: ...
 
     def map(self, robot: str, msg: Mapping[str, Any]) -> None: ...
+
+
+class GoalLossListener(LinkListener, Protocol):
+    """A listener told why a goal was lost (:class:`GoalLoss`); ``cause`` defaults to
+    ``NAVIGATION``, what every lost goal was taken for before causes existed."""
+
+    def goal_lost(
+        self, robot: str, goal_id: str, reason: str, *, cause: GoalLoss = GoalLoss.NAVIGATION
+    ) -> None: ...
+
+
+_TAKES_CAUSE: dict[type, bool] = {}
+
+
+def _takes_cause(listener: object) -> bool:
+    kind = type(listener)
+    known = _TAKES_CAUSE.get(kind)
+    if known is None:
+        try:
+            params = inspect.signature(listener.goal_lost).parameters  # type: ignore[attr-defined]
+        except (TypeError, ValueError):
+            params = {}  # type: ignore[assignment]
+        known = "cause" in params or any(
+            p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()
+        )
+        _TAKES_CAUSE[kind] = known
+    return known
+
+
+def report_goal_lost(
+    listener: LinkListener, robot: str, goal_id: str, reason: str, cause: GoalLoss
+) -> None:
+    """Tell ``listener`` a goal was lost, with its cause if the listener takes one."""
+    if _takes_cause(listener):
+        cast(GoalLossListener, listener).goal_lost(robot, goal_id, reason, cause=cause)
+    else:
+        listener.goal_lost(robot, goal_id, reason)
 
 
 class RobotDriver(Protocol):

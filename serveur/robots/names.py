@@ -22,7 +22,8 @@ __all__ = ["OPTION_KEYS", "ROS_VERSIONS", "RosNames"]
 
 #: Option key -> the default name, in the order docs/robots.md lists them: the move_base
 #: action (goal, cancel, status, result, feedback), joystick velocities, the localised pose,
-#: calibration, the battery, the laser, the map (when the server has none).
+#: calibration, the battery, the laser, the map (when the server has none), and a ROS 2
+#: robot's heartbeat service (Nav2's navigator lifecycle state).
 _DEFAULTS: dict[str, str] = {
     "move_base": "move_base",
     "navigate": "navigate_to_pose",  # ROS 2: Nav2's NavigateToPose action
@@ -32,6 +33,9 @@ _DEFAULTS: dict[str, str] = {
     "battery": "battery_state",
     "scan": "scan",
     "map": "map",
+    # ROS 2: the service whose answer proves the robot alive and able to take goals
+    # (lifecycle_msgs/srv/GetState answering "active", or std_srvs/srv/Trigger's success).
+    "heartbeat": "bt_navigator/get_state",
 }
 #: Every option a robot's ``link`` may carry.
 OPTION_KEYS = ("ros", "ns", *_DEFAULTS, "frame")
@@ -61,6 +65,7 @@ class RosNames:
     battery: str = "/battery_state"
     scan: str = "/scan"
     map: str = "/map"
+    heartbeat: str = "/bt_navigator/get_state"
     frame: str = "map"
 
     @classmethod

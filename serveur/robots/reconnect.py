@@ -5,7 +5,8 @@ drops, say why (once per distinct reason: :func:`~serveur.robots.driver.connect_
 with exponential backoff, connect again. The ROS1 driver holds one connection and the ROS 2
 driver two (goals on their own, so Humble's blocked queue never delays a Stop); everything
 else about reconnecting is the same, so it is written once here and each driver says only how
-it opens its connections and what its session does.
+it opens its connections and what its session does. What a driver's tracker
+(:mod:`serveur.robots.liveness`) decides is reported the same way too: :func:`announce`.
 
 A TLS failure is reported as such: retrying will not help until someone fixes a certificate or
 ``--robot-cafile``, and staff must read that, not "connection refused".
@@ -14,6 +15,7 @@ A TLS failure is reported as such: retrying will not help until someone fixes a 
 from __future__ import annotations
 
 import asyncio
+import logging
 import ssl as ssl_module
 from contextlib import AbstractAsyncContextManager
 from typing import Any
@@ -21,7 +23,10 @@ from typing import Any
 import websockets
 from websockets.asyncio.client import connect
 
-__all__ = ["Reconnecting", "open_rosbridge"]
+from serveur.robots.driver import LinkListener, report_goal_lost
+from serveur.robots.liveness import GoalDone, GoalLost, Instruction, LinkDown, LinkUp
+
+__all__ = ["Reconnecting", "announce", "open_rosbridge"]
 
 
 def open_rosbridge(url: str, *, ssl: ssl_module.SSLContext | None, open_timeout: float) -> Any:
@@ -88,3 +93,27 @@ class Reconnecting:
             self._set_down(reason)
             await asyncio.sleep(delay)
             delay = min(delay * 2, self._backoff[1])
+
+
+def announce(
+    listener: LinkListener, robot: str, act: Instruction, log: logging.Logger, where: str
+) -> bool:
+    """Say what a tracker instruction reports (link up or down, a goal done or lost) to the
+    listener and the driver's ``log``; False for the instructions the driver carries out
+    itself (sends, cancels; aborting its connections after a :class:`LinkDown`)."""
+    if isinstance(act, LinkUp):
+        log.info("%s: link up (%s)", robot, where)
+        listener.link_up(robot)
+    elif isinstance(act, LinkDown):
+        if act.report:
+            log.warning("%s: link down (%s)", robot, act.reason)
+            listener.link_down(robot, act.reason)
+        return False
+    elif isinstance(act, GoalDone):
+        listener.goal_done(robot, act.handle, act.status, act.text)
+    elif isinstance(act, GoalLost):
+        log.warning("%s: goal %s lost (%s): %s", robot, act.handle, act.cause.value, act.reason)
+        report_goal_lost(listener, robot, act.handle, act.reason, act.cause)
+    else:
+        return False
+    return True

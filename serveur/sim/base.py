@@ -112,6 +112,8 @@ class RobotBase:
     _block_path: bool
     _ignore_goals: bool
     _drop_results: int
+    _ros_side_dead: bool  # ROS 2: rosbridge's ROS side shut (SIGTERM/SIGINT), socket open
+    _node_dead: bool  # ROS 2: the robot's node died behind a live rosbridge and rosapi
     # laser
     _scan_rel: npt.NDArray[np.floating[Any]]
     _scan_cache: tuple[tuple[float, float, float], npt.NDArray[np.float64]] | None
@@ -130,6 +132,21 @@ class RobotBase:
         tuple[tuple[float, float, float], tuple[tuple[float, float], ...], npt.NDArray[np.float64]]
         | None
     )
+
+    @property
+    def ros_side_dead(self) -> bool:
+        """ROS 2 fault: rosbridge's ROS side stopped (see ``SimRobot.stop_bridge_ros_side``)."""
+        return self._ros_side_dead
+
+    @property
+    def node_dead(self) -> bool:
+        """ROS 2 fault: the robot's node is dead behind a live bridge (``SimRobot.kill_node``)."""
+        return self._node_dead
+
+    @property
+    def _relaying(self) -> bool:
+        """What the robot's nodes publish reaches the bridge's clients."""
+        return not (self._ros_side_dead or self._node_dead)
 
     # -- names -------------------------------------------------------------------------------
 

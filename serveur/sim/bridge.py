@@ -31,6 +31,12 @@ and adds ``/rosapi/action_servers``. With the robot's ``humble_queue`` (rosbridg
 ``send_action_goals_in_new_thread`` false), a goal holds its connection: the frames that arrive
 meanwhile wait in :attr:`BridgeClient.backlog` and are handled, in order, once it ends. A ROS1
 robot's rosbridge 0.11 knows no action op (``unknown op``).
+
+A ROS 2 robot also serves Nav2's ``/bt_navigator/get_state`` (``active``), and its bridge has
+the two failures measured on a real stack (shared/notes/ros2.md, "Liveness, measured on the
+same stack"; the robot's hooks ``stop_bridge_ros_side`` and ``kill_node``): a bridge whose ROS
+side stopped answers every call ``result: false`` and does nothing else; a bridge in front of a
+dead robot node still answers rosapi, never the robot's services, and sends nothing for goals.
 """
 
 from __future__ import annotations
@@ -115,6 +121,8 @@ _OPS: Final = frozenset(
 )
 #: rosbridge 2.x's action ops: unknown to a ROS1 robot's rosbridge 0.11.
 _ACTION_OPS: Final = frozenset({"send_action_goal", "cancel_action_goal"})
+#: Ops a bridge whose ROS side stopped still answers (with an error): the rest do nothing.
+_DEAD_SIDE_OPS: Final = frozenset({"call_service", "send_action_goal", "fragment", "set_level"})
 
 # ---------------------------------------------------------------------------------------------
 # One client connection
@@ -350,6 +358,8 @@ class BridgeClient:
         oid = _op_id(msg)
         if op in _ACTION_OPS and self.robot.ros == 1:
             raise RosbridgeError(f"unknown op {op!r}")  # rosbridge 0.11 has no action ops
+        if self.robot.ros_side_dead and op not in _DEAD_SIDE_OPS:
+            return  # the bridge's ROS side is gone: subscribing, publishing... do nothing
         if op in _OPS and "fragment_size" in msg:
             # Any op may carry it and it holds for the client from then on (protocol.py).
             size = _opt_int(msg, "fragment_size")
@@ -426,10 +436,13 @@ class BridgeClient:
         self.endpoint.actions[oid] = goal
         if self.robot.humble_queue:
             self.blocker = goal
+        if self.robot.ros_side_dead:
+            self._fail(goal, ros2.ROS_SIDE_DEAD)
+            return
         if action_type.strip("/") not in ros2.ACTION_TYPES:
             self._fail(goal, f"Unable to import action type {action_type!r}")
             return
-        if self.robot.local(name) != ros2.NAVIGATE_TO_POSE:
+        if self.robot.local(name) != ros2.NAVIGATE_TO_POSE or self.robot.node_dead:
             # No action server: rosbridge waits for one for ever and sends nothing; with the
             # fix it gives up after wait_for_server's 1 s.
             if self.robot.rosbridge_fix:
@@ -460,7 +473,7 @@ class BridgeClient:
         if oid is None and "#" in action:
             oid = action.split("#", 1)[1]
         goal = self.endpoint.actions.get(oid)
-        if goal is not None and not goal.done:
+        if goal is not None and not goal.done and not self.robot.node_dead:
             goal.client.robot.nav2_cancel(goal)
 
     def _topic(self, msg: Mapping[str, Any]) -> str:
@@ -486,6 +499,8 @@ class BridgeClient:
                     f"{topic} is published by the robot; it does not subscribe to it"
                 )
             raise RosbridgeError(f"unknown topic {topic}: the robot does not subscribe to it")
+        if self.robot.node_dead:
+            return  # published to a topic whose only subscriber died: nobody gets it
         warning = self.robot.handle_publish(topic, body)
         if warning:
             self.status("warning", warning, oid)
@@ -554,12 +569,20 @@ class BridgeClient:
     async def _call_service(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
         service = cast(str, msg["service"])
         args = msg.get("args")
+        robot = self.robot
+        if robot.ros_side_dead:
+            self.reply(rb.op_service_response(service, oid, ros2.ROS_SIDE_DEAD, result=False))
+            return
         try:
             if args is not None and not isinstance(args, Mapping | list):
                 raise RosbridgeError("'args' must be an object or a list")
             builtin = _rosapi(self).get(service)
             if builtin is not None:
                 values, ok = builtin(self, args), True
+            elif robot.ros == 2 and robot.local(service) == ros2.GET_STATE:
+                if robot.node_dead:
+                    return  # the dead node is still listed: rosbridge waits, nothing comes
+                values, ok = ros2.lifecycle_state("active"), True
             elif service in self.endpoint.services:
                 values, ok = await self._forward_call(service, args, msg.get("timeout"))
             else:
@@ -664,7 +687,8 @@ def _rosapi_topic_type(client: BridgeClient, args: Any) -> dict[str, Any]:
 
 
 def _rosapi_services(client: BridgeClient, args: Any) -> dict[str, Any]:
-    return {"services": sorted([*_rosapi(client), *client.endpoint.services])}
+    own = [client.robot.wire(ros2.GET_STATE)] if client.robot.ros == 2 else []
+    return {"services": sorted([*_rosapi(client), *own, *client.endpoint.services])}
 
 
 def _rosapi_action_servers(client: BridgeClient, args: Any) -> dict[str, Any]:

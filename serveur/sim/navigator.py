@@ -89,6 +89,9 @@ class Navigator(Sensors):
             st, values = ros2.CANCELED, ros2.nav2_result(self.release)
         else:
             st, values = ros2.ABORTED, ros2.nav2_result(self.release, code, text)
+        if self._ros_side_dead:
+            owner.end(st, values, send=False)  # the bridge's ROS side is gone: no result
+            return
         send = self._drop_results == 0
         if not send:
             self._drop_results -= 1

@@ -129,7 +129,8 @@ class SimRobot(Inbox, Floor):
     (0..1), ``home``, ``velocity``, ``clock_offset``, ``amcl``, ``ros`` (1 or 2), and for ROS 2
     ``release``, ``twist_stamped``, ``humble_queue``, ``rosbridge_fix``; ``topic_types`` and
     ``subscribes`` (the robot's graph in its dialect). Fault hooks: :meth:`block_path`,
-    :meth:`ignore_goals`, and for ROS 2 :meth:`drop_results`.
+    :meth:`ignore_goals`, and for ROS 2 :meth:`drop_results`, :meth:`stop_bridge_ros_side`
+    (healed by ``Simulation.restart_rosbridge``) and :meth:`kill_node` / :meth:`restart_node`.
 
     ``clock_offset`` (seconds) is added to every stamp the robot makes (:meth:`epoch`);
     ``amcl`` is one of :data:`AMCL_MODES` (see the module's docstring).
@@ -237,6 +238,8 @@ class SimRobot(Inbox, Floor):
         self._block_path = False
         self._ignore_goals = False
         self._drop_results = 0
+        self._ros_side_dead = False
+        self._node_dead = False
         # laser
         self._scan_rel = -math.pi + (2.0 * math.pi / SCAN_RAYS) * np.arange(SCAN_RAYS)
         self._scan_cache = None
@@ -289,6 +292,47 @@ class SimRobot(Inbox, Floor):
         never reaches the client (measured about once in 200 goals on a real Jazzy stack,
         shared/notes/ros2.md; the cause is unknown). The connection is not held by them."""
         self._drop_results = max(0, int(n))
+
+    def stop_bridge_ros_side(self) -> None:
+        """Fault hook (ROS 2): rosbridge got SIGTERM or SIGINT (what ``ros2 launch`` and
+        systemd send first). Measured on rosbridge 2.1.0 (shared/notes/ros2.md, "Liveness,
+        measured on the same stack"): its ROS side shuts down but its websocket server keeps
+        running until killed — connections stay open, every ``call_service`` (rosapi's too)
+        is answered ``result: false`` with ``values`` "rcl node's context is invalid", topics
+        go quiet, action feedback stops. The robot itself (Nav2) is not touched: a goal under
+        way drives on to its end, whose result never comes. A ``send_action_goal`` gets
+        ``action_result`` with ``result`` false and the same text (rosbridge's capability
+        reports an exception so; inferred, not measured); other ops do nothing. Only a new
+        rosbridge heals it: ``Simulation.restart_rosbridge``."""
+        self._ros_side_dead = True
+        self._teleop = None
+
+    def bridge_restarted(self) -> None:
+        """A new rosbridge process runs (its old connections are gone: the caller closes
+        them): the robot's topics reach clients again, AMCL's latched pose first."""
+        self._ros_side_dead = False
+        self._amcl_force = True
+
+    def kill_node(self) -> None:
+        """Fault hook (ROS 2): the robot's node dies while rosbridge and rosapi live
+        (shared/notes/ros2.md, "Liveness, measured on the same stack"): rosapi still answers
+        (``get_time``, ``topics``...), but the robot's topics stop, its navigator is gone —
+        the goal under way stops and no frame ever comes for it (its rosbridge handler waits,
+        holding a Humble connection), a new goal gets no frame at all (no action server),
+        cancels and ``/cmd_vel`` reach nobody — and ``/bt_navigator/get_state`` is never
+        answered (rosapi still lists the dead node, so rosbridge waits for it)."""
+        self._node_dead = True
+        self._teleop = None
+        for g in list(self._goals):
+            if not g.terminal:
+                g.owner = None  # its result never reaches the bridge
+                self._finish(g, GoalStatus.ABORTED, "the navigator died")
+
+    def restart_node(self) -> None:
+        """The robot's node is back: a fresh navigator (active, no goal), AMCL publishing
+        its pose at start."""
+        self._node_dead = False
+        self._amcl_force = True
 
     def teleport(self, x: float, y: float, yaw: float) -> None:
         """Put the robot somewhere else (like /initialpose, for tests)."""
@@ -435,5 +479,6 @@ class SimRobot(Inbox, Floor):
             self._step(TICK)
             self._ticks = k = self._ticks + 1
             # A latched pose is kept without subscribers; a ROS 2 goal's feedback has none.
-            if self._subs or self.amcl == "real" or self.ros == 2:
+            # Nothing reaches clients while the robot's node or the bridge's ROS side is dead.
+            if (self._subs or self.amcl == "real" or self.ros == 2) and self._relaying:
                 self._publish_due(k)

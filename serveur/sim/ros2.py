@@ -18,6 +18,11 @@ Sources (shared/notes/ros2.md, researched from rosbridge_suite's ROSBRIDGE_PROTO
   of motion (ROS1 amcl: 0.2 m / 30 degrees).
 * Nav2 Jazzy's and Kilted's ``/cmd_vel`` may be ``TwistStamped`` (Kilted's default; Jazzy's
   diff_drive_controller requires it).
+* Nav2's lifecycle: ``/bt_navigator/get_state`` (lifecycle_msgs/srv/GetState) answers
+  ``{current_state: {id: 3, label: "active"}}`` when the navigator can take goals
+  (:func:`lifecycle_state`).
+* rosbridge stopped with SIGTERM or SIGINT answers every call with ``result: false`` and
+  :data:`ROS_SIDE_DEAD` ("Liveness, measured on the same stack").
 """
 
 from __future__ import annotations
@@ -34,14 +39,18 @@ __all__ = [
     "ACTION_TYPES",
     "CANCELED",
     "FAILED_TO_MAKE_PROGRESS",
+    "GET_STATE",
+    "LIFECYCLE_STATES",
     "NAVIGATE_TO_POSE",
     "NAVIGATE_TO_POSE_TYPE",
     "NO_VALID_PATH",
     "RELEASES",
+    "ROS_SIDE_DEAD",
     "SUCCEEDED",
     "UNKNOWN",
     "duration",
     "goal_from_args",
+    "lifecycle_state",
     "nav2_feedback",
     "nav2_result",
     "time",
@@ -56,6 +65,13 @@ NAVIGATE_TO_POSE: Final = "/navigate_to_pose"
 NAVIGATE_TO_POSE_TYPE: Final = "nav2_msgs/action/NavigateToPose"
 #: Spellings rosbridge's ros_loader resolves to the navigator's action type.
 ACTION_TYPES: Final = frozenset({NAVIGATE_TO_POSE_TYPE, "nav2_msgs/NavigateToPose"})
+#: The navigator's lifecycle state service (lifecycle_msgs/srv/GetState).
+GET_STATE: Final = "/bt_navigator/get_state"
+#: lifecycle_msgs/msg/State ids of the primary states, by label.
+LIFECYCLE_STATES: Final = {"unconfigured": 1, "inactive": 2, "active": 3, "finalized": 4}
+#: What rosbridge 2.1.0 answers every ``call_service`` with once SIGTERM or SIGINT shut its
+#: ROS side (``result: false``; shared/notes/ros2.md, "Liveness, measured on the same stack").
+ROS_SIDE_DEAD: Final = "rcl node's context is invalid"
 
 #: action_msgs/msg/GoalStatus codes an ``action_result`` carries.
 SUCCEEDED: Final = 4
@@ -83,6 +99,11 @@ def topic_types(twist_stamped: bool) -> dict[str, str]:
         "/goal_pose": "geometry_msgs/msg/PoseStamped",  # RViz2's "Nav2 Goal"
         "/battery_state": "sensor_msgs/msg/BatteryState",
     }
+
+
+def lifecycle_state(label: str) -> dict[str, Any]:
+    """A lifecycle_msgs/srv/GetState response: ``{current_state: {id, label}}``."""
+    return {"current_state": {"id": LIFECYCLE_STATES.get(label, 0), "label": label}}
 
 
 def time(t: float) -> dict[str, int]:

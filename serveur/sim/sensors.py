@@ -115,7 +115,10 @@ class Sensors(RobotBase):
                     s.push(frame, t)
 
     def _offer_latched(self, sub: Sub) -> None:
-        """A new subscriber to a latched topic gets its last message at once."""
+        """A new subscriber to a latched topic gets its last message at once (not from a
+        dead node)."""
+        if not self._relaying:
+            return
         if sub.topic == "/map" and self._map_frame is not None:
             sub.push(self._map_frame, self._t)
         elif sub.topic == "/amcl_pose" and self._amcl_frame is not None:

@@ -8,14 +8,20 @@ Two failure modes users of other fleet managers report are designed out here:
 
 * **A goal the robot never confirmed.** Every goal is tracked until its id appears in
   ``/move_base/status``; if it does not within ``ack_timeout`` it is re-sent under a fresh id,
-  and after ``ack_retries`` re-sends it is reported failed — never left hanging.
+  and after ``ack_retries`` re-sends it is reported lost and cancelled — never left hanging,
+  never left driving.
 * **A robot silently gone.** move_base publishes its status list at several Hz even when idle,
-  so that stream is the heartbeat: no status for :meth:`RobotLink.heartbeat_timeout` and the
-  link is declared down at once, the socket aborted (a dead path never answers a closing
-  handshake, so waiting for one would take websockets' 10 s close timeout) and reconnection
-  starts with backoff. The timeout is derived from the status rate actually subscribed plus a
-  Wi-Fi stall allowance in wall seconds (``stall``), so ordinary restaurant Wi-Fi jitter never
-  takes a robot Offline.
+  so that stream (and AMCL's pose) is the heartbeat: nothing for
+  :meth:`RobotLink.heartbeat_timeout` and the link is declared down at once, the socket
+  aborted (a dead path never answers a closing handshake, so waiting for one would take
+  websockets' 10 s close timeout) and reconnection starts with backoff. The timeout is
+  derived from the status rate actually subscribed plus a Wi-Fi stall allowance in wall
+  seconds (``stall``), so ordinary restaurant Wi-Fi jitter never takes a robot Offline.
+
+What proves the robot alive, when a goal is unacknowledged or lost, and that a lost goal is
+cancelled (``/move_base/cancel`` with its id) are decided by the tracker both drivers share,
+:class:`~serveur.robots.liveness.LinkTracker`; this module reads frames into it and carries
+out what it says. A goal of an earlier connection is cancelled when the link reconnects.
 
 Goals, cancels and initial poses carry a **zero stamp**. actionlib's SimpleActionServer
 cancels (RECALLED) any goal stamped earlier than the last goal it accepted, and a Raspberry Pi
@@ -49,7 +55,6 @@ import logging
 import secrets
 import ssl as ssl_module
 from collections.abc import AsyncIterator, Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import websockets
@@ -60,8 +65,16 @@ from serveur.errors import LinkError, RosbridgeError
 from serveur.robots import rosbridge as rb
 from serveur.robots.deadman import DeadManSwitch
 from serveur.robots.driver import LinkListener, connect_failed
+from serveur.robots.liveness import (
+    Cancel,
+    Instruction,
+    LinkDown,
+    LinkTracker,
+    SendGoal,
+    TrackedGoal,
+)
 from serveur.robots.names import RosNames
-from serveur.robots.reconnect import Reconnecting, open_rosbridge
+from serveur.robots.reconnect import Reconnecting, announce, open_rosbridge
 
 __all__ = ["LinkListener", "RobotLink"]
 
@@ -94,17 +107,8 @@ BATTERY_MS = 5000
 _CANCEL_ALL: Mapping[str, Any] = {"stamp": rb.ros_time(0.0), "id": ""}
 _PUBLICATIONS = ("/move_base/goal", "/move_base/cancel", "/cmd_vel", "/initialpose")
 
-
-@dataclass(slots=True)
-class _Goal:
-    handle: str  # the first id: what callers hold, stable across re-sends
-    id: str  # the id on the wire now
-    x: float
-    y: float
-    yaw: float
-    sent_at: float
-    attempts: int = 1
-    acked: bool = False
+#: The goal's server, in every goal report (the core shows it as it is).
+STACK = "move_base"
 
 
 class RobotLink(Reconnecting):
@@ -155,13 +159,19 @@ class RobotLink(Reconnecting):
         self._ssl = ssl if url[:6].lower() == "wss://" else None
         self._ws: ClientConnection | None = None
         self._task: asyncio.Task[None] | None = None
-        self._goal: _Goal | None = None
         self._seq = itertools.count(1)
         self._token = secrets.token_hex(3)
-        self._last_status = 0.0
-        self._have_status = False
-        self._have_pose = False
-        self._up = False
+        # Up once move_base's status and a pose came: the server never acts on a robot whose
+        # position it does not know.
+        self._track = LinkTracker(
+            stack=STACK,
+            proofs_words="move_base status",
+            required=frozenset({"status", "pose"}),
+            paced="status",
+            ack_timeout=ack_timeout,
+            ack_retries=ack_retries,
+            new_id=self._new_goal_id,
+        )
         self._scan_wanted = False
         # Throttles (ms, robot clock) that accelerated replays raise to cut rosbridge traffic:
         # the pose of an unwatched moving robot, move_base status (heartbeat, goal acks;
@@ -186,7 +196,7 @@ class RobotLink(Reconnecting):
 
     @property
     def up(self) -> bool:
-        return self._up
+        return self._track.up
 
     def start(self) -> None:
         if self._task is None:
@@ -225,10 +235,10 @@ class RobotLink(Reconnecting):
         return connect_failed(self, self._listener, reason, log)
 
     async def _session(self, ws: ClientConnection) -> None:
-        self._have_status = self._have_pose = False
-        self._last_status = self._clock.now()
+        stale = self._track.start(self._clock.now())
         for topic in _PUBLICATIONS:
             await ws.send(rb.encode(rb.op_advertise(self._t(topic), rb.TOPIC_TYPES[topic])))
+        await self._carry_out(stale)  # goals of the last connection, before anything moves
         for topic in _SUBSCRIPTIONS:
             await ws.send(rb.encode(self._sub(topic)))
         await ws.send(rb.encode(self._sub("/battery_state", throttle_rate=self._battery_ms)))
@@ -254,7 +264,7 @@ class RobotLink(Reconnecting):
             timeout = self.heartbeat_timeout()
             # Checked eight times per timeout: a silent robot is Offline at most an eighth
             # late; a goal's ack every eighth of the ack timeout.
-            tick = min(timeout, self._ack_timeout) / 8 if self._goal else timeout / 8
+            tick = min(timeout, self._ack_timeout) / 8 if self._track.goal else timeout / 8
             due = self._clock.now() + tick
             await self._clock.sleep(tick)
             now = self._clock.now()
@@ -262,22 +272,10 @@ class RobotLink(Reconnecting):
                 # Our own event loop was starved: the robot's status frames may be sitting
                 # unread in the socket. Judge the robot on the next, timely tick instead.
                 continue
-            if now - self._last_status > timeout:
-                reason = f"no move_base status for {now - self._last_status:.1f}s"
-                # Down now, not after a closing handshake a dead path will never answer.
-                self._set_down(reason)
-                ws.transport.abort()
+            todo = self._track.check(now, timeout, self.pose)
+            await self._carry_out(todo)
+            if any(isinstance(act, LinkDown) for act in todo):
                 return
-            goal = self._goal
-            # Unacknowledged means status lists kept coming without our goal for ack_timeout:
-            # a silent link (Wi-Fi stall) says nothing about the goal, and re-sending into it
-            # would only preempt the goal the robot is driving.
-            if (
-                goal is not None
-                and not goal.acked
-                and self._last_status - goal.sent_at > self._ack_timeout
-            ):
-                await self._resend(goal)
 
     def heartbeat_timeout(self) -> float:
         """Seconds (clock) of status silence after which the robot is declared Offline.
@@ -291,10 +289,52 @@ class RobotLink(Reconnecting):
         return max(self._heartbeat, 2.0 * period + stall)
 
     def _set_down(self, reason: str) -> None:
-        was_up, self._up = self._up, False
+        was_up = self._track.up
+        self._track.link_lost()
         if was_up:
             log.warning("%s: link down (%s)", self.name, reason)
             self._listener.link_down(self.name, reason)
+
+    def _apply(self, todo: list[Instruction]) -> None:
+        """What a frame made the tracker decide: reports now, sends soon (on the loop)."""
+        rest = [act for act in todo if not announce(self._listener, self.name, act, log, self.url)]
+        if rest:
+            self._spawn(self._perform(rest))
+        if todo:
+            self._rates_changed()
+
+    async def _carry_out(self, todo: list[Instruction]) -> None:
+        """Do what the tracker said, in order: reports, then sends."""
+        for act in todo:
+            if not announce(self._listener, self.name, act, log, self.url):
+                await self._perform([act])
+        self._rates_changed()
+
+    async def _perform(self, todo: list[Instruction]) -> None:
+        """Cancels and re-sends go out even while the link is coming down (best effort: a
+        dead path loses them); a :class:`LinkDown` aborts the socket."""
+        ws = self._ws
+        if ws is None:
+            return
+        for act in todo:
+            with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+                if isinstance(act, Cancel):
+                    for gid in act.ids:
+                        cancel = {"stamp": rb.ros_time(0.0), "id": gid}
+                        await ws.send(rb.encode(self._pub("/move_base/cancel", cancel)))
+                elif isinstance(act, SendGoal):
+                    log.warning("%s: goal not acknowledged, re-sent as %s", self.name, act.goal.id)
+                    msg = self._goal_msg(act.goal)
+                    await ws.send(rb.encode(self._pub("/move_base/goal", msg)))
+            if isinstance(act, LinkDown):
+                # Down now, not after a closing handshake a dead path will never answer.
+                ws.transport.abort()
+
+    def _spawn(self, job: Any) -> None:
+        with contextlib.suppress(RuntimeError):  # no running loop: nothing to send on
+            task = asyncio.get_running_loop().create_task(job)
+            self._jobs.add(task)  # the loop keeps only a weak reference
+            task.add_done_callback(self._jobs.discard)
 
     # -- incoming ----------------------------------------------------------------------------
 
@@ -322,14 +362,10 @@ class RobotLink(Reconnecting):
             x, y, yaw, stamp = rb.amcl_pose_from_msg(msg)
             self.pose = (x, y, yaw)
             self._listener.pose(self.name, x, y, yaw, stamp)
-            if not self._have_pose:
-                self._have_pose = True
-                self._maybe_up()
+            self._apply(self._track.proof(self._clock.now(), "pose"))
         elif topic == "/move_base/result":
             st = msg["status"]
-            self._on_goal_state(
-                str(st["goal_id"]["id"]), int(st["status"]), str(st.get("text", ""))
-            )
+            self._apply(self._goal_state(st))
         elif topic == "/battery_state":
             fraction = rb.battery_fraction(msg)
             if fraction is not None:
@@ -341,31 +377,18 @@ class RobotLink(Reconnecting):
             self._listener.map(self.name, msg)
 
     def _on_status(self, msg: Mapping[str, Any]) -> None:
-        self._last_status = self._clock.now()
+        todo: list[Instruction] = []
         for st in msg["status_list"]:
-            self._on_goal_state(
-                str(st["goal_id"]["id"]), int(st["status"]), str(st.get("text", ""))
-            )
-        if not self._have_status:
-            self._have_status = True
-            self._maybe_up()
+            todo += self._goal_state(st)
+        todo += self._track.proof(self._clock.now(), "status")
+        self._apply(todo)
 
-    def _on_goal_state(self, goal_id: str, status: int, text: str) -> None:
-        goal = self._goal
-        if goal is None or goal_id != goal.id:
-            return
-        goal.acked = True
-        st = rb.GoalStatus(status)
-        if st in rb.TERMINAL_STATUSES:
-            self._goal = None
-            self._listener.goal_done(self.name, goal.handle, st, text)
-            self._rates_changed()
-
-    def _maybe_up(self) -> None:
-        if self._have_status and self._have_pose and not self._up:
-            self._up = True
-            log.info("%s: link up (%s)", self.name, self.url)
-            self._listener.link_up(self.name)
+    def _goal_state(self, st: Mapping[str, Any]) -> list[Instruction]:
+        """One actionlib GoalStatus: its end, if it is our goal's, in move_base's words."""
+        status = rb.GoalStatus(int(st["status"]))
+        text = str(st.get("text", ""))
+        words = f"{STACK} {status.name}: {text}" if text else f"{STACK} {status.name}"
+        return self._track.goal_state(str(st["goal_id"]["id"]), status, words)
 
     # -- outgoing ----------------------------------------------------------------------------
 
@@ -383,7 +406,7 @@ class RobotLink(Reconnecting):
             self._t(default), rb.TOPIC_TYPES[default], throttle_rate=throttle_rate
         )
 
-    def _goal_msg(self, goal: _Goal) -> dict[str, Any]:
+    def _goal_msg(self, goal: TrackedGoal) -> dict[str, Any]:
         # Zero stamps: see the module's docstring (SimpleActionServer's stamp rule).
         return rb.move_base_action_goal(
             goal.id, goal.x, goal.y, goal.yaw, stamp=0.0, frame_id=self._names.frame
@@ -396,7 +419,7 @@ class RobotLink(Reconnecting):
         client still being handled while the server shuts down can set the robot moving.
         """
         self._halted = True
-        self._goal = None
+        self._track.cancelled()
         self._deadman.release()
         with contextlib.suppress(LinkError):
             await self._send(self._pub("/move_base/cancel", _CANCEL_ALL), halting=True)
@@ -406,7 +429,7 @@ class RobotLink(Reconnecting):
         if self._halted and not halting:
             raise LinkError(f"robot {self.name} is stopped: the server is shutting down")
         ws = self._ws
-        if ws is None or not self._up:
+        if ws is None or not self._track.up:
             raise LinkError(f"robot {self.name} is not connected")
         try:
             await ws.send(rb.encode(op))
@@ -418,38 +441,23 @@ class RobotLink(Reconnecting):
 
     @property
     def goal_id(self) -> str | None:
-        return self._goal.handle if self._goal else None
+        goal = self._track.goal
+        return goal.handle if goal else None
 
     async def send_goal(self, x: float, y: float, yaw: float) -> str:
         """Send a move_base goal; its fate arrives as ``goal_done`` or ``goal_lost``.
 
         Returns the goal's handle: re-sends go out under fresh ids, reports use the handle.
+        A new goal preempts the one under way on move_base's side (SimpleActionServer).
         """
-        gid = self._new_goal_id()
-        goal = _Goal(gid, gid, x, y, yaw, self._clock.now())
-        self._goal = goal
+        goal, _ = self._track.new_goal(self._clock.now(), x, y, yaw)
         await self._update_rates()  # full rates before the robot starts to move
         await self._send(self._pub("/move_base/goal", self._goal_msg(goal)))
         return goal.handle
 
-    async def _resend(self, goal: _Goal) -> None:
-        if goal.attempts > self._ack_retries:
-            self._goal = None
-            reason = f"goal not acknowledged by the robot after {goal.attempts} attempts"
-            self._listener.goal_lost(self.name, goal.handle, reason)
-            self._rates_changed()
-            return
-        old = goal.id
-        goal.id = self._new_goal_id()
-        goal.attempts += 1
-        goal.sent_at = self._clock.now()
-        log.warning("%s: goal %s not acknowledged, re-sending as %s", self.name, old, goal.id)
-        with contextlib.suppress(LinkError):
-            await self._send(self._pub("/move_base/goal", self._goal_msg(goal)))
-
     async def cancel_goal(self) -> None:
         """Cancel every goal on the robot (empty id), as a stop button must."""
-        self._goal = None
+        self._track.cancelled()
         await self._send(self._pub("/move_base/cancel", _CANCEL_ALL))
         self._rates_changed()
 
@@ -486,7 +494,7 @@ class RobotLink(Reconnecting):
         await self._update_rates()
 
     def _moving(self) -> bool:
-        return self._goal is not None or self._teleop
+        return self._track.goal is not None or self._teleop
 
     def _pose_throttle(self) -> int:
         """Full rate while watched or moving (arrival checks need a fresh pose), else idle."""
@@ -501,10 +509,7 @@ class RobotLink(Reconnecting):
     def _rates_changed(self) -> None:
         """From a synchronous callback (a goal ended): re-subscribe soon if a rate changed."""
         if self._ws is not None and self._rates_stale():
-            with contextlib.suppress(RuntimeError):  # no running loop: the next session will
-                task = asyncio.get_running_loop().create_task(self._update_rates())
-                self._jobs.add(task)  # the loop keeps only a weak reference
-                task.add_done_callback(self._jobs.discard)
+            self._spawn(self._update_rates())
 
     def _rates_stale(self) -> bool:
         return (

@@ -13,11 +13,11 @@ from rosbridge_suite 2.x, Nav2 and a Jazzy stack measured in ../shared/notes/ros
 * **No acknowledgement frame.** rosbridge answers neither ``send_action_goal`` nor
   ``cancel_action_goal``, and a goal the robot rejects or nobody serves gets no frame at all.
   The goal asks for feedback, which Nav2 sends while it executes: feedback within
-  ``ack_timeout`` means accepted; none and the goal is re-sent under a new id, and reported lost
-  after ``ack_retries`` re-sends.
+  ``ack_timeout`` means accepted; none and the goal is re-sent under a new id (the old one
+  cancelled), and reported lost — and cancelled — after ``ack_retries`` re-sends.
 * **A result that never comes** (about one in 200 on the measured stack): feedback stopped for
   ``ack_timeout`` with no result. The robot standing at the goal counts as arrived (the core
-  checks the distance again); elsewhere the goal is reported lost.
+  checks the distance again); elsewhere the goal is reported lost and cancelled.
 * **Outcomes.** ``action_result`` has ``result: true`` for every normal end; the outcome is
   ``status`` (4 succeeded, 5 canceled, 6 aborted), see :func:`messages.outcome`. Nav2 aborts
   the active goal when a new one arrives: a result for a goal we replaced is ignored, never a
@@ -26,9 +26,18 @@ from rosbridge_suite 2.x, Nav2 and a Jazzy stack measured in ../shared/notes/ros
 * **Closing the socket does not cancel the robot's goal**: :meth:`halt` cancels explicitly.
 * **Release differences** found at run time: ``/cmd_vel`` is Twist or TwistStamped (Jazzy's
   diff_drive_controller, Kilted's Nav2), asked from rosapi's ``topic_type`` at each connection.
-* **Liveness.** ROS 2 has no move_base status stream to serve as a heartbeat: rosapi's
-  ``get_time`` is called every :data:`PING_PERIOD`; any frame proves the robot alive, and
-  silence beyond :meth:`heartbeat_timeout` takes it down (socket aborted, reconnect).
+* **Liveness** (shared/notes/ros2.md, "Liveness, measured on the same stack"). ROS 2 has no
+  move_base status stream to serve as a heartbeat: the robot's heartbeat service (Nav2's
+  ``/bt_navigator/get_state``, the robot's ``heartbeat`` name) is called every
+  :data:`PING_PERIOD`. Only the robot proves itself alive: that service answering ``active``,
+  its topics (pose, battery, scan) and our goal's feedback. A reply with ``result: false`` is
+  *not* life — rosbridge stopped with SIGTERM or SIGINT keeps its websocket open and answers
+  every call so — and neither is a rosapi answer (rosapi lives in the bridge, and answers
+  while the robot's node is dead); rosapi's ``get_time`` is asked only while the robot is
+  silent, to say which of the two failed. Silence beyond :meth:`heartbeat_timeout` takes the
+  link down (sockets aborted, reconnect); the goal under way is cancelled (best effort, and
+  again when the link reconnects), and the core keeps the trip with the robot Offline. The
+  decisions are the shared :class:`~serveur.robots.liveness.LinkTracker`'s.
 * Goals, cancels and initial poses carry zero stamps in frame ``map`` (AMCL ignores an
   ``/initialpose`` in another frame), as on ROS1.
 """
@@ -38,12 +47,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import math
 import ssl as ssl_module
 import uuid
-from collections import deque
 from collections.abc import AsyncIterator, Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import websockets
@@ -54,41 +60,34 @@ from serveur.errors import LinkError, RosbridgeError
 from serveur.robots import rosbridge as rb
 from serveur.robots.deadman import DeadManSwitch
 from serveur.robots.driver import LinkListener, connect_failed
+from serveur.robots.liveness import (
+    Cancel,
+    Instruction,
+    LinkDown,
+    LinkTracker,
+    SendGoal,
+    TrackedGoal,
+)
 from serveur.robots.names import RosNames
-from serveur.robots.reconnect import Reconnecting, open_rosbridge
+from serveur.robots.reconnect import Reconnecting, announce, open_rosbridge
 from serveur.robots.ros2 import messages as m2
 
 __all__ = ["PING_PERIOD", "Nav2Link"]
 
 log = logging.getLogger(__name__)
 
-#: Clock seconds between two liveness calls (rosapi get_time) on the control connection.
+#: Clock seconds between two heartbeat calls on the control connection.
 PING_PERIOD = 0.5
 #: Wall seconds of Wi-Fi silence allowed before the robot is down (as for ROS1 robots).
 STALL_ALLOWANCE = 2.0
 TELEOP_TIMEOUT = 0.5
 BATTERY_MS = 5000
-#: A robot this close to its goal when the result never came has arrived (metres).
-ARRIVED_WITHOUT_RESULT = 0.5
 #: Heartbeat answers without feedback, besides the ack timeout, before a goal's silence is
 #: believed: after a stall of the server (or of a Pi's Wi-Fi) the pings and the feedback
 #: queued behind them arrive together, and time alone would misjudge a goal under way.
 SILENT_PINGS = 3
-#: Goal ids remembered for cancelling: a goal of an earlier connection may still run.
-_RECENT_GOALS = 4
-
-
-@dataclass(slots=True)
-class _Goal:
-    handle: str
-    id: str
-    x: float
-    y: float
-    yaw: float
-    sent_at: float
-    attempts: int = 1
-    feedback_at: float | None = None  # last feedback (clock); None: not accepted yet
-    pings: int = 0  # heartbeat answers since it was sent or since its last feedback
+#: Robot topics that prove it alive (their names are the defaults, see RosNames).
+_PROOFS = {"/amcl_pose": "pose", "/battery_state": "battery", "/scan": "scan"}
 
 
 class Nav2Link(Reconnecting):
@@ -132,12 +131,20 @@ class Nav2Link(Reconnecting):
         self._ctl: ClientConnection | None = None  # subscriptions, cancels, teleop, pings
         self._nav: ClientConnection | None = None  # goals only (the Humble queue)
         self._task: asyncio.Task[None] | None = None
-        self._goal: _Goal | None = None
-        self._recent: deque[str] = deque(maxlen=_RECENT_GOALS)
-        self._alive_at = 0.0
-        self._have_pose = False
-        self._have_ping = False
-        self._up = False
+        # Up once the heartbeat said the robot is ready and a pose came.
+        self._track = LinkTracker(
+            stack=m2.STACK,
+            proofs_words=f"answer from {self._names.heartbeat}, pose or battery",
+            required=frozenset({"heartbeat", "pose"}),
+            paced="heartbeat",
+            ack_timeout=ack_timeout,
+            ack_retries=ack_retries,
+            new_id=lambda: str(uuid.uuid4()),
+            confirmations=SILENT_PINGS,
+            progress=True,
+            cancel_replaced=True,
+            unacked_words=" (no feedback)",
+        )
         self._halted = False
         self._stamped_cmd_vel = False
         self._deadman = DeadManSwitch(name, clock, teleop_timeout, self._deadman_stop)
@@ -154,11 +161,12 @@ class Nav2Link(Reconnecting):
 
     @property
     def up(self) -> bool:
-        return self._up
+        return self._track.up
 
     @property
     def goal_id(self) -> str | None:
-        return self._goal.handle if self._goal else None
+        goal = self._track.goal
+        return goal.handle if goal else None
 
     def start(self) -> None:
         if self._task is None:
@@ -197,8 +205,8 @@ class Nav2Link(Reconnecting):
         return connect_failed(self, self._listener, reason, log)
 
     async def _session(self, ctl: ClientConnection, nav: ClientConnection) -> None:
-        self._have_pose = self._have_ping = False
-        self._alive_at = self._clock.now()
+        # Goals of the last connection may still run (closing a socket cancels nothing).
+        await self._perform(self._track.start(self._clock.now()))
         # /cmd_vel is advertised once its type is known (rosbridge 2.x refuses a publisher of
         # another type than the topic's): see _on_service.
         self._cmd_vel_type = None
@@ -229,42 +237,74 @@ class Nav2Link(Reconnecting):
     async def _read(self, ws: ClientConnection) -> None:
         with contextlib.suppress(websockets.exceptions.ConnectionClosed):
             async for frame in ws:
-                if ws is self._ctl:
-                    self._alive_at = self._clock.now()
                 self._handle(frame)
 
     async def _ping(self, ctl: ClientConnection) -> None:
+        """The heartbeat call; while the robot is silent, rosapi's too (is the bridge up?)."""
         self._pings += 1
-        await ctl.send(rb.encode(rb.op_call_service("/rosapi/get_time", {}, id="ping")))
+        await ctl.send(rb.encode(rb.op_call_service(self._names.heartbeat, {}, id="ping")))
+        if self._track.silent(self._clock.now(), 1.5 * PING_PERIOD):
+            await ctl.send(rb.encode(rb.op_call_service("/rosapi/get_time", {}, id="bridge")))
 
     async def _watchdog(self, ctl: ClientConnection, nav: ClientConnection) -> None:
         while True:
             await self._clock.sleep(PING_PERIOD)
-            now = self._clock.now()
-            if now - self._alive_at > self.heartbeat_timeout():
-                self._set_down(f"no answer from rosbridge for {now - self._alive_at:.1f}s")
-                for ws in (ctl, nav):
-                    ws.transport.abort()
+            todo = self._track.check(self._clock.now(), self.heartbeat_timeout(), self.pose)
+            await self._carry_out(todo)
+            if any(isinstance(act, LinkDown) for act in todo):
                 return
             with contextlib.suppress(websockets.exceptions.ConnectionClosed):
                 await self._ping(ctl)
-            await self._check_goal(now)
 
     def heartbeat_timeout(self) -> float:
         """Two ping periods plus the Wi-Fi stall allowance (wall, scaled to the clock)."""
         return max(self._heartbeat, 2.0 * PING_PERIOD + self._stall * self._clock.time_scale)
 
     def _set_down(self, reason: str) -> None:
-        was_up, self._up = self._up, False
+        was_up = self._track.up
+        self._track.link_lost()
         if was_up:
             log.warning("%s: link down (%s)", self.name, reason)
             self._listener.link_down(self.name, reason)
 
-    def _maybe_up(self) -> None:
-        if self._have_ping and self._have_pose and not self._up:
-            self._up = True
-            log.info("%s: link up (%s, %s)", self.name, self.url, self.kind)
-            self._listener.link_up(self.name)
+    def _apply(self, todo: list[Instruction]) -> None:
+        """What a frame made the tracker decide: reports now, sends soon (on the loop)."""
+        where = f"{self.url}, {self.kind}"
+        rest = [act for act in todo if not announce(self._listener, self.name, act, log, where)]
+        if rest:
+            self._spawn(self._perform(rest))
+
+    async def _carry_out(self, todo: list[Instruction]) -> None:
+        """Do what the tracker said, in order: reports, then sends."""
+        where = f"{self.url}, {self.kind}"
+        for act in todo:
+            if not announce(self._listener, self.name, act, log, where):
+                await self._perform([act])
+
+    async def _perform(self, todo: list[Instruction]) -> None:
+        """Cancels (on the control connection: never queued behind a goal) and re-sends go
+        out even while the link is coming down (best effort: a dead bridge loses them); a
+        :class:`LinkDown` aborts both connections."""
+        ctl, nav = self._ctl, self._nav
+        for act in todo:
+            with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+                if isinstance(act, Cancel) and ctl is not None:
+                    for gid in act.ids:
+                        op = m2.op_cancel_action_goal(self._t("/navigate_to_pose"), gid)
+                        await ctl.send(rb.encode(op))
+                elif isinstance(act, SendGoal) and nav is not None:
+                    log.warning("%s: goal not accepted, re-sent as %s", self.name, act.goal.id)
+                    await nav.send(rb.encode(self._goal_op(act.goal)))
+            if isinstance(act, LinkDown):
+                for ws in (ctl, nav):
+                    if ws is not None:
+                        ws.transport.abort()
+
+    def _spawn(self, job: Any) -> None:
+        with contextlib.suppress(RuntimeError):  # no running loop: nothing to send on
+            task = asyncio.get_running_loop().create_task(job)
+            self._jobs.add(task)  # the loop keeps only a weak reference
+            task.add_done_callback(self._jobs.discard)
 
     # -- incoming ------------------------------------------------------------------------
 
@@ -289,12 +329,18 @@ class Nav2Link(Reconnecting):
             log.exception("%s: error handling a frame from the robot (dropped)", self.name)
 
     def _on_service(self, op: Mapping[str, Any]) -> None:
+        now = self._clock.now()
         if op.get("id") == "ping":
-            if self._goal is not None:
-                self._goal.pings += 1
-            if not self._have_ping:
-                self._have_ping = True
-                self._maybe_up()
+            alive, why, cause = m2.heartbeat_verdict(op)
+            if alive:
+                self._apply(self._track.proof(now, "heartbeat"))
+            else:
+                self._track.refused(now, why, cause)
+        elif op.get("id") == "bridge":
+            if op.get("result") is False:
+                self._track.refused(now, str(op.get("values")))
+            else:
+                self._track.bridge_answered(now)
         elif op.get("id") == "cmd_vel":
             values = op.get("values")
             kind = str(values.get("type", "")) if isinstance(values, Mapping) else ""
@@ -306,20 +352,18 @@ class Nav2Link(Reconnecting):
             ctl = self._ctl
             if ctl is not None:
                 adv = rb.op_advertise(self._t("/cmd_vel"), self._cmd_vel_type)
-                task = asyncio.get_running_loop().create_task(ctl.send(rb.encode(adv)))
-                self._jobs.add(task)
-                task.add_done_callback(self._jobs.discard)
+                self._spawn(ctl.send(rb.encode(adv)))
 
     def _on_publish(self, topic: str, msg: Any) -> None:
         if not isinstance(msg, dict):
             raise RosbridgeError(f"{topic}: msg is not an object")
+        proof = _PROOFS.get(topic)
+        if proof is not None:
+            self._apply(self._track.proof(self._clock.now(), proof))
         if topic == "/amcl_pose":
             x, y, yaw, stamp = rb.amcl_pose_from_msg(msg)
             self.pose = (x, y, yaw)
             self._listener.pose(self.name, x, y, yaw, stamp)
-            if not self._have_pose:
-                self._have_pose = True
-                self._maybe_up()
         elif topic == "/battery_state":
             fraction = rb.battery_fraction(msg)
             if fraction is not None:
@@ -331,41 +375,21 @@ class Nav2Link(Reconnecting):
             self._listener.map(self.name, msg)
 
     def _on_feedback(self, op: Mapping[str, Any]) -> None:
-        goal = self._goal
+        goal = self._track.goal
         if goal is not None and op.get("id") == goal.id:
-            goal.feedback_at = self._clock.now()
-            goal.pings = 0
+            now = self._clock.now()
+            self._track.goal_progress(now, goal.id)
+            self._apply(self._track.proof(now, "feedback"))
 
     def _on_result(self, op: Mapping[str, Any]) -> None:
-        goal = self._goal
-        if goal is None or op.get("id") != goal.id:
-            return  # a goal we replaced (Nav2 aborted it for the new one) or cancelled
+        # A goal we replaced (Nav2 aborted it for the new one) or cancelled is ignored.
+        gid = str(op.get("id"))
+        if op.get("result") is False:
+            reason = f"{m2.STACK}: the bridge could not run the goal: {op.get('values')}"
+            self._apply(self._track.goal_failed(gid, reason))
+            return
         status, text = m2.outcome(op)
-        self._goal = None
-        self._listener.goal_done(self.name, goal.handle, status, text)
-
-    async def _check_goal(self, now: float) -> None:
-        goal = self._goal
-        if goal is None or goal.pings < SILENT_PINGS:
-            return
-        if goal.feedback_at is None:
-            if now - goal.sent_at > self._ack_timeout:
-                await self._resend(goal)
-            return
-        if now - goal.feedback_at > self._ack_timeout:
-            # Feedback stopped and no result came: the robot's position says what happened.
-            self._goal = None
-            pose = self.pose
-            if pose is not None and math.hypot(pose[0] - goal.x, pose[1] - goal.y) <= (
-                ARRIVED_WITHOUT_RESULT
-            ):
-                log.warning("%s: no result for goal %s; at the goal", self.name, goal.id)
-                text = "navigate_to_pose SUCCEEDED (no result came; the robot is at the goal)"
-                self._listener.goal_done(self.name, goal.handle, rb.GoalStatus.SUCCEEDED, text)
-            else:
-                self._listener.goal_lost(
-                    self.name, goal.handle, "Nav2 stopped sending feedback and no result came"
-                )
+        self._apply(self._track.goal_state(gid, status, text))
 
     # -- outgoing ------------------------------------------------------------------------
 
@@ -383,7 +407,7 @@ class Nav2Link(Reconnecting):
         if self._halted and not halting:
             raise LinkError(f"robot {self.name} is stopped: the server is shutting down")
         ws = self._nav if nav else self._ctl
-        if ws is None or not self._up:
+        if ws is None or not self._track.up:
             raise LinkError(f"robot {self.name} is not connected")
         try:
             await ws.send(rb.encode(op))
@@ -391,20 +415,15 @@ class Nav2Link(Reconnecting):
             raise LinkError(f"robot {self.name}: connection lost while sending") from exc
 
     async def send_goal(self, x: float, y: float, yaw: float) -> str:
-        if self._goal is not None:
-            # Free a Humble bridge's goal queue first; Nav2 would abort it for the new one
-            # anyway, but the new goal would wait behind it on a blocked connection.
-            with contextlib.suppress(LinkError):
-                await self._cancel(self._goal.id)
-        gid = str(uuid.uuid4())
-        goal = _Goal(gid, gid, x, y, yaw, self._clock.now())
-        self._goal = goal
-        await self._send_goal_op(goal)
+        # A goal under way is cancelled first, freeing a Humble bridge's goal queue: Nav2
+        # would abort it for the new one anyway, but the new goal would wait behind it.
+        goal, todo = self._track.new_goal(self._clock.now(), x, y, yaw)
+        await self._perform(todo)
+        await self._send(self._goal_op(goal), nav=True)
         return goal.handle
 
-    async def _send_goal_op(self, goal: _Goal) -> None:
-        self._recent.append(goal.id)
-        op = m2.op_send_action_goal(
+    def _goal_op(self, goal: TrackedGoal) -> dict[str, Any]:
+        return m2.op_send_action_goal(
             self._t("/navigate_to_pose"),
             goal.id,
             goal.x,
@@ -412,23 +431,6 @@ class Nav2Link(Reconnecting):
             goal.yaw,
             frame_id=self._names.frame,
         )
-        await self._send(op, nav=True)
-
-    async def _resend(self, goal: _Goal) -> None:
-        if goal.attempts > self._ack_retries:
-            self._goal = None
-            reason = f"goal not acknowledged by Nav2 after {goal.attempts} attempts (no feedback)"
-            self._listener.goal_lost(self.name, goal.handle, reason)
-            return
-        old = goal.id
-        goal.id = str(uuid.uuid4())
-        goal.attempts += 1
-        goal.sent_at = self._clock.now()
-        goal.pings = 0
-        log.warning("%s: goal %s not accepted, re-sending as %s", self.name, old, goal.id)
-        with contextlib.suppress(LinkError):
-            await self._cancel(old)
-            await self._send_goal_op(goal)
 
     async def _cancel(self, goal_id: str, *, halting: bool = False) -> None:
         op = m2.op_cancel_action_goal(self._t("/navigate_to_pose"), goal_id)
@@ -437,16 +439,14 @@ class Nav2Link(Reconnecting):
     async def cancel_goal(self) -> None:
         """Cancel our goals on the robot (on the control connection: never queued behind
         the goal itself). An unknown id is ignored by the bridge."""
-        self._goal = None
-        for gid in list(self._recent):
+        for gid in self._track.cancelled():
             await self._cancel(gid)
 
     async def halt(self) -> None:
         self._halted = True
-        self._goal = None
         self._deadman.release()
         with contextlib.suppress(LinkError):
-            for gid in list(self._recent):
+            for gid in self._track.cancelled():
                 await self._cancel(gid, halting=True)
             await self._send(self._twist_op(0.0, 0.0, 0.0), halting=True)
 

@@ -13,13 +13,16 @@ from enum import IntEnum
 from typing import Any, Final
 
 from serveur.robots import rosbridge as rb
+from serveur.robots.liveness import DownCause
 
 __all__ = [
     "ACTION_STATUS",
     "NAVIGATE_TO_POSE",
+    "STACK",
     "TOPIC_TYPES",
     "ActionStatus",
     "header",
+    "heartbeat_verdict",
     "op_cancel_action_goal",
     "op_send_action_goal",
     "outcome",
@@ -29,6 +32,8 @@ __all__ = [
 ]
 
 NAVIGATE_TO_POSE: Final = "nav2_msgs/action/NavigateToPose"
+#: The goal's server, in every goal report (the core shows it as it is).
+STACK: Final = "Nav2 navigate_to_pose"
 
 TOPIC_TYPES: Final[dict[str, str]] = {
     "/amcl_pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
@@ -116,18 +121,50 @@ def outcome(op: Mapping[str, Any]) -> tuple[rb.GoalStatus, str]:
     """
     values = op.get("values")
     if op.get("result") is False:
-        return rb.GoalStatus.ABORTED, f"navigate_to_pose failed on the bridge: {values}"
+        return rb.GoalStatus.ABORTED, f"{STACK} failed on the bridge: {values}"
     raw = op.get("status")
     if raw is None and isinstance(values, Mapping):
         raw = values.get("status")
     try:
         status = ActionStatus(int(raw))  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        return rb.GoalStatus.ABORTED, f"navigate_to_pose ended with status {raw!r}"
+        return rb.GoalStatus.ABORTED, f"{STACK} ended with status {raw!r}"
     mapped = ACTION_STATUS.get(status, rb.GoalStatus.ABORTED)
-    text = f"navigate_to_pose {status.name}"
+    text = f"{STACK} {status.name}"
     if isinstance(values, Mapping):
         inner = values.get("result", values)
         if isinstance(inner, Mapping) and inner.get("error_msg"):
             text += f": {inner['error_msg']} (error {inner.get('error_code')})"
     return mapped, text
+
+
+def heartbeat_verdict(op: Mapping[str, Any]) -> tuple[bool, str, DownCause]:
+    """Does this ``service_response`` of the robot's heartbeat service prove it alive?
+
+    (True, "", ...) for a lifecycle_msgs/srv/GetState answer ``{current_state: {id: 3,
+    label: "active"}}`` (Nav2's navigator can take goals) or a std_srvs/srv/Trigger answer
+    with ``success`` true. Otherwise (False, why, cause): ``result: false`` is the bridge
+    failing the call — after SIGTERM/SIGINT rosbridge answers every call so ("rcl node's
+    context is invalid", shared/notes/ros2.md) — and is *not* life; a state other than
+    active (or ``success`` false) is a robot that cannot take goals.
+    """
+    values = op.get("values")
+    if op.get("result") is False:
+        return False, str(values), DownCause.ROS_STOPPED
+    if isinstance(values, Mapping):
+        state = values.get("current_state")
+        if isinstance(state, Mapping):
+            label = str(state.get("label", ""))
+            if label == "active":
+                return True, "", DownCause.NOT_READY
+            return (
+                False,
+                f"Nav2's navigator is {label or 'in no state'}, not active",
+                (DownCause.NOT_READY),
+            )
+        if "success" in values:
+            if values.get("success") is True:
+                return True, "", DownCause.NOT_READY
+            why = values.get("message") or "not ready"
+            return False, f"the robot's heartbeat says: {why}", DownCause.NOT_READY
+    return False, f"the heartbeat's answer is not understood: {values!r}", DownCause.NOT_READY
