@@ -36,19 +36,6 @@ from types import TracebackType
 from typing import Any, Concatenate, Generic, ParamSpec, Self, TypeVar, overload
 
 from serveur.store.accounts import Accounts, Audit, TokenRecord, UserRecord
-from serveur.store.checks import (
-    check_finite,
-    check_new_order,
-    check_text,
-    check_trips,
-    digest,
-    link_json,
-    plan_stop_order,
-    returned_rows,
-    status_values,
-    to_json,
-    trips_fingerprint,
-)
 from serveur.store.events import Events
 from serveur.store.orders import Orders
 from serveur.store.robots import Robots
@@ -58,22 +45,7 @@ from serveur.store.tasks import Tasks
 from serveur.store.waypoints import Waypoints
 from serveur.store.zones import Zones
 
-__all__ = [
-    "Store",
-    "TokenRecord",
-    "UserRecord",
-    "check_finite",
-    "check_new_order",
-    "check_text",
-    "check_trips",
-    "digest",
-    "link_json",
-    "plan_stop_order",
-    "returned_rows",
-    "status_values",
-    "to_json",
-    "trips_fingerprint",
-]
+__all__ = ["Store", "TokenRecord", "UserRecord"]
 
 P = ParamSpec("P")
 R = TypeVar("R")

@@ -101,7 +101,7 @@ async def test_servers_starting_together_migrate_once(mariadb_url: str) -> None:
         versions = query(mariadb_url, "SELECT version FROM schema_migrations")
         assert [r["version"] for r in versions] == [m.version for m in load_migrations("mariadb")]
         await seed(stores[0])
-        assert len(await stores[2].list_robots()) == 2
+        assert len(await stores[2].robots.list_robots()) == 2
     finally:
         for s in stores:
             await s.close()
@@ -131,10 +131,10 @@ async def test_migrated_database_runs_without_ddl_rights(
     async with open_store(url) as s:
         await seed(s)
         (a,) = await orders(s, "T1")
-        (task,) = await s.create_tasks([[("T1", [a])]], now=T0)
-        await s.start_task(task.id, "r1", now=T0)
-        await s.complete_stop(task.id, 0, now=T0)
-        assert (await s.finish_task(task.id, now=T0)).status is TaskStatus.DONE
+        (task,) = await s.tasks.create_tasks([[("T1", [a])]], now=T0)
+        await s.tasks.start_task(task.id, "r1", now=T0)
+        await s.tasks.complete_stop(task.id, 0, now=T0)
+        assert (await s.tasks.finish_task(task.id, now=T0)).status is TaskStatus.DONE
         assert await s.integrity_check() == "ok"
     with pytest.raises(StoreError, match="denied"):
         async with open_store(url.replace(":rt@", ":wrong@")):
@@ -159,38 +159,39 @@ async def test_two_servers_race_for_dishes_and_robots(mariadb_url: str) -> None:
                 )
             ]
             made = await asyncio.gather(
-                *(s.create_tasks(trips, now=T0) for s, trips in attempts), return_exceptions=True
+                *(s.tasks.create_tasks(trips, now=T0) for s, trips in attempts),
+                return_exceptions=True,
             )
             assert all(isinstance(r, list | Conflict) for r in made), made
-            queued = await s1.list_tasks(status=TaskStatus.QUEUED)
+            queued = await s1.tasks.list_tasks(status=TaskStatus.QUEUED)
             robots = [f"r{i}" for i in range(1, 5)]
             starts = await asyncio.gather(
                 *(
-                    (s1 if (t.id + i) % 2 else s2).start_task(t.id, r, now=T0)
+                    (s1 if (t.id + i) % 2 else s2).tasks.start_task(t.id, r, now=T0)
                     for t in queued
                     for i, r in enumerate(robots)
                 ),
                 return_exceptions=True,
             )
             assert all(not isinstance(r, BaseException) or isinstance(r, Conflict) for r in starts)
-            active = await s2.list_tasks(status=TaskStatus.ACTIVE)
+            active = await s2.tasks.list_tasks(status=TaskStatus.ACTIVE)
             assert len({t.robot for t in active}) == len(active) <= len(robots)
             won = [r for r in starts if not isinstance(r, BaseException)]
             assert sorted(t.id for t in won) == sorted(t.id for t in active)
-            for robot in await s1.list_robots():
+            for robot in await s1.robots.list_robots():
                 mine = [t.id for t in active if t.robot == robot.name]
                 assert mine == ([robot.current_task] if robot.current_task else [])
             # On the open trips (a cancelled trip's stops keep what they carried: history).
-            live = await s1.list_tasks(status=(TaskStatus.QUEUED, TaskStatus.ACTIVE))
+            live = await s1.tasks.list_tasks(status=(TaskStatus.QUEUED, TaskStatus.ACTIVE))
             claimed = [o for t in live for st in t.stops for o in st.orders]
             assert len(claimed) == len(set(claimed))
-            assigned = await s2.list_orders(status=OrderStatus.ASSIGNED)
+            assigned = await s2.orders.list_orders(status=OrderStatus.ASSIGNED)
             assert sorted(o.id for o in assigned) == sorted(claimed)
             for t in active:  # free the robots for the next round
-                await s1.cancel_task(t.id, now=T0)
-            for o in await s1.list_orders(status=OrderStatus.PENDING):
-                await s2.cancel_order(o.id, now=T0)
-        started = [e for e in await s1.list_events() if e.kind == "task.started"]
+                await s1.tasks.cancel_task(t.id, now=T0)
+            for o in await s1.orders.list_orders(status=OrderStatus.PENDING):
+                await s2.orders.cancel_order(o.id, now=T0)
+        started = [e for e in await s1.events.list_events() if e.kind == "task.started"]
         assert len(started) == len({e.task_id for e in started})
         assert await s1.integrity_check() == "ok"
 
@@ -219,7 +220,7 @@ async def test_database_restart_loses_and_duplicates_nothing(
                 key = f"pos-{id(asyncio.current_task())}-{n}"
                 n += 1
                 try:
-                    await store.add_order("soup", "T1", ready_at=T0, key=key, now=T0)
+                    await store.orders.add_order("soup", "T1", ready_at=T0, key=key, now=T0)
                     sent.append(key)
                     if len(sent) >= target[0]:
                         reached.set()
@@ -238,8 +239,8 @@ async def test_database_restart_loses_and_duplicates_nothing(
             stop.set()
             await asyncio.gather(*loads)
         for key in unknown:  # the client resends what it got no answer for
-            await store.add_order("soup", "T1", ready_at=T0, key=key, now=T0)
-        placed = await store.list_orders()
+            await store.orders.add_order("soup", "T1", ready_at=T0, key=key, now=T0)
+        placed = await store.orders.list_orders()
         keys = [o.key for o in placed]
         assert len(keys) == len(set(keys))
         assert sorted(keys) == sorted(sent + unknown)
@@ -273,22 +274,26 @@ async def test_backup_is_a_sqlite_copy(mariadb_url: str, tmp_path: Path) -> None
     async with open_store(mariadb_url) as store:
         await seed(store)
         a, b = await orders(store, "T1", "T2")
-        (task,) = await store.create_tasks(
+        (task,) = await store.tasks.create_tasks(
             [[("T1", [a]), ("T2", [b])]], key="k", fingerprint="cart", now=T0
         )
-        await store.start_task(task.id, "r1", now=T0)
+        await store.tasks.start_task(task.id, "r1", now=T0)
         copy = tmp_path / "copy.db"
         copy.write_bytes(b"an older backup")
         await store.backup(copy)
         assert not copy.with_name("copy.db.tmp").exists()
         async with SQLiteStore(copy) as restored:
             assert await restored.integrity_check() == "ok"
-            for read in ("list_tasks", "list_orders", "list_robots", "list_waypoints"):
-                assert await getattr(restored, read)() == await getattr(store, read)()
-            assert await restored.list_events() == await store.list_events()
+            assert await restored.tasks.list_tasks() == await store.tasks.list_tasks()
+            assert await restored.orders.list_orders() == await store.orders.list_orders()
+            assert await restored.robots.list_robots() == await store.robots.list_robots()
+            assert (
+                await restored.waypoints.list_waypoints() == await store.waypoints.list_waypoints()
+            )
+            assert await restored.events.list_events() == await store.events.list_events()
             # Keys come along: a resend to the restored copy is still answered from its key.
-            assert await restored.create_tasks([], key="k", fingerprint="cart", now=T0) == [
-                await restored.get_task(task.id)
+            assert await restored.tasks.create_tasks([], key="k", fingerprint="cart", now=T0) == [
+                await restored.tasks.get_task(task.id)
             ]
 
 
