@@ -44,6 +44,14 @@ class Tasks:
         fingerprint: str = "",
         now: float,
     ) -> list[Task]:
+        """Queue trips (each: stops in visiting order as ``(table, order ids)``) atomically.
+
+        All or nothing: one missing, non-pending, repeated or misplaced order and no trip is
+        created. With ``key``, a resend with the same ``fingerprint`` (the caller's digest of
+        the request; the trips' own digest when empty) returns the tasks it created, in their
+        current state, without looking at ``trips``: on a resend the dishes are no longer
+        pending, so the scheduler's new split cannot be compared with the first one.
+        """
         if key is not None:
             self._db.dialect.check_name(key, "key")
         plan_digest = (fingerprint or trips_fingerprint(trips)) if key is not None else ""
@@ -109,6 +117,7 @@ class Tasks:
         return task_id
 
     async def get_task(self, task_id: int) -> Task:
+        """A task with its stops and each stop's order ids."""
         return await self._db.transact(lambda tx: rows.get_task(tx, task_id), "read")
 
     async def list_tasks(
@@ -117,6 +126,7 @@ class Tasks:
         status: TaskStatus | Collection[TaskStatus] | None = None,
         robot: str | None = None,
     ) -> list[Task]:
+        """Tasks matching every given filter, by id."""
         where: list[str] = ["1"]
         params: list[Any] = []
         statuses = status_values(status, TaskStatus)
@@ -133,6 +143,12 @@ class Tasks:
     async def start_task(
         self, task_id: int, robot: str, *, stop_order: Sequence[str] | None = None, now: float
     ) -> Task:
+        """Give a queued task to an idle robot; exactly one of concurrent callers wins.
+
+        ``stop_order`` reorders the stops still to serve (the planner's shortest tour): the
+        tables of those stops, or of all stops (stops already done keep their place).
+        """
+
         async def work(tx: Tx) -> Task:
             task = await rows.get_task(tx, task_id, lock=True)
             rob = await rows.get_robot(tx, robot, lock=True)
@@ -204,6 +220,8 @@ class Tasks:
         return task, task.stops[seq]
 
     async def arrive_stop(self, task_id: int, seq: int, *, now: float) -> Task:
+        """The robot reached the current stop (pending -> arrived; a repeat is a no-op)."""
+
         async def work(tx: Tx) -> Task:
             task, stop = await self._active_stop(tx, task_id, seq, "arrive")
             if stop.status is StopStatus.ARRIVED:
@@ -231,6 +249,8 @@ class Tasks:
         return await self._db.transact(work, "write")
 
     async def complete_stop(self, task_id: int, seq: int, *, now: float) -> Task:
+        """Food collected at the current stop: its orders are delivered, the trip moves on."""
+
         async def work(tx: Tx) -> Task:
             task, stop = await self._active_stop(tx, task_id, seq, "complete a stop")
             changed = await tx.run(
@@ -329,6 +349,8 @@ class Tasks:
         return await self.get_task(task_id)
 
     async def finish_task(self, task_id: int, *, now: float) -> Task:
+        """Close an active task whose stops are all done and free its robot."""
+
         async def work(tx: Tx) -> Task:
             task = await rows.get_task(tx, task_id, lock=True)
             changed = await tx.run(
@@ -352,6 +374,8 @@ class Tasks:
         return await self._db.transact(work, "write")
 
     async def cancel_task(self, task_id: int, *, now: float, reason: str = "") -> Task:
+        """Cancel a queued or active task: undelivered orders go back to pending."""
+
         async def work(tx: Tx) -> Task:
             task = await rows.get_task(tx, task_id, lock=True)
             returned = [
@@ -396,6 +420,8 @@ class Tasks:
         return await self._db.transact(work, "write")
 
     async def requeue_task(self, task_id: int, *, now: float, reason: str = "") -> Task:
+        """Take an active task off its robot (gone too long) so another robot can take it."""
+
         async def work(tx: Tx) -> Task:
             task = await rows.get_task(tx, task_id, lock=True)
             if task.status is TaskStatus.ACTIVE and task.current_stop >= len(task.stops):
