@@ -13,8 +13,9 @@ import http
 import json
 import logging
 import ssl as ssl_module
+import typing
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from typing import Any
 from urllib.parse import urlsplit
 
@@ -333,27 +334,9 @@ class Server:
             conn.close_after = (CLOSE_AUTH, "session expired")
             raise Unauthorized("session expired: log in again")
         authorize(p, msg)
-        if msg.clientmsg == "logout":
-            assert p is not None
-            self.sessions.unbind(p, conn.ws.close)
-            conn.principal = None
-            self.core.hub.unsubscribe(conn.sub, list(conn.sub.topics))
-            await self.sessions.logout(p)
-            return {"session": None}
-        if msg.clientmsg == "data":
-            return await self._data(conn, msg)
-        if msg.clientmsg == "ping":
-            return {"time": self.core.clock.epoch()}
-        if msg.clientmsg == "account":
-            return await handle_account(self.sessions, p, msg)
-        if isinstance(msg, P.SiteAudit):
-            return await self._search_audit(msg)
-        if isinstance(msg, P.StatsForecast):
-            return await self._forecast(msg)
-        if isinstance(msg, P.StatsForecastCancel):
-            return {"forecast": _forecast_info((await self.forecaster.cancel()).as_dict())}
-        if msg.clientmsg == "stats":
-            return await self.stats.handle(msg)
+        own = _SERVER_VERBS.get(type(msg))
+        if own is not None:
+            return await own(self, conn, msg)
         table = p.table if p is not None and p.role is Role.TABLE_SCREEN else None
         reply = await self.core.handle(msg, actor=p.actor if p else None, table=table)
         if msg.clientmsg == "site" and reply.get("revoked"):
@@ -361,13 +344,34 @@ class Server:
             self.sessions.end(reply["revoked"], "its robot or table was removed")
         return reply
 
-    async def _forecast(self, msg: P.StatsForecast) -> dict[str, Any]:
+    async def _logout(self, conn: _Conn, msg: P.LogoutMsg) -> dict[str, Any]:
+        p = conn.principal
+        assert p is not None
+        self.sessions.unbind(p, conn.ws.close)
+        conn.principal = None
+        self.core.hub.unsubscribe(conn.sub, list(conn.sub.topics))
+        await self.sessions.logout(p)
+        return {"session": None}
+
+    async def _ping(self, conn: _Conn, msg: P.PingMsg) -> dict[str, Any]:
+        return {"time": self.core.clock.epoch()}
+
+    async def _account(self, conn: _Conn, msg: Any) -> dict[str, Any]:
+        return await handle_account(self.sessions, conn.principal, msg)
+
+    async def _stats(self, conn: _Conn, msg: Any) -> dict[str, Any]:
+        return await self.stats.handle(msg)
+
+    async def _forecast_cancel(self, conn: _Conn, msg: P.StatsForecastCancel) -> dict[str, Any]:
+        return {"forecast": _forecast_info((await self.forecaster.cancel()).as_dict())}
+
+    async def _forecast(self, conn: _Conn, msg: P.StatsForecast) -> dict[str, Any]:
         _, start, end = when_range(msg.utc_offset, msg.day, msg.day, ("day", "day"))
         assert start is not None and end is not None
         fc = await self.forecaster.start(msg.day, start, end, list(msg.robots), msg.policy)
         return {"forecast": _forecast_info(fc.as_dict())}
 
-    async def _search_audit(self, msg: P.SiteAudit) -> dict[str, Any]:
+    async def _search_audit(self, conn: _Conn, msg: P.SiteAudit) -> dict[str, Any]:
         q = AuditQuery(
             actor=msg.actor,
             verb=msg.verb,
@@ -484,3 +488,23 @@ def _writer_now(ws: ServerConnection) -> Callable[[str], bool]:
         return True
 
     return write
+
+
+def _members(alias: Any) -> tuple[type, ...]:
+    """The message classes of an ``Annotated[A | B | ..., Field(discriminator=...)]`` alias."""
+    return typing.get_args(typing.get_args(alias)[0])
+
+
+#: The messages the server answers itself (sessions, subscriptions, accounts, statistics, the
+#: audit search); every other goes to the core. ``login`` is answered before authorisation.
+_SERVER_VERBS: dict[type, Callable[[Server, _Conn, Any], Awaitable[dict[str, Any]]]] = {
+    P.LogoutMsg: Server._logout,
+    P.DataMsg: Server._data,
+    P.PingMsg: Server._ping,
+    P.SiteAudit: Server._search_audit,
+    P.StatsFigures: Server._stats,
+    P.StatsTrips: Server._stats,
+    P.StatsForecast: Server._forecast,
+    P.StatsForecastCancel: Server._forecast_cancel,
+    **{cls: Server._account for cls in _members(P.AccountMessage)},
+}

@@ -1,11 +1,11 @@
 """The owner's changes to the site, carried out on the live server: robots edited or removed,
 waypoints renamed or removed, the site's settings.
 
-A mixin of :class:`~serveur.core.engine.Core`, like :mod:`serveur.core.moves`: each change is
-stored first (:mod:`serveur.store.site`, which re-checks what depends on its target in the
-same transaction), then applied to the running server — a robot's link restarted or closed,
-the places' waypoints, the dispatcher's tables, the screens' topics — and published, so every
-console sees it at once. A change the store refuses leaves the running server untouched.
+:class:`Site` does them for the core: each change is stored first (:mod:`serveur.store.site`,
+which re-checks what depends on its target in the same transaction), then applied to the
+running server — a robot's link restarted or closed, the places' waypoints, the dispatcher's
+tables, the screens' topics — and published, so every console sees it at once. A change the
+store refuses leaves the running server untouched.
 
 Settings the owner saves win over the command line's values from then on, across restarts;
 settings never saved keep the command line's (``serveur serve --table-timeout`` is the
@@ -15,22 +15,25 @@ factory default, the console the restaurant's choice).
 from __future__ import annotations
 
 import logging
+from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from serveur import protocol as P
 from serveur.clock import Clock
 from serveur.core.places import Places
 from serveur.core.publisher import Publisher
-from serveur.core.runtime import CoreConfig, Runtime
+from serveur.core.robot import RobotController
+from serveur.core.runtime import CoreConfig
 from serveur.core.service import Service
+from serveur.core.traffic import Traffic
 from serveur.domain import Robot, WaypointRecord
 from serveur.errors import Conflict, InvalidField
 from serveur.robots.names import RosNames
-from serveur.status import Event, RobotState, RobotStatus, apply
+from serveur.status import Event, RobotStatus, apply
 from serveur.store.base import Store
 
-__all__ = ["SiteActions"]
+__all__ = ["SITE_ACTIONS", "Fleet", "Site"]
 
 log = logging.getLogger("serveur.core.engine")
 
@@ -38,63 +41,62 @@ log = logging.getLogger("serveur.core.engine")
 _RELINK = ("url", "kinematics", "link")
 
 
-class SiteActions:
-    """The ``site`` verb's changes (all but the audit search); mixed into the core."""
+class Fleet(Protocol):
+    """The robots' registry, as the owner's changes need it (the core)."""
 
-    store: Store
-    clock: Clock
-    config: CoreConfig
-    places: Places
-    publisher: Publisher
-    service: Service
-    _rt: dict[str, Runtime]
-    _robots: dict[str, Robot]
-    #: The pages' languages: those offered, and the one a device without a choice gets.
-    languages: list[str]
-    language: str
+    def controller(self, name: str) -> RobotController:
+        """The robot's controller; NotFound if there is none."""
+        ...
 
-    if TYPE_CHECKING:  # the core's: declared, not defined, so they never shadow it
+    def has_robot(self, name: str) -> bool: ...
 
-        def _runtime(self, name: str) -> Runtime: ...
+    def add_robot(self, robot: Robot) -> RobotController:
+        """A controller for a newly registered robot, its link started."""
+        ...
 
-        def _start_link(self, rt: Runtime) -> None: ...
+    async def remove_robot(self, ctl: RobotController) -> None:
+        """The robot's controller stopped (link closed, events ended) and forgotten."""
+        ...
 
-        def publish_robot(self, name: str) -> None: ...
 
-        def _kick(self) -> None: ...
+class Site:
+    """The ``site`` verb's changes (all but the audit search) and the site's settings."""
 
-        def _robot_view(self, name: str) -> Robot: ...
-
-        def _add_runtime(self, robot: Robot) -> Runtime: ...
-
-        async def remove_zone(self, msg: P.SiteRemoveZone, actor: str | None) -> dict[str, Any]: ...
-
-        async def _stop_robot_runtime(self, rt: Runtime) -> None: ...
-
-        async def _save_state(
-            self, name: str, st: RobotState, *, error: str | None = None, data: Any = None
-        ) -> Robot: ...
+    def __init__(
+        self,
+        store: Store,
+        clock: Clock,
+        config: CoreConfig,
+        *,
+        fleet: Fleet,
+        records: dict[str, Robot],
+        places: Places,
+        publisher: Publisher,
+        service: Service,
+        traffic: Traffic,
+        kick: Callable[[], None],
+    ) -> None:
+        self.store = store
+        self.clock = clock
+        self.config = config
+        self.fleet = fleet
+        self._robots = records
+        self.places = places
+        self.publisher = publisher
+        self.service = service
+        self.traffic = traffic
+        self._kick = kick
+        #: The pages' languages: those offered, and the one a device without a choice gets.
+        self.languages = list(config.languages)
+        self.language = config.language
 
     async def site(self, msg: Any, actor: str | None) -> dict[str, Any]:
         """The ``site`` verb's actions the core carries out (the audit search is the
-        server's)."""
-        if isinstance(msg, P.SiteEditRobot):
-            return await self.edit_robot(msg, actor)
-        if isinstance(msg, P.SiteRemoveRobot):
-            return await self.remove_robot(msg, actor)
-        if isinstance(msg, P.SiteDependents):
-            return await self.dependents(msg)
-        if isinstance(msg, P.SiteRenameWaypoint):
-            return await self.rename_waypoint(msg, actor)
-        if isinstance(msg, P.SiteRemoveWaypoint):
-            return await self.remove_waypoint(msg, actor)
-        if isinstance(msg, P.SiteSetSettings):
-            return await self.set_settings(msg, actor)
-        if isinstance(msg, P.SiteSettings):
-            return {"settings": self.settings()}
-        if isinstance(msg, P.SiteRemoveZone):
-            return await self.remove_zone(msg, actor)
-        raise InvalidField(f"site {msg.action!r} is not the core's")
+        server's), found through :data:`SITE_ACTIONS`."""
+        handler = SITE_ACTIONS.get(type(msg))
+        if handler is None:
+            raise InvalidField(f"site {msg.action!r} is not the core's")
+        return await handler(self, msg, actor)
 
     # -- settings ---------------------------------------------------------------------------
 
@@ -163,14 +165,16 @@ class SiteActions:
             robot = await self.store.get_robot(robot.name)
             if robot.name in self._robots:
                 self._robots[robot.name] = robot
-        if robot.name not in self._rt:
-            self._add_runtime(robot)
-            self._start_link(self._rt[robot.name])
-        self.publish_robot(robot.name)
-        return {"robot": self._robot_view(robot.name)}
+        if self.fleet.has_robot(robot.name):
+            ctl = self.fleet.controller(robot.name)
+        else:
+            ctl = self.fleet.add_robot(robot)
+        ctl.publish()
+        return {"robot": ctl.view()}
 
     async def edit_robot(self, msg: P.SiteEditRobot, actor: str | None) -> dict[str, Any]:
-        rt = self._runtime(msg.robot)
+        ctl = self.fleet.controller(msg.robot)
+        rt = ctl.rt
         changes = msg.changes()
         if "link" in changes:
             try:
@@ -203,23 +207,23 @@ class SiteActions:
                     # until the new address answers (it then resumes what it was doing),
                     # instead of the status of a link that no longer exists.
                     edited = sorted(k for k in _RELINK if k in changes)
-                    await self._save_state(
-                        rt.name,
+                    await ctl.save_state(
                         apply(rt.state, Event.LINK_DOWN),
                         error=f"reconnecting: {', '.join(edited)} edited",
                         data={"event": Event.LINK_DOWN.value},
                     )
-                self._start_link(rt)
-        self.publish_robot(rt.name)
+                ctl.start_link()
+        ctl.publish()
         self._kick()
-        return {"robot": self._robot_view(rt.name)}
+        return {"robot": ctl.view()}
 
     async def remove_robot(self, msg: P.SiteRemoveRobot, actor: str | None) -> dict[str, Any]:
-        rt = self._runtime(msg.robot)
+        ctl = self.fleet.controller(msg.robot)
+        rt = ctl.rt
         async with rt.lock:
             revoked = await self.store.remove_robot(rt.name, now=self.clock.epoch(), by=actor)
-            robot = self._robot_view(rt.name)
-        await self._stop_robot_runtime(rt)
+            robot = ctl.view()
+        await self.fleet.remove_robot(ctl)
         self.publisher.pub("robots", robot.model_copy(update={"removed": True}))
         log.info("%s: removed by %s", rt.name, actor)
         return {"robot": robot.model_copy(update={"removed": True}), "revoked": revoked}
@@ -240,9 +244,10 @@ class SiteActions:
         self.places.put(wp)
         self.publisher.pub("waypoints", wp)
         for robot in deps.homes:
-            if robot in self._robots:
-                self._robots[robot] = self._robots[robot].model_copy(update={"home": wp.name})
-                self.publish_robot(robot)
+            if self.fleet.has_robot(robot):
+                ctl = self.fleet.controller(robot)
+                ctl.record = ctl.record.model_copy(update={"home": wp.name})
+                ctl.publish()
         block = self.service.blocks.pop(old.name, None)
         if block is not None:
             self.publisher.pub("blocks", block.model_copy(update={"reason": ""}))
@@ -286,3 +291,25 @@ class SiteActions:
     def _waypoint_gone(self, wp: WaypointRecord) -> None:
         self.places.remove(wp.name)
         self.publisher.pub("waypoints", wp.model_copy(update={"removed": True}))
+
+    async def _settings(self, msg: P.SiteSettings, actor: str | None) -> dict[str, Any]:
+        return {"settings": self.settings()}
+
+    async def _remove_zone(self, msg: P.SiteRemoveZone, actor: str | None) -> dict[str, Any]:
+        return await self.traffic.remove_zone(msg, actor)
+
+    async def _dependents(self, msg: P.SiteDependents, actor: str | None) -> dict[str, Any]:
+        return await self.dependents(msg)
+
+
+#: ``site`` action message -> what it does.
+SITE_ACTIONS: dict[type, Callable[[Site, Any, str | None], Awaitable[dict[str, Any]]]] = {
+    P.SiteEditRobot: Site.edit_robot,
+    P.SiteRemoveRobot: Site.remove_robot,
+    P.SiteDependents: Site._dependents,
+    P.SiteRenameWaypoint: Site.rename_waypoint,
+    P.SiteRemoveWaypoint: Site.remove_waypoint,
+    P.SiteSetSettings: Site.set_settings,
+    P.SiteSettings: Site._settings,
+    P.SiteRemoveZone: Site._remove_zone,
+}

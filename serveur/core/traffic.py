@@ -1,16 +1,17 @@
 """Zones and leases on the live server: a robot drives a leg only once it holds every zone on it.
 
-A mixin of :class:`~serveur.core.engine.Core`, like :mod:`serveur.core.moves`. The rules are
-:class:`~serveur.core.leases.LeaseBook`'s (pure); this module feeds it what happens:
+The rules are :class:`~serveur.core.leases.LeaseBook`'s (pure); :class:`Traffic` owns the book
+and the zones and feeds it what happens:
 
-* before each goal (:meth:`_lease_leg`, called by the core's ``_drive``), the zones the leg
+* before each goal (:meth:`Traffic.lease_leg`, called by a robot controller's ``drive``), the
+  zones the leg
   crosses — read off the planned path from the waypoint nearest the robot to its destination,
   widened by the robot's radius, plus the zones it stands in — are requested all at once. A
   robot that does not get them does not move: it stays where it is (at the pass, a table or its
   home: the legs start there, outside the aisles), its record says which zones it waits for,
   and its goal is sent when the grant comes (a ``lease`` report through its queue, so it is
   handled under its lock like any other);
-* each pose (:meth:`moved`) releases the zones the robot has left; the end of a leg releases
+* each pose (:meth:`Traffic.moved`) releases the zones the robot has left; the end of a leg releases
   the zones it is not standing in;
 * a robot that goes Offline, is removed, stops or is taken by hand loses its place in the
   queue, and Offline or removed also its leases (it may be anywhere when it comes back);
@@ -24,7 +25,8 @@ Without zones, or with ``CoreConfig.leases`` off, every leg goes at once, as bef
 from __future__ import annotations
 
 import logging
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import Any, Protocol
 
 from serveur import protocol as P
 from serveur.clock import Clock
@@ -33,12 +35,12 @@ from serveur.core.leases import Grant, LeaseBook, Zone, path_zones
 from serveur.core.places import Places
 from serveur.core.publisher import Publisher
 from serveur.core.runtime import CoreConfig, Destination, Runtime
-from serveur.domain import Robot, ZoneLease, ZoneRecord
+from serveur.domain import ZoneLease, ZoneRecord
 from serveur.errors import NotFound
 from serveur.status import RobotStatus
 from serveur.store.base import Store
 
-__all__ = ["Traffic"]
+__all__ = ["Leg", "Traffic"]
 
 log = logging.getLogger("serveur.core.engine")
 
@@ -51,35 +53,48 @@ def _zone(z: ZoneRecord) -> Zone:
     return Zone(z.name, tuple((float(x), float(y)) for x, y in z.points), z.capacity)
 
 
+class Leg(Protocol):
+    """The robot a leg is for, as traffic needs it (a
+    :class:`~serveur.core.robot.RobotController`)."""
+
+    name: str
+    rt: Runtime
+
+    def publish(self) -> None: ...
+
+    async def send_goal(self, dest: Destination) -> None: ...
+
+    async def drive(self, dest: Destination) -> None: ...
+
+
 class Traffic:
-    """The core's zones and leases; mixed into the core."""
+    """The live zones and their leases."""
 
-    store: Store
-    clock: Clock
-    config: CoreConfig
-    places: Places
-    publisher: Publisher
-    _rt: dict[str, Runtime]
-    _robots: dict[str, Robot]
-    leases: LeaseBook
-    zone_records: dict[str, ZoneRecord]
-
-    if TYPE_CHECKING:  # the core's: declared, not defined, so they never shadow it
-
-        def publish_robot(self, name: str) -> None: ...
-
-        def _post(self, robot: str, event: RobotEvent) -> None: ...
-
-        async def _send_goal(self, rt: Runtime, dest: Destination) -> None: ...
-
-        async def _drive(self, rt: Runtime, dest: Destination) -> None: ...
+    def __init__(
+        self,
+        store: Store,
+        clock: Clock,
+        config: CoreConfig,
+        *,
+        places: Places,
+        publisher: Publisher,
+        post: Callable[[str, RobotEvent], None],
+    ) -> None:
+        self.store = store
+        self.clock = clock
+        self.config = config
+        self.places = places
+        self.publisher = publisher
+        #: Queue an event for a robot (a lease granted goes through the robot's queue).
+        self._post = post
+        self.leases = LeaseBook()
+        self.zone_records: dict[str, ZoneRecord] = {}
 
     # -- zones ------------------------------------------------------------------------------
 
     async def load_zones(self) -> None:
         self.zone_records = {z.name: z for z in await self.store.list_zones()}
         self.leases.set_zones(_zone(z) for z in self.zone_records.values())
-
     async def create_zone(self, msg: P.CreateZone, actor: str | None) -> dict[str, Any]:
         rec = ZoneRecord(
             name=msg.name,
@@ -143,10 +158,11 @@ class Traffic:
             path = [here, *self.places.path(start, end), goal]
         return path_zones(path, self.leases.zones.values(), margin=self.config.robot_radius)
 
-    async def _lease_leg(self, rt: Runtime, dest: Destination) -> bool:
+    async def lease_leg(self, robot: Leg, dest: Destination) -> bool:
         """Ask for the leg's zones: True if the robot may go now, False if it waits."""
         if not self._leases_on():
             return True
+        rt = robot.rt
         zones = self.leg_zones(rt, dest)
         grants = self.leases.request(rt.name, zones, self.clock.now())
         mine = any(g.robot == rt.name for g in grants)
@@ -155,7 +171,7 @@ class Traffic:
         if waiting != rt.waiting_for:
             rt.waiting_for = waiting
             rt.waiting_since = None if mine else self.clock.epoch()
-            self.publish_robot(rt.name)
+            robot.publish()
         if not mine:
             log.info(
                 "%s: waits for %s (held by or promised to %s)",
@@ -165,7 +181,7 @@ class Traffic:
             )
             spot = self._waiting_spot(rt)
             if spot is not None:
-                await self._wait_outside(rt, dest, spot)
+                await self._wait_outside(robot, dest, spot)
         self._publish_leases()
         return mine
 
@@ -185,28 +201,31 @@ class Traffic:
                 return Destination("wait", wp.name, wp.x, wp.y, wp.yaw)
         return None
 
-    async def _wait_outside(self, rt: Runtime, dest: Destination, spot: Destination) -> None:
+    async def _wait_outside(self, robot: Leg, dest: Destination, spot: Destination) -> None:
         """Leave the zone for its waiting point, holding nothing more; ask again from there."""
+        rt = robot.rt
         self._granted(self.leases.withdraw(rt.name))
         log.info("%s: leaves its zone for %s to wait there", rt.name, spot.name)
         rt.resume_dest = dest
         rt.waiting_for = [spot.name]
         rt.dest = spot
-        self.publish_robot(rt.name)
-        await self._send_goal(rt, spot)
+        robot.publish()
+        await robot.send_goal(spot)
 
-    async def _waited(self, rt: Runtime, succeeded: bool, text: str) -> bool:
+    async def waited(self, robot: Leg, succeeded: bool) -> bool:
         """The goal to a waiting point ended: ask again for the leg it waited to drive.
         False if the robot did not get there (the caller reports the failure)."""
+        rt = robot.rt
         resume, rt.resume_dest = rt.resume_dest, None
         rt.waiting_for = rt.waiting_since = None
         if not succeeded or resume is None or rt.state.status not in _MOVING:
             return succeeded
-        await self._drive(rt, resume)
+        await robot.drive(resume)
         return True
 
-    async def _lease_granted(self, rt: Runtime) -> None:
-        """A ``lease`` report: the zones it waited for are its own now; drive the leg."""
+    async def lease_granted(self, robot: Leg) -> None:
+        """A lease granted: the zones it waited for are its own now; drive the leg."""
+        rt = robot.rt
         if rt.waiting_for is None:
             return
         waited = self.clock.epoch() - (rt.waiting_since or self.clock.epoch())
@@ -214,7 +233,7 @@ class Traffic:
         dest = rt.dest
         if dest is None or rt.state.status not in _MOVING or rt.goal_id is not None:
             self._granted(self.leases.expire(rt.name))
-            self.publish_robot(rt.name)
+            robot.publish()
             return
         await self.store.add_event(
             "lease.waited",
@@ -222,8 +241,8 @@ class Traffic:
             robot=rt.name,
             data={"zones": self.leases.held(rt.name), "waited_s": round(waited, 1)},
         )
-        self.publish_robot(rt.name)
-        await self._send_goal(rt, dest)
+        robot.publish()
+        await robot.send_goal(dest)
 
     def moved(self, name: str, x: float, y: float) -> None:
         """A pose: zones left are released."""
