@@ -1,9 +1,9 @@
 """The live rows: robots and waypoints as every read sees them, the removed ones left out.
 
 A robot or waypoint the owner removes keeps its row, marked ``removed_at`` (migration 006,
-:mod:`serveur.store.site`): past trips and orders name it. Every read of "the robots" or "the
-waypoints" must skip those rows, in both backends and the portable mixins alike, so the
-queries are written here once.
+:mod:`serveur.store.robots`, :mod:`serveur.store.waypoints`): past trips and orders name it.
+Every read of "the robots" or "the waypoints" must skip those rows, in every part of the
+store, so the queries are written here once.
 """
 
 from __future__ import annotations
