@@ -6,7 +6,7 @@
 
 import { Connection } from "./ws.js";
 import { Live } from "./live.js";
-import { act, el, showError, toast, watchConnection } from "./ui.js";
+import { act, el, KeyedList, showError, toast, watchConnection } from "./ui.js";
 import { applySiteLanguages, dishLabel, onLangChange, t } from "./i18n.js";
 
 const table = tableName();
@@ -20,14 +20,31 @@ function titles() {
 titles();
 onLangChange(() => {
   titles();
-  shown = "";
+  for (const rows of [herePanels, coming, served, atPass]) rows.invalidate(); // new words
   if (loaded) render();
 });
 
 let cart = [];
 let asking = null;
 let loaded = false; // the orders came: "nothing ..." can be said
-let shown = ""; // what the robot panel shows, so a redraw does not replace a button being pressed
+
+// Each robot here, drawn again only when what it shows changed, so a redraw does not replace a
+// button being pressed; and the three lists of dishes, one row per dish.
+const herePanels = new KeyedList(document.getElementById("here"), {
+  key: (here) => here.robot,
+  signature: (here) => [here, here.orders.map((id) => order(id) && dishLabel(order(id)))],
+  build: (here) => herePanel(here),
+});
+const dishes = (id, empty) =>
+  new KeyedList(document.getElementById(id), {
+    key: (o) => o.id,
+    signature: (o) => dishLabel(o),
+    build: (o) => el("li", { "data-order": o.id }, el("span", { class: "dish" }, dishLabel(o))),
+    empty: () => el("li", { class: "muted" }, t(empty)),
+  });
+const coming = dishes("coming", "table.comingEmpty");
+const served = dishes("served", "table.servedEmpty");
+const atPass = dishes("at-pass", "table.passEmpty");
 
 function tableName() {
   const parts = window.location.pathname.split("/").filter(Boolean);
@@ -106,26 +123,14 @@ function herePanel(here) {
   );
 }
 
-function items(orders, empty) {
-  if (!orders.length) return [el("li", { class: "muted" }, empty)];
-  return orders.map((o) => el("li", { "data-order": o.id }, el("span", { class: "dish" }, dishLabel(o))));
-}
-
 function render() {
   const here = arrivals();
   const onTray = new Set(here.flatMap((h) => h.orders));
-  const panel = JSON.stringify(here.map((h) => [h, h.orders.map((id) => order(id) && dishLabel(order(id)))]));
-  if (panel !== shown) {
-    shown = panel;
-    document.getElementById("here").replaceChildren(...here.map(herePanel));
-  }
+  herePanels.update(here);
   // On the way: on a robot, except the dishes of a robot already here (shown above).
-  const coming = cart.filter((o) => o.status === "assigned" && !onTray.has(o.id));
-  const served = cart.filter((o) => o.status === "delivered");
-  const atPass = [...live.orders.values()].filter((o) => o.table === table && o.status === "pending");
-  document.getElementById("coming").replaceChildren(...items(coming, t("table.comingEmpty")));
-  document.getElementById("served").replaceChildren(...items(served, t("table.servedEmpty")));
-  document.getElementById("at-pass").replaceChildren(...items(atPass, t("table.passEmpty")));
+  coming.update(cart.filter((o) => o.status === "assigned" && !onTray.has(o.id)));
+  served.update(cart.filter((o) => o.status === "delivered"));
+  atPass.update([...live.orders.values()].filter((o) => o.table === table && o.status === "pending"));
 }
 
 live.addEventListener("change", (e) => {

@@ -291,17 +291,29 @@ export function byName(a, b) {
 }
 
 /**
- * A list drawn from records, keyed: a row is built again only when its signature changed, rows
- * that are gone are removed, and the order follows the records. So a tick or an unrelated
- * update does not replace a button under a finger.
+ * A list drawn from records, keyed — the one way the pages draw a list that live updates change.
+ * A row is built again only when its signature changed, rows that are gone are removed, and the
+ * order follows the records; rows whose record did not change keep their node. So a tick or an
+ * unrelated update does not replace a button under a finger, a note being typed or an open
+ * <details>.
+ *
+ * A rebuilt row keeps the keyboard's place: when the focus was in the old row on a control marked
+ * `data-focus-key`, the new row's control with the same key gets it (or, that one gone or
+ * disabled, the row's first enabled `data-focus-key` control). `lostFocus(item)` may name the
+ * key to focus in a rebuilt row when the focus had dropped to <body> (a button disabled while
+ * its request runs loses it).
+ *
+ * Options: key(item) -> its key; signature(item) -> what the row shows (JSON-compared); build(item)
+ * -> the row's node; empty() -> the node shown when there is nothing (optional).
  */
 export class KeyedList {
-  constructor(container, { key, signature, build, empty = null }) {
+  constructor(container, { key, signature = () => null, build, empty = null, lostFocus = null }) {
     this.container = container;
     this.key = key;
     this.signature = signature;
     this.build = build;
     this.empty = empty; // () => node shown when there is nothing
+    this.lostFocus = lostFocus;
     this.rows = new Map(); // key -> {node, sig}
     this.emptyNode = null;
   }
@@ -319,10 +331,12 @@ export class KeyedList {
       const sig = JSON.stringify(this.signature(item));
       let row = this.rows.get(k);
       if (!row || row.sig !== sig) {
+        const focus = row ? this._focusKey(row.node, item) : null;
         const node = this.build(item);
         if (row) row.node.replaceWith(node);
         row = { node, sig };
         this.rows.set(k, row);
+        if (focus) refocus(node, focus);
       }
       const want = prev ? prev.nextSibling : this.container.firstChild;
       if (want !== row.node) this.container.insertBefore(row.node, want);
@@ -342,8 +356,37 @@ export class KeyedList {
     }
   }
 
+  /** The node drawn for `key`, or null. */
+  node(key) {
+    const row = this.rows.get(key);
+    return row ? row.node : null;
+  }
+
   /** Same records, new words (a language change): every row is built again on the next update. */
   invalidate() {
     for (const row of this.rows.values()) row.sig = null;
   }
+
+  /** Every row goes (another page of records, another range): the next update builds afresh. */
+  clear() {
+    for (const row of this.rows.values()) row.node.remove();
+    this.rows.clear();
+    if (this.emptyNode) this.emptyNode.remove();
+    this.emptyNode = null;
+  }
+
+  _focusKey(old, item) {
+    const active = document.activeElement;
+    if (active && active !== document.body) return old.contains(active) ? active.dataset.focusKey || null : null;
+    return this.lostFocus ? this.lostFocus(item) : null;
+  }
+}
+
+/** Focus `row`'s control `key`, or its first enabled `data-focus-key` control when that one is
+ *  gone or disabled. */
+export function refocus(row, key) {
+  const usable = (b) => b && !b.disabled;
+  const same = row.querySelector(`[data-focus-key="${CSS.escape(key)}"]`);
+  const target = usable(same) ? same : row.querySelector("[data-focus-key]:not(:disabled)");
+  if (target) target.focus();
 }

@@ -4,7 +4,7 @@
 // Each screen's token comes with its setup link and a QR code (SVG from the server, shown as an
 // image); the codes made since the tab was opened gather on a sheet the Print button prints.
 
-import { act, byName, confirmDialog, el, formatTime, toast } from "../ui.js";
+import { act, byName, confirmDialog, el, formatTime, KeyedList, toast } from "../ui.js";
 import { onLangChange, roleName, t } from "../i18n.js";
 
 const USER_ROLES = ["staff", "owner"];
@@ -50,6 +50,8 @@ export class AccountsPanel {
     // -- screens
     this.kind = el("select", { id: "acc-kind" });
     this.target = el("select", { id: "acc-target" });
+    // The robots or the tables, one option each: the one chosen stays while it exists.
+    this.targets = new KeyedList(this.target, { key: (n) => n, build: (n) => el("option", { value: n, text: n }) });
     this.label = el("input", { id: "acc-label", type: "text", maxlength: 64, autocomplete: "off" });
     this.makeBtn = el("button", { type: "submit", class: "primary", "data-needs-online": true, "data-i18n": "accounts.makeToken" });
     this.allBtn = el("button", { type: "button", class: "secondary", "data-needs-online": true, "data-i18n": "accounts.allTables", onclick: () => this._allTables() });
@@ -102,7 +104,24 @@ export class AccountsPanel {
       this.sheetList,
     );
     live.addEventListener("change", (e) => ["robots", "waypoints"].includes(e.detail.topic) && this._fillTargets());
-    onLangChange(() => this._render());
+    const me = () => this.conn.session && this.conn.session.user;
+    this.userRows = new KeyedList(this.userList, {
+      key: (u) => u.name,
+      signature: (u) => [u.role, u.name === me()],
+      build: (u) => this._userRow(u, me()),
+    });
+    this.tokenRows = new KeyedList(this.tokenList, {
+      key: (tok) => tok.id,
+      signature: (tok) => [screenName(tok), tok.label, tok.last_used_at],
+      build: (tok) => this._tokenRow(tok),
+      empty: () => el("li", { class: "muted" }, t("accounts.noScreens")),
+    });
+    // A QR code made here never changes: printed as made.
+    this.sheetRows = new KeyedList(this.sheetList, { key: (e) => e.url, build: (e) => this._sheetRow(e) });
+    onLangChange(() => {
+      for (const rows of [this.userRows, this.tokenRows, this.sheetRows]) rows.invalidate();
+      this._render();
+    });
     this._render();
   }
 
@@ -137,65 +156,60 @@ export class AccountsPanel {
   }
 
   _fillTargets() {
-    const old = this.target.value;
     const names =
       this.kind.value === "robot-screen"
         ? [...this.live.robots.keys()]
         : [...this.live.waypoints.values()].filter((w) => w.kind === "table").map((w) => w.name);
     names.sort(byName);
-    this.target.replaceChildren(...names.map((n) => el("option", { value: n, text: n })));
-    if (names.includes(old)) this.target.value = old;
+    this.targets.update(names);
   }
 
   _renderLists() {
-    const me = this.conn.session && this.conn.session.user;
-    this.userList.replaceChildren(
-      ...this.users.map((u) => {
-        const role = el("select", { "aria-label": t("accounts.roleOf", { name: u.name }), "data-needs-online": true });
-        role.replaceChildren(...USER_ROLES.map((r) => el("option", { value: r, text: roleName(r) })));
-        role.value = u.role;
-        role.addEventListener("change", () => this._setRole(u, role));
-        return el(
-          "li",
-          { "data-user": u.name },
-          el("span", { class: "acc-name" }, u.name, u.name === me ? el("span", { class: "muted" }, ` ${t("accounts.you")}`) : null),
-          role,
-          el("button", {
-            class: "secondary",
-            "data-needs-online": true,
-            "aria-label": t("accounts.resetFor", { name: u.name }),
-            text: t("accounts.reset"),
-            onclick: (e) => this._reset(u, e.currentTarget),
-          }),
-          el("button", {
-            class: "danger",
-            "data-needs-online": true,
-            "aria-label": t("accounts.removeFor", { name: u.name }),
-            text: t("accounts.remove"),
-            onclick: (e) => this._remove(u, e.currentTarget),
-          }),
-        );
+    this.userRows.update(this.users);
+    this.tokenRows.update(this.tokens);
+  }
+
+  _userRow(u, me) {
+    const role = el("select", { "aria-label": t("accounts.roleOf", { name: u.name }), "data-needs-online": true });
+    role.replaceChildren(...USER_ROLES.map((r) => el("option", { value: r, text: roleName(r) })));
+    role.value = u.role;
+    role.addEventListener("change", () => this._setRole(u, role));
+    return el(
+      "li",
+      { "data-user": u.name },
+      el("span", { class: "acc-name" }, u.name, u.name === me ? el("span", { class: "muted" }, ` ${t("accounts.you")}`) : null),
+      role,
+      el("button", {
+        class: "secondary",
+        "data-needs-online": true,
+        "aria-label": t("accounts.resetFor", { name: u.name }),
+        text: t("accounts.reset"),
+        onclick: (e) => this._reset(u, e.currentTarget),
+      }),
+      el("button", {
+        class: "danger",
+        "data-needs-online": true,
+        "aria-label": t("accounts.removeFor", { name: u.name }),
+        text: t("accounts.remove"),
+        onclick: (e) => this._remove(u, e.currentTarget),
       }),
     );
-    this.tokenList.replaceChildren(
-      ...(this.tokens.length
-        ? this.tokens.map((tok) =>
-            el(
-              "li",
-              { "data-token": tok.id },
-              el("span", { class: "acc-name" }, screenName(tok)),
-              el("span", { class: "muted" }, tok.label),
-              el("span", { class: "muted" }, tok.last_used_at ? t("accounts.lastUsed", { time: formatTime(tok.last_used_at) }) : t("accounts.neverUsed")),
-              el("button", {
-                class: "danger",
-                "data-needs-online": true,
-                "aria-label": t("accounts.revokeFor", { name: screenName(tok), id: tok.id }),
-                text: t("accounts.revoke"),
-                onclick: (e) => this._revoke(tok, e.currentTarget),
-              }),
-            ),
-          )
-        : [el("li", { class: "muted" }, t("accounts.noScreens"))]),
+  }
+
+  _tokenRow(tok) {
+    return el(
+      "li",
+      { "data-token": tok.id },
+      el("span", { class: "acc-name" }, screenName(tok)),
+      el("span", { class: "muted" }, tok.label),
+      el("span", { class: "muted" }, tok.last_used_at ? t("accounts.lastUsed", { time: formatTime(tok.last_used_at) }) : t("accounts.neverUsed")),
+      el("button", {
+        class: "danger",
+        "data-needs-online": true,
+        "aria-label": t("accounts.revokeFor", { name: screenName(tok), id: tok.id }),
+        text: t("accounts.revoke"),
+        onclick: (e) => this._revoke(tok, e.currentTarget),
+      }),
     );
   }
 
@@ -315,10 +329,10 @@ export class AccountsPanel {
 
   _renderSheet() {
     this.printBtn.disabled = this.sheet.length === 0;
-    this.sheetList.replaceChildren(
-      ...this.sheet.map((e) =>
-        el("li", {}, qrImage(e.svg, t("accounts.qrFor", { name: e.name })), el("p", { class: "sheet-name" }, e.name), el("p", { class: "sheet-url" }, e.url)),
-      ),
-    );
+    this.sheetRows.update(this.sheet);
+  }
+
+  _sheetRow(e) {
+    return el("li", {}, qrImage(e.svg, t("accounts.qrFor", { name: e.name })), el("p", { class: "sheet-name" }, e.name), el("p", { class: "sheet-url" }, e.url));
   }
 }

@@ -3,7 +3,7 @@
 // Ana at 19:42" once someone has), and a chime for each new critical alert, made with WebAudio
 // (no audio file), that can be muted on this device. A cleared alert leaves the banner.
 
-import { act, el, formatTime } from "../ui.js";
+import { act, el, formatTime, KeyedList } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
 
 const MUTE_KEY = "serveur.alertsMuted";
@@ -96,8 +96,12 @@ export class AlertsPanel {
     this.chime = new Chime();
     this.chimes = 0; // how many were sounded (banner's data-chimes: what a test can read)
     this.heard = new Set(); // alert ids already seen by this page: a chime once per alert
-    this.rows = new Map(); // id -> {li, signature}
     this.list = el("ul", { class: "alert-list" });
+    this.rows = new KeyedList(this.list, {
+      key: (alert) => alert.id,
+      signature: (alert) => [alert.severity, alert.message, alert.acked_at, alert.acked_by, this._detail(alert)],
+      build: (alert) => this._row(alert),
+    });
     this.banner.append(this.list);
     this.mute.addEventListener("click", () => {
       this.muted = !this.muted;
@@ -108,7 +112,7 @@ export class AlertsPanel {
       if (["alerts", "robots", "blocks", "leases"].includes(e.detail.topic)) this.render();
     });
     onLangChange(() => {
-      for (const row of this.rows.values()) row.signature = "";
+      this.rows.invalidate();
       this._showMute();
       this.render();
     });
@@ -127,33 +131,14 @@ export class AlertsPanel {
     const alerts = [...this.live.alerts.values()].sort(
       (a, b) => (a.severity === b.severity ? 0 : a.severity === "critical" ? -1 : 1) || a.id - b.id,
     );
-    const ids = new Set(alerts.map((a) => a.id));
-    for (const [id, row] of this.rows) {
-      if (!ids.has(id)) {
-        row.li.remove();
-        this.rows.delete(id);
-      }
-    }
     let fresh = false;
     for (const alert of alerts) {
       if (!this.heard.has(alert.id)) {
         this.heard.add(alert.id);
         if (alert.severity === "critical" && !alert.acked_at) fresh = true;
       }
-      const signature = JSON.stringify([alert.message, alert.acked_at, alert.acked_by, this._detail(alert)]);
-      let row = this.rows.get(alert.id);
-      if (!row) {
-        row = { li: el("li", { "data-alert": alert.id }), signature: "" };
-        this.rows.set(alert.id, row);
-      }
-      if (row.signature !== signature) {
-        row.signature = signature;
-        row.li.className = `alert alert-${alert.severity === "critical" ? "critical" : "warning"}`;
-        row.li.classList.toggle("acked", Boolean(alert.acked_at));
-        row.li.replaceChildren(...this._content(alert));
-      }
-      this.list.append(row.li); // keeps the order; a no-op move when in place
     }
+    this.rows.update(alerts);
     if (fresh && !this.muted) {
       this.chime.play();
       this.chimes += 1;
@@ -196,6 +181,11 @@ export class AlertsPanel {
     return holders.size
       ? t("robots.waitingHeld", { zones: names, robots: [...holders].sort().join(", ") })
       : t("alerts.zoneWaitFor", { zones: names });
+  }
+
+  _row(alert) {
+    const kind = `alert alert-${alert.severity === "critical" ? "critical" : "warning"}`;
+    return el("li", { "data-alert": alert.id, class: alert.acked_at ? `${kind} acked` : kind }, ...this._content(alert));
   }
 
   _content(alert) {

@@ -110,13 +110,27 @@ export class IssuePanel {
       signature: (b) => [b.reason, b.robot],
       build: (b) => this._blockedRow(b),
     });
+    this.cartRows = new KeyedList(this.cartList, {
+      key: (o) => o.id,
+      signature: (o) => [dishLabel(o), o.table],
+      build: (o) => this._cartRow(o),
+      empty: () => el("li", { class: "muted" }, t("issue.cartEmpty")),
+    });
+    this.tripRows = new KeyedList(this.trips, {
+      key: (trip) => trip.id,
+      signature: (trip) => [trip.status, trip.robot, trip.stops.map((s) => [s.table, s.orders.length])],
+      build: (trip) => this._tripRow(trip),
+      empty: () => el("li", { class: "muted" }, t("issue.noTrips")),
+    });
     live.addEventListener("change", (e) => {
       if (["orders", "tasks", "robots", "blocks"].includes(e.detail.topic)) this.render();
     });
     // Waiting times tick; only their text changes.
     setInterval(() => this._tick(), 1000);
     onLangChange(() => {
-      for (const list of [this.pendingRows, this.loadingRows, this.returnedRows, this.blockedRows]) list.invalidate();
+      for (const list of [this.pendingRows, this.loadingRows, this.returnedRows, this.blockedRows, this.cartRows, this.tripRows]) {
+        list.invalidate();
+      }
       this.render();
     });
     this.render();
@@ -228,23 +242,7 @@ export class IssuePanel {
 
   _renderCart() {
     const items = this.cart.map((id) => this.live.orders.get(id)).filter(Boolean);
-    this.cartList.replaceChildren(
-      ...items.map((o) =>
-        el(
-          "li",
-          {},
-          el("span", { class: "dish" }, dishLabel(o)),
-          el("span", { class: "table-tag" }, o.table),
-          el("button", {
-            class: "secondary",
-            "aria-label": t("issue.removeFor", { dish: dishLabel(o), table: o.table }),
-            onclick: () => this._setCart(this.cart.filter((x) => x !== o.id)),
-            text: t("issue.remove"),
-          }),
-        ),
-      ),
-    );
-    if (!items.length) this.cartList.append(el("li", { class: "muted" }, t("issue.cartEmpty")));
+    this.cartRows.update(items);
     const tables = new Set(items.map((o) => o.table));
     this.sendBtn.textContent = items.length
       ? t("issue.sendCount", {
@@ -255,19 +253,32 @@ export class IssuePanel {
     this.sendBtn.disabled = !items.length;
   }
 
-  _renderTrips() {
-    const open = [...this.live.tasks.values()].filter((t) => t.status === "queued" || t.status === "active");
-    this.trips.replaceChildren(
-      ...open.map((trip) =>
-        el(
-          "li",
-          {},
-          (trip.robot ? t("issue.tripRobot", { id: trip.id, status: taskStatus(trip.status), robot: trip.robot }) : t("issue.trip", { id: trip.id, status: taskStatus(trip.status) })) + " · ",
-          trip.stops.map((s) => `${s.table} (${s.orders.length})`).join(" → "),
-        ),
-      ),
+  _cartRow(o) {
+    return el(
+      "li",
+      {},
+      el("span", { class: "dish" }, dishLabel(o)),
+      el("span", { class: "table-tag" }, o.table),
+      el("button", {
+        class: "secondary",
+        "aria-label": t("issue.removeFor", { dish: dishLabel(o), table: o.table }),
+        onclick: () => this._setCart(this.cart.filter((x) => x !== o.id)),
+        text: t("issue.remove"),
+      }),
     );
-    if (!open.length) this.trips.append(el("li", { class: "muted" }, t("issue.noTrips")));
+  }
+
+  _renderTrips() {
+    this.tripRows.update([...this.live.tasks.values()].filter((t) => t.status === "queued" || t.status === "active"));
+  }
+
+  _tripRow(trip) {
+    return el(
+      "li",
+      {},
+      (trip.robot ? t("issue.tripRobot", { id: trip.id, status: taskStatus(trip.status), robot: trip.robot }) : t("issue.trip", { id: trip.id, status: taskStatus(trip.status) })) + " · ",
+      trip.stops.map((s) => `${s.table} (${s.orders.length})`).join(" → "),
+    );
   }
 
   _setCart(ids) {

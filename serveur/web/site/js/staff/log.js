@@ -3,7 +3,7 @@
 // older" pages on with the last id shown (the `site audit` request's `before`). Read through
 // the protocol's `site` verb with action `audit` (owners hold the audit scope).
 
-import { act, el, formatTime } from "../ui.js";
+import { act, el, formatTime, KeyedList } from "../ui.js";
 import { onLangChange, roleName, t } from "../i18n.js";
 
 const PAGE = 50;
@@ -188,6 +188,9 @@ export class LogPanel {
     form.addEventListener("reset", () => setTimeout(() => this.load()));
     this.status = el("p", { class: "muted", role: "status" });
     this.list = el("ul", { class: "log-list", "data-i18n-aria-label": "owner.log.title" });
+    // A record never changes: a row is built once (again after a language change); "Older"
+    // adds rows below, a new search keeps the rows it finds again.
+    this.rows = new KeyedList(this.list, { key: (rec) => rec.id, build: (rec) => this._row(rec) });
     this.olderBtn = el("button", { type: "button", class: "secondary", "data-needs-online": true, "data-i18n": "owner.log.older", hidden: true, onclick: () => this.loadOlder() });
     root.append(
       el(
@@ -203,6 +206,7 @@ export class LogPanel {
     );
     onLangChange(() => {
       this._fillSelects();
+      this.rows.invalidate();
       this._render();
     });
     this._fillSelects();
@@ -289,7 +293,7 @@ export class LogPanel {
   }
 
   _render() {
-    this.list.replaceChildren(...this.records.map((rec) => this._row(rec)));
+    this.rows.update(this.records);
     this.status.textContent = this.records.length
       ? t(this.done ? "owner.log.countAll" : "owner.log.count", { count: this.records.length })
       : t("owner.log.none");

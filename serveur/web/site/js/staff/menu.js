@@ -16,6 +16,7 @@ export class MenuPanel {
     this.name = el("input", { id: "menu-name", type: "text", maxlength: 64, required: true, autocomplete: "off" });
     this.category = el("input", { id: "menu-category", type: "text", maxlength: 64, list: "menu-categories", autocomplete: "off" });
     this.categories = el("datalist", { id: "menu-categories" });
+    this.categoryOptions = new KeyedList(this.categories, { key: (c) => c, build: (c) => el("option", { value: c }) });
     this.price = el("input", { id: "menu-price", type: "number", min: 0, step: "0.01", inputmode: "decimal" });
     this.available = el("input", { id: "menu-available", type: "checkbox", checked: true });
     this.saveBtn = el("button", { type: "submit", class: "primary", "data-needs-online": true, "data-i18n": "menu.save" });
@@ -82,7 +83,7 @@ export class MenuPanel {
     const items = this._items();
     this.rows.update(items);
     const cats = [...new Set(items.map((m) => m.category).filter(Boolean))].sort(byName);
-    this.categories.replaceChildren(...cats.map((c) => el("option", { value: c })));
+    this.categoryOptions.update(cats);
   }
 
   _row(m) {

@@ -4,7 +4,7 @@
 // has its own client-made key, so sending again after a dropped connection never makes a dish
 // twice.
 
-import { act, byName, el, newKey, toast } from "../ui.js";
+import { act, byName, el, KeyedList, newKey, toast } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
 
 export class NewOrderPanel {
@@ -12,7 +12,7 @@ export class NewOrderPanel {
     this.conn = conn;
     this.live = live;
     this.table = null;
-    this.lines = []; // {dish, table, quantity, note, key, node}
+    this.lines = []; // {dish, table, quantity, note, key, qty}
     this.tables = el("div", { class: "table-grid", role: "group", "data-i18n-aria-label": "order.table" });
     this.menu = el("div", { class: "menu", role: "group", "data-i18n-aria-label": "order.menu" });
     this.dish = el("input", {
@@ -53,16 +53,32 @@ export class NewOrderPanel {
         ),
       ),
     );
+    // The table buttons (the one picked is pressed: _pick), the menu's groups of dishes, and the
+    // order's lines, which keep their nodes: a note being typed is not redrawn under the fingers.
+    this.tableRows = new KeyedList(this.tables, {
+      key: (n) => n,
+      build: (n) => this._tableButton(n),
+      empty: () => el("p", { class: "muted" }, t("order.noTables")),
+    });
+    this.menuRows = new KeyedList(this.menu, {
+      key: ([category]) => category,
+      signature: ([, dishes]) => dishes.map((m) => m.dish),
+      build: ([category, dishes]) => this._menuGroup(category, dishes),
+      empty: () => el("p", { class: "muted" }, t("order.noMenu")),
+    });
+    this.lineRows = new KeyedList(this.linesList, {
+      key: (line) => line.key,
+      build: (line) => this._lineNode(line),
+      empty: () => el("li", { class: "muted" }, t("order.empty")),
+    });
     live.addEventListener("change", (e) => {
       if (e.detail.topic === "waypoints") this._renderTables();
       if (e.detail.topic === "menu") this._renderMenu();
     });
     onLangChange(() => {
-      this._tablesShown = null; // same tables, new words
-      this._menuShown = null;
+      for (const rows of [this.tableRows, this.menuRows, this.lineRows]) rows.invalidate(); // new words
       this._renderTables();
       this._renderMenu();
-      for (const line of this.lines) line.node = null;
       this._renderLines();
     });
     this._renderTables();
@@ -75,54 +91,47 @@ export class NewOrderPanel {
     const items = [...this.live.menu.values()]
       .filter((m) => m.available)
       .sort((a, b) => a.position - b.position || byName(a.dish, b.dish));
-    const shown = JSON.stringify(items.map((m) => [m.dish, m.category]));
-    if (shown === this._menuShown) return;
-    this._menuShown = shown;
     const groups = new Map();
     for (const m of items) {
       if (!groups.has(m.category)) groups.set(m.category, []);
       groups.get(m.category).push(m);
     }
-    this.menu.replaceChildren(
-      ...[...groups].map(([category, dishes]) =>
-        el(
-          "div",
-          { class: "menu-group", role: "group", "aria-label": category || t("menu.noCategory") },
-          el("h3", {}, category || t("menu.noCategory")),
-          el(
-            "div",
-            { class: "menu-dishes" },
-            dishes.map((m) =>
-              el("button", {
-                class: "secondary",
-                "aria-label": t("order.addNamed", { dish: m.dish }),
-                onclick: () => this._add(m.dish),
-                text: m.dish,
-              }),
-            ),
-          ),
+    this.menuRows.update([...groups]);
+  }
+
+  _menuGroup(category, dishes) {
+    return el(
+      "div",
+      { class: "menu-group", role: "group", "aria-label": category || t("menu.noCategory") },
+      el("h3", {}, category || t("menu.noCategory")),
+      el(
+        "div",
+        { class: "menu-dishes" },
+        dishes.map((m) =>
+          el("button", {
+            class: "secondary",
+            "aria-label": t("order.addNamed", { dish: m.dish }),
+            onclick: () => this._add(m.dish),
+            text: m.dish,
+          }),
         ),
       ),
     );
-    if (!items.length) this.menu.append(el("p", { class: "muted" }, t("order.noMenu")));
   }
 
   _renderTables() {
     const names = [...this.live.waypoints.values()].filter((w) => w.kind === "table").map((w) => w.name).sort(byName);
-    if (JSON.stringify(names) === this._tablesShown && names.includes(this.table)) return;
-    this._tablesShown = JSON.stringify(names);
-    this.tables.replaceChildren(
-      ...names.map((n) =>
-        el("button", {
-          class: "table-btn",
-          "aria-pressed": String(n === this.table),
-          "aria-label": t("order.tableNamed", { table: n }),
-          onclick: () => this._pick(n),
-          text: n,
-        }),
-      ),
-    );
-    if (!names.length) this.tables.append(el("p", { class: "muted" }, t("order.noTables")));
+    this.tableRows.update(names);
+  }
+
+  _tableButton(n) {
+    return el("button", {
+      class: "table-btn",
+      "aria-pressed": String(n === this.table),
+      "aria-label": t("order.tableNamed", { table: n }),
+      onclick: () => this._pick(n),
+      text: n,
+    });
   }
 
   _pick(name) {
@@ -146,7 +155,7 @@ export class NewOrderPanel {
       this._showQuantity(same);
       return;
     }
-    this.lines.push({ dish: d, table: this.table, quantity: 1, note: "", key: newKey("dish"), node: null });
+    this.lines.push({ dish: d, table: this.table, quantity: 1, note: "", key: newKey("dish") });
     this._renderLines();
   }
 
@@ -199,9 +208,7 @@ export class NewOrderPanel {
   }
 
   _renderLines() {
-    // Lines keep their nodes: a note being typed is not redrawn under the fingers.
-    this.linesList.replaceChildren(...this.lines.map((line) => line.node || (line.node = this._lineNode(line))));
-    if (!this.lines.length) this.linesList.append(el("li", { class: "muted" }, t("order.empty")));
+    this.lineRows.update(this.lines);
     this.sendBtn.disabled = !this.lines.length;
   }
 

@@ -2,7 +2,7 @@
 // drives. The server connects to it at once; the robot then shows in the list, Offline until
 // the server reaches it, Ready after. Staff do not see the form (the server would refuse).
 
-import { act, byName, el, toast } from "../ui.js";
+import { act, byName, el, KeyedList, toast } from "../ui.js";
 import { t } from "../i18n.js";
 
 const KINEMATICS = [
@@ -23,7 +23,14 @@ export class RegisterRobot {
       "data-i18n-placeholder": "register.urlPlaceholder", pattern: "wss?://.+",
       "data-i18n-title": "register.urlHint",
     });
-    this.home = el("select", { id: "rr-home" });
+    // The free homes, one option each, then "no home" (last, kept): an option stays while its
+    // home is free, so the choice made is not undone by an update.
+    this.home = el("select", { id: "rr-home" }, el("option", { value: "", "data-i18n": "register.noHome" }));
+    this.homes = new KeyedList(this.home, { key: (h) => h, build: (h) => el("option", { value: h }, h) });
+    this.noHomeChosen = false; // "no home" picked by hand: kept when homes come and go
+    this.home.addEventListener("change", () => {
+      this.noHomeChosen = this.home.value === "";
+    });
     this.kinematics = el(
       "select",
       { id: "rr-kinematics" },
@@ -79,15 +86,10 @@ export class RegisterRobot {
       .filter((w) => w.kind === "home" && !taken.has(w.name))
       .map((w) => w.name)
       .sort(byName);
-    const signature = homes.join("\n");
-    if (signature === this._signature) return;
-    this._signature = signature;
     const keep = this.home.value;
-    this.home.replaceChildren(
-      ...homes.map((h) => el("option", { value: h }, h)),
-      el("option", { value: "", "data-i18n": "register.noHome" }),
-    );
-    if (homes.includes(keep)) this.home.value = keep;
+    this.homes.update(homes);
+    // The first free home is chosen, unless a free one (or "no home") was picked by hand.
+    if (!homes.includes(keep) && !(keep === "" && this.noHomeChosen)) this.home.selectedIndex = 0;
   }
 
   async _register() {

@@ -2,7 +2,7 @@
 // allows (status.js). A refusal from the server (the status changed meanwhile) is shown.
 // A robot waiting for a zone (waiting_for) says which, and which robot is in it (the leases).
 
-import { act, confirmDialog, el, formatClock } from "../ui.js";
+import { act, confirmDialog, el, formatClock, KeyedList, refocus } from "../ui.js";
 import { allowed, statusColour } from "../status.js";
 import { onLangChange, statusName, t } from "../i18n.js";
 import { goButton, trayList, traySignature } from "./dishes.js";
@@ -31,7 +31,21 @@ export class RobotsPanel {
     this.conn = conn;
     this.live = live;
     this.selection = selection;
-    this.rows = new Map(); // name -> {li, signature}
+    // Rebuild a row only when what it shows changed, so a button is not replaced under a finger;
+    // a rebuilt row keeps the keyboard's place (ui.js KeyedList), also while a button pressed is
+    // disabled for its request (the row the robot's new status redraws meanwhile).
+    this.rows = new KeyedList(list, {
+      key: (robot) => robot.name,
+      signature: (robot) => {
+        const loading = robot.status === "Loading" ? traySignature(this.live, robot.current_task) : "";
+        return [
+          robot.status, robot.mode, battery(robot), this._trip(robot), this.selection.name === robot.name, robot.last_error,
+          loading, robot.status_since, rosVersion(robot), this._waiting(robot),
+        ];
+      },
+      build: (robot) => this._row(robot),
+      lostFocus: (robot) => (this._acting && this._acting.name === robot.name ? this._acting.action : null),
+    });
     live.addEventListener("change", (e) => {
       if (["robots", "tasks", "waypoints", "orders", "leases"].includes(e.detail.topic)) this.render();
     });
@@ -39,47 +53,23 @@ export class RobotsPanel {
     setInterval(() => this._tick(), 1000);
     selection.onChange(() => this.render());
     onLangChange(() => {
-      for (const row of this.rows.values()) row.signature = ""; // same data, new words
+      this.rows.invalidate(); // same data, new words
       this.render();
     });
   }
 
   render() {
     const names = [...this.live.robots.keys()].sort();
-    for (const [name, row] of this.rows) {
-      if (!this.live.robots.has(name)) {
-        row.li.remove();
-        this.rows.delete(name);
-      }
-    }
-    for (const name of names) {
-      const robot = this.live.robots.get(name);
-      const trip = this._trip(robot);
-      const selected = this.selection.name === name;
-      // Rebuild a row only when what it shows changed, so a button is not replaced under a finger.
-      const loading = robot.status === "Loading" ? traySignature(this.live, robot.current_task) : "";
-      const signature = JSON.stringify([
-        robot.status, robot.mode, battery(robot), trip, selected, robot.last_error, loading, robot.status_since,
-        rosVersion(robot), this._waiting(robot),
-      ]);
-      let row = this.rows.get(name);
-      if (!row) {
-        row = { li: el("li", { class: "robot" }), signature: "" };
-        this.rows.set(name, row);
-      }
-      if (row.signature !== signature) {
-        row.signature = signature;
-        // A rebuilt row must not drop the keyboard's place: focus goes back to the same control.
-        const lost = !document.activeElement || document.activeElement === document.body;
-        const acting = lost && this._acting && this._acting.name === name ? this._acting.action : null;
-        const focused = row.li.contains(document.activeElement) ? document.activeElement.dataset.focusKey : acting;
-        row.li.replaceChildren(...this._content(robot, trip, selected).filter(Boolean));
-        if (focused) this._refocus(name, focused);
-        row.li.classList.toggle("selected", selected);
-        row.li.dataset.status = robot.status;
-      }
-      this.list.append(row.li); // keeps sorted order; a no-op move when already in place
-    }
+    this.rows.update(names.map((name) => this.live.robots.get(name)));
+  }
+
+  _row(robot) {
+    const selected = this.selection.name === robot.name;
+    return el(
+      "li",
+      { class: selected ? "robot selected" : "robot", "data-status": robot.status },
+      ...this._content(robot, this._trip(robot), selected).filter(Boolean),
+    );
   }
 
   _trip(robot) {
@@ -220,14 +210,10 @@ export class RobotsPanel {
     if (!document.activeElement || document.activeElement === document.body) this._refocus(name, action);
   }
 
-  /** Focus the row's control `key` (an action, "select"), or its name if that one is gone. */
+  /** Focus the row's control `key` (an action, "select"), or its first usable one (its name). */
   _refocus(name, key) {
-    const row = this.rows.get(name);
-    if (!row) return;
-    const usable = (b) => b && !b.disabled;
-    const same = row.li.querySelector(`[data-focus-key="${key}"]`);
-    const target = usable(same) ? same : row.li.querySelector('[data-focus-key]:not(:disabled)') || row.li.querySelector(".robot-name");
-    if (target) target.focus();
+    const row = this.rows.node(name);
+    if (row) refocus(row, key);
   }
 }
 

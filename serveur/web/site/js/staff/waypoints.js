@@ -1,7 +1,7 @@
 // Waypoints: save the selected robot's current pose under a name (drive it to the table, then
 // save), and the Go-To list (click a waypoint to send the selected robot there).
 
-import { act, byName, confirmDialog, el, toast } from "../ui.js";
+import { act, byName, confirmDialog, el, KeyedList, toast } from "../ui.js";
 import { allowed } from "../status.js";
 import { onLangChange, t } from "../i18n.js";
 
@@ -39,41 +39,47 @@ export class WaypointsPanel {
         this.list,
       ),
     );
+    // One Go-To button per waypoint, drawn again only when whether it can go (or where to) changed.
+    this.rows = new KeyedList(this.list, {
+      key: (n) => n,
+      signature: () => [this._canGo(), this.selection.name],
+      build: (n) => this._row(n),
+    });
     live.addEventListener("change", (e) => {
       if (e.detail.topic === "waypoints" || e.detail.topic === "robots") this.render();
     });
     selection.onChange(() => this.render());
     onLangChange(() => {
-      this._signature = null; // same list, new words
+      this.rows.invalidate(); // same list, new words
       this.render();
     });
     this.render();
   }
 
+  _canGo() {
+    const robot = this.live.robots.get(this.selection.name);
+    return Boolean(robot && allowed(robot.status, "goto"));
+  }
+
   render() {
     const robot = this.live.robots.get(this.selection.name);
-    const canSave = Boolean(robot && allowed(robot.status, "save_waypoint"));
-    const canGo = Boolean(robot && allowed(robot.status, "goto"));
-    this.saveBtn.disabled = !canSave;
-    const names = [...this.live.waypoints.keys()].sort(byName);
-    const signature = JSON.stringify([names, canGo, this.selection.name]);
-    if (signature === this._signature) return;
-    this._signature = signature;
-    this.list.replaceChildren(
-      ...names.map((n) =>
-        el(
-          "li",
-          {},
-          el("button", {
-            disabled: !canGo,
-            "data-needs-online": true,
-            "aria-label": t("wp.gotoNamed", { name: n }),
-            title: canGo ? t("wp.send", { robot: this.selection.name, name: n }) : t("wp.needControl"),
-            onclick: (e) => this._goto(e.currentTarget, n),
-            text: n,
-          }),
-        ),
-      ),
+    this.saveBtn.disabled = !(robot && allowed(robot.status, "save_waypoint"));
+    this.rows.update([...this.live.waypoints.keys()].sort(byName));
+  }
+
+  _row(n) {
+    const canGo = this._canGo();
+    return el(
+      "li",
+      {},
+      el("button", {
+        disabled: !canGo,
+        "data-needs-online": true,
+        "aria-label": t("wp.gotoNamed", { name: n }),
+        title: canGo ? t("wp.send", { robot: this.selection.name, name: n }) : t("wp.needControl"),
+        onclick: (e) => this._goto(e.currentTarget, n),
+        text: n,
+      }),
     );
   }
 

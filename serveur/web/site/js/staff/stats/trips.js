@@ -2,8 +2,8 @@
 // more"), each opening onto its facts, stops and dishes; the trips an owner opened stay open
 // when the list is drawn again. Its own module so that the panel only says when and what.
 
-import { el } from "../../ui.js";
-import { t } from "../../i18n.js";
+import { el, KeyedList } from "../../ui.js";
+import { lang, t } from "../../i18n.js";
 import { clock, csvTime, DASH, dayName, duration } from "./format.js";
 
 const TRIPS_PAGE = 50; // trips listed at first, and more at each "Show more"
@@ -21,6 +21,15 @@ export class TripHistory {
     this.list = el("ul", { class: "stats-trips", "data-i18n-aria-label": "stats.trips.title" });
     this.note = el("p", { class: "muted stats-trip-note" });
     this.shown = TRIPS_PAGE;
+    this.several = false; // the trips span several days: each says its day
+    // A trip's row is built again only when it, the offset, the days or the language changed: a
+    // trip unchanged keeps its row, opened or not.
+    this.rows = new KeyedList(this.list, {
+      key: (trip) => trip.id,
+      signature: (trip) => [trip, this.offset, this.several, lang()],
+      build: (trip) => this._trip(trip, this.offset, this.several, this._open.has(String(trip.id))),
+    });
+    this._open = new Set();
     this.more = el("button", {
       type: "button",
       class: "secondary",
@@ -35,20 +44,20 @@ export class TripHistory {
   /** Another range: its latest trips first, none of them open. */
   reset() {
     this.shown = TRIPS_PAGE;
-    this.list.replaceChildren();
+    this.rows.clear();
   }
 
   render(doc, offset) {
     this.doc = doc;
     this.offset = offset;
-    const several = new Set(doc.trips.map((tr) => csvTime(tr.started ?? tr.created, offset).slice(0, 10))).size > 1;
+    this.several = new Set(doc.trips.map((tr) => csvTime(tr.started ?? tr.created, offset).slice(0, 10))).size > 1;
     this.note.textContent = doc.more ? t("stats.trips.more", { count: doc.trips.length }) : doc.trips.length ? "" : t("stats.trips.none");
     this.note.hidden = !this.note.textContent;
     // Newest first: the trip an owner asks about is usually a recent one. Opened ones stay open.
-    const open = new Set([...this.list.querySelectorAll("details[open]")].map((d) => d.dataset.trip));
+    this._open = new Set([...this.list.querySelectorAll("details[open]")].map((d) => d.dataset.trip));
     const trips = [...doc.trips].reverse();
     const shown = trips.slice(0, this.shown);
-    this.list.replaceChildren(...shown.map((trip) => this._trip(trip, offset, several, open.has(String(trip.id)))));
+    this.rows.update(shown);
     const left = trips.length - shown.length;
     this.more.hidden = left <= 0;
     this.more.textContent = t("stats.trips.showMore", { count: Math.min(left, TRIPS_PAGE) });
