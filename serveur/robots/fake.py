@@ -33,12 +33,13 @@ What it does, as the core sees a real robot through a real driver:
   that is gone, as with Nav2): the core re-sends the move when the link is back.
 
 Faults a test scripts: :meth:`~FakeDriver.refuse_next_goal` (never acknowledged: ``goal_lost``
-after ``ack_timeout``), :meth:`~FakeDriver.abort_goal` (a navigation failure: ``goal_done``
-ABORTED with a text), :meth:`~FakeDriver.block_path` (the robot stops and its goal aborts after
-:data:`BLOCKED_ABORT_AFTER`, like the simulator's hook), :meth:`~FakeDriver.drop_link` and
-:meth:`~FakeDriver.restore_link` (the network gone and back: ``link_down`` once, ``link_up``
-once). ``true_pose``, ``velocity`` and ``received`` show what the robot did and was told, as a
-test reads a simulated robot.
+NOT_ACCEPTED after ``ack_timeout``), :meth:`~FakeDriver.lose_goal` (``goal_lost`` now, for the
+:class:`~serveur.robots.driver.GoalLoss` a test says), :meth:`~FakeDriver.abort_goal` (a
+navigation failure: ``goal_done`` ABORTED with a text), :meth:`~FakeDriver.block_path` (the
+robot stops and its goal aborts after :data:`BLOCKED_ABORT_AFTER`, like the simulator's hook),
+:meth:`~FakeDriver.drop_link` and :meth:`~FakeDriver.restore_link` (the network gone and back:
+``link_down`` once, ``link_up`` once). ``true_pose``, ``velocity`` and ``received`` show what
+the robot did and was told, as a test reads a simulated robot.
 """
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ from serveur.clock import Clock
 from serveur.errors import LinkError
 from serveur.robots import rosbridge as rb
 from serveur.robots.deadman import DeadManSwitch
-from serveur.robots.driver import LinkListener, connect_failed
+from serveur.robots.driver import GoalLoss, LinkListener, connect_failed, report_goal_lost
 
 __all__ = [
     "BLOCKED_ABORT_AFTER",
@@ -298,13 +299,24 @@ class FakeDriver:
         self, reason: str = "goal not acknowledged by the robot (fake: refused)"
     ) -> None:
         """The next goal is never acknowledged: the robot stays put, and the goal is reported
-        lost with ``reason`` ``ack_timeout`` clock seconds after it was sent."""
+        lost (:attr:`~serveur.robots.driver.GoalLoss.NOT_ACCEPTED`) with ``reason``
+        ``ack_timeout`` clock seconds after it was sent."""
         self._refusals.append(reason)
 
     def abort_goal(self, text: str = "the robot could not reach the goal (fake fault)") -> None:
         """The goal under way fails now: the robot stops, ``goal_done`` ABORTED with ``text``."""
         if self._goal is not None:
             self._end_goal(rb.GoalStatus.ABORTED, text)
+
+    def lose_goal(
+        self,
+        reason: str = "the goal's end never came (fake fault)",
+        cause: GoalLoss = GoalLoss.NAVIGATION,
+    ) -> None:
+        """The goal under way is lost now, for ``cause``: the robot stops (a real driver
+        cancels a goal it declares lost) and ``goal_lost`` says ``reason``."""
+        if self._goal is not None:
+            self._lose_goal(reason, cause)
 
     def block_path(self, on: bool) -> None:
         """While on, the robot cannot drive: its goal (or the next one) aborts after
@@ -398,9 +410,7 @@ class FakeDriver:
         elif goal.refused is not None:
             self.velocity = (0.0, 0.0, 0.0)
             if now - goal.sent_at >= self._ack_timeout:
-                self._goal = None
-                if self._up:
-                    self._listener.goal_lost(self.name, goal.handle, goal.refused)
+                self._lose_goal(goal.refused, GoalLoss.NOT_ACCEPTED)
         elif self._blocked:
             self.velocity = (0.0, 0.0, 0.0)
             if goal.blocked_since is None:
@@ -443,6 +453,12 @@ class FakeDriver:
         )
         self.velocity = self._twist
         self._report_pose()
+
+    def _lose_goal(self, reason: str, cause: GoalLoss) -> None:
+        goal, self._goal = self._goal, None
+        self.velocity = (0.0, 0.0, 0.0)
+        if goal is not None and self._up:
+            report_goal_lost(self._listener, self.name, goal.handle, reason, cause)
 
     def _end_goal(self, status: rb.GoalStatus, text: str) -> None:
         goal, self._goal = self._goal, None

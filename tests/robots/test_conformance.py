@@ -8,13 +8,13 @@ a simulated robot of its dialect on a scaled clock, and the fake driver on a
 made by :func:`~serveur.robots.factory.make_driver`, as the core makes them.
 
 What is asserted is what the core relies on: the link comes up only with a pose; a goal ends
-SUCCEEDED at the goal; a goal the robot never takes is lost, once; a blocked way ends a goal
-ABORTED with the robot's reason; a cancelled goal is never reported and the robot stops; a goal
-replaced by another is never reported as a failure; halt stops the robot and refuses what
-follows; a joystick command with none after it is stopped by the dead man's switch; a dropped
-link is reported down once and up once (what Home Assistant and the staff console show as
-availability); an initial pose puts the robot there; scans come only while wanted; close()
-leaves no task of the driver running.
+SUCCEEDED at the goal; a goal the robot never takes is lost once, as not accepted; a blocked
+way ends a goal ABORTED with the robot's reason; a cancelled goal is never reported and the
+robot stops; a goal replaced by another is never reported as a failure; halt stops the robot
+and refuses what follows; a joystick command with none after it is stopped by the dead man's
+switch; a dropped link is reported down once and up once (what Home Assistant and the staff
+console show as availability); an initial pose puts the robot there; scans come only while
+wanted; close() leaves no task of the driver running.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from serveur.errors import LinkError
 from serveur.maps.navigation import demo_map_path, load_demo
 from serveur.robot_sim import Simulation, start_simulation
 from serveur.robots import rosbridge as rb
-from serveur.robots.driver import RobotDriver
+from serveur.robots.driver import GoalLoss, RobotDriver
 from serveur.robots.factory import make_driver
 from serveur.robots.fake import FakeDriver
 from serveur.robots.names import RosNames
@@ -71,8 +71,10 @@ class Recorder:
     def goal_done(self, robot: str, goal_id: str, status: rb.GoalStatus, text: str) -> None:
         self.events.append(("done", (goal_id, status, text)))
 
-    def goal_lost(self, robot: str, goal_id: str, reason: str, **more: Any) -> None:
-        self.events.append(("lost", (goal_id, reason)))
+    def goal_lost(
+        self, robot: str, goal_id: str, reason: str, *, cause: GoalLoss = GoalLoss.NAVIGATION
+    ) -> None:
+        self.events.append(("lost", (goal_id, reason, cause)))
 
     def scan(self, robot: str, msg: Any) -> None:
         self.events.append(("scan", ()))
@@ -336,8 +338,8 @@ async def test_a_goal_the_robot_never_takes_is_lost_once(rig: Rig) -> None:
     rig.refuse_goals(True)
     handle = await rig.driver.send_goal(*NEAR)
     await rig.until(lambda: rig.rec.ends(handle), 30.0, "the goal lost")
-    [(kind, (_, reason))] = rig.rec.ends(handle)
-    assert kind == "lost" and reason, reason
+    [(kind, (_, reason, cause))] = rig.rec.ends(handle)
+    assert (kind, cause) == ("lost", GoalLoss.NOT_ACCEPTED) and reason, reason
     assert rig.driver.goal_id is None
     assert distance(rig.where(), (HOME.x, HOME.y)) < 0.05, "the robot drove"
     rig.refuse_goals(False)

@@ -17,7 +17,7 @@ from serveur.clock import FakeClock, ScaledClock
 from serveur.errors import LinkError
 from serveur.maps.navigation import load_demo
 from serveur.robots import rosbridge as rb
-from serveur.robots.driver import RobotDriver
+from serveur.robots.driver import GoalLoss, RobotDriver
 from serveur.robots.factory import make_driver
 from serveur.robots.fake import BLOCKED_ABORT_AFTER, SPEED, FakeDriver
 from serveur.robots.names import RosNames
@@ -95,8 +95,8 @@ async def test_a_refused_goal_is_lost_after_the_ack_timeout(fake: Fake) -> None:
     handle = await fake.robot.send_goal(2.0, 0.0, 0.0)
     took = await fake.run_until(lambda: fake.rec.ends(handle))
     assert 2.0 <= took <= 2.1  # the default ack_timeout
-    [(kind, (_, reason))] = fake.rec.ends(handle)
-    assert (kind, reason) == ("lost", "never acknowledged")
+    [(kind, (_, reason, cause))] = fake.rec.ends(handle)
+    assert (kind, reason, cause) == ("lost", "never acknowledged", GoalLoss.NOT_ACCEPTED)
     assert fake.robot.true_pose == (0.0, 0.0, 0.0) and fake.robot.goal_id is None
     again = await fake.robot.send_goal(1.0, 0.0, 0.0)  # only the next goal was refused
     await fake.run_until(lambda: fake.rec.ends(again))
@@ -111,6 +111,16 @@ async def test_an_aborted_goal_is_done_aborted_with_its_text(fake: Fake) -> None
     there = fake.robot.true_pose
     await fake.run(1.0)
     assert fake.robot.true_pose == there and fake.robot.velocity == (0.0, 0.0, 0.0)
+
+
+async def test_a_goal_lost_for_a_cause_stops_the_robot(fake: Fake) -> None:
+    handle = await fake.robot.send_goal(5.0, 0.0, 0.0)
+    await fake.run(1.0)
+    fake.robot.lose_goal("bridge gone", GoalLoss.LINK)
+    assert fake.rec.ends(handle) == [("lost", (handle, "bridge gone", GoalLoss.LINK))]
+    there = fake.robot.true_pose
+    await fake.run(1.0)
+    assert fake.robot.true_pose == there and fake.robot.goal_id is None
 
 
 async def test_a_blocked_way_aborts_the_goal(fake: Fake) -> None:
