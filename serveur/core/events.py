@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from serveur.robots import rosbridge as rb
+from serveur.robots.driver import GoalLoss
 
 __all__ = [
     "GoalEnded",
@@ -50,11 +51,12 @@ class LinkFailed:
 @dataclass(frozen=True, slots=True)
 class GoalEnded:
     """A goal ended on the robot (succeeded, aborted, ...) or was given up by the link
-    (``status`` LOST, ``text`` saying why)."""
+    (``status`` LOST, ``text`` saying why and ``loss`` what that says of the table)."""
 
     goal_id: str
     status: rb.GoalStatus
     text: str
+    loss: GoalLoss | None = None  # why, for a LOST goal
 
 
 @dataclass(frozen=True, slots=True)

@@ -45,6 +45,7 @@ from serveur.core.publisher import Publisher
 from serveur.core.runtime import CoreConfig, Runtime, pose_dict
 from serveur.errors import StoreError
 from serveur.robots import rosbridge as rb
+from serveur.robots.driver import GoalLoss
 from serveur.scheduler import MIN_BATTERY
 
 __all__ = ["HANDOVER_GRACE", "ODOMETER_JUMP", "ODOMETER_STEP", "LinkReports", "ReportHandler"]
@@ -226,8 +227,10 @@ class LinkReports:
     def goal_done(self, robot: str, goal_id: str, status: rb.GoalStatus, text: str) -> None:
         self.post(robot, GoalEnded(goal_id, status, text))
 
-    def goal_lost(self, robot: str, goal_id: str, reason: str) -> None:
-        self.post(robot, GoalEnded(goal_id, rb.GoalStatus.LOST, reason))
+    def goal_lost(
+        self, robot: str, goal_id: str, reason: str, *, cause: GoalLoss = GoalLoss.NAVIGATION
+    ) -> None:
+        self.post(robot, GoalEnded(goal_id, rb.GoalStatus.LOST, reason, cause))
 
     def pose(self, robot: str, x: float, y: float, yaw: float, stamp: float) -> None:
         rt = self._rt.get(robot)

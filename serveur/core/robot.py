@@ -47,6 +47,7 @@ from serveur.core.runtime import Destination, Runtime
 from serveur.domain import Robot, Task
 from serveur.errors import Conflict, Forbidden, LinkError, Stale, StoreError
 from serveur.robots import rosbridge as rb
+from serveur.robots.driver import GoalLoss
 from serveur.robots.factory import make_driver
 from serveur.robots.names import RosNames
 from serveur.status import Event, RobotState, RobotStatus, apply
@@ -232,7 +233,7 @@ class RobotController:
             return  # a goal we already replaced or cancelled
         rt.goal_id = None
         try:
-            await self._goal_ended(ev.status, ev.text)
+            await self._goal_ended(ev.status, ev.text, ev.loss)
         except StoreError:
             if rt.goal_id is None:
                 rt.goal_id = ev.goal_id  # not applied: the retry must still recognise the goal
@@ -407,8 +408,18 @@ class RobotController:
             await self.crew.trips.arrive(self.name)
         await self.event(Event.ARRIVED)
 
-    async def _goal_ended(self, status: rb.GoalStatus, text: str) -> None:
+    async def _goal_ended(
+        self, status: rb.GoalStatus, text: str, loss: GoalLoss | None = None
+    ) -> None:
         rt, traffic = self.rt, self.crew.traffic
+        if loss is GoalLoss.LINK:
+            # The link failed under the goal: nothing is known of the way or the table. The
+            # robot goes Offline, and its move is sent again when the link is back (or now,
+            # if it is still up).
+            log.warning("%s: goal lost with the link: %s", self.name, text)
+            if rt.link is not None and rt.link.up and rt.dest is not None:
+                await self.drive(rt.dest)
+            return
         traffic.leg_ended(rt)
         dest = rt.dest
         # Back outside a zone, at its waiting point: the leg it waited for is asked again.
@@ -428,12 +439,23 @@ class RobotController:
             elif st is S.MANUAL:
                 await self.save_state(rt.state, error=None, event="robot.goal_reached")
             return
-        what = {rb.GoalStatus.LOST: "goal lost"}.get(status, f"move_base {status.name}")
-        await self._failed(f"{what}: {text}" if text else what)
+        # The driver's own words name its stack ("move_base ABORTED: ...", "Nav2
+        # navigate_to_pose ABORTED: ...").
+        if status is rb.GoalStatus.LOST:
+            reason = f"goal lost: {text}" if text else "goal lost"
+        else:
+            reason = text or f"goal {status.name}"
+        # A goal the robot never took says its navigation is not working, not the table's way.
+        await self._failed(reason, block=loss is not GoalLoss.NOT_ACCEPTED)
 
-    async def _failed(self, reason: str) -> None:
+    async def _failed(self, reason: str, *, block: bool = True) -> None:
         rt, dest = self.rt, self.rt.dest
-        if rt.state.status is S.DELIVERING and dest is not None and dest.kind == "table":
+        if (
+            block
+            and rt.state.status is S.DELIVERING
+            and dest is not None
+            and dest.kind == "table"
+        ):
             # No second robot is sent where this one could not go: the table is blocked
             # until staff clear it (its dishes wait at the pass, with the reason).
             await self.crew.service.block(dest.name, f"{self.name}: {reason}", self.name)

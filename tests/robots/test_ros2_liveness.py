@@ -283,11 +283,6 @@ async def test_a_ros1_failure_names_move_base() -> None:
         await sim.close()
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="core/moves.py still puts 'move_base' before every failure (issue 27: the lead "
-    "makes it use the driver's words, which now name their stack)",
-)
 async def test_staff_read_nav2s_words_for_a_ros2_robot(humble: Restaurant) -> None:
     c = await staff(humble)
     await activate(c, "r1")
