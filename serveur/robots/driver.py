@@ -15,8 +15,8 @@ CANCELED is PREEMPTED, a goal that never got an answer is LOST).
 
 A lost goal also says *why* it was lost, typed (:class:`GoalLoss`): the link failed (the table
 is fine), the robot never took the goal, or it navigated and could not finish. A driver reports
-it with :func:`report_goal_lost`, which passes ``cause=`` to a listener whose ``goal_lost``
-takes it (:class:`GoalLossListener`) and leaves it out for one that does not yet.
+it with :func:`report_goal_lost`, which passes ``cause=`` to the listener, and leaves it out
+for an older listener whose ``goal_lost`` does not take it.
 """
 
 from __future__ import annotations
@@ -77,24 +77,22 @@ class LinkListener(Protocol):
         """The goal reached a terminal state (SUCCEEDED, ABORTED, PREEMPTED, REJECTED...);
         ``text`` says it in the robot's own terms ("move_base ABORTED: ...")."""
 
-    def goal_lost(self, robot: str, goal_id: str, reason: str) -> None:
-        """The goal was never acknowledged after every re-send, or its end never came;
-        ``reason`` says it in the robot's own terms ("goal not acknowledged by Nav2 ...").
+    def goal_lost(
+        self, robot: str, goal_id: str, reason: str, *, cause: GoalLoss = GoalLoss.NAVIGATION
+    ) -> None:
+        """The goal was never acknowledged after every re-send, its end never came, or the
+        link failed under it; ``reason`` says it in the robot's own terms ("goal not
+        acknowledged by Nav2 ..."), ``cause`` what that says of the place it was going to.
         The driver has already asked the robot to cancel it (a goal nobody watches drives
-        on). A listener that also takes ``cause`` is a :class:`GoalLossListener`."""
+        on)."""
 
     def scan(self, robot: str, msg: Mapping[str, Any]) -> None: ...
 
     def map(self, robot: str, msg: Mapping[str, Any]) -> None: ...
 
 
-class GoalLossListener(LinkListener, Protocol):
-    """A listener told why a goal was lost (:class:`GoalLoss`); ``cause`` defaults to
-    ``NAVIGATION``, what every lost goal was taken for before causes existed."""
-
-    def goal_lost(
-        self, robot: str, goal_id: str, reason: str, *, cause: GoalLoss = GoalLoss.NAVIGATION
-    ) -> None: ...
+#: The listener of :class:`LinkListener` (the name a listener told causes had first).
+GoalLossListener = LinkListener
 
 
 _TAKES_CAUSE: dict[type, bool] = {}
@@ -120,9 +118,9 @@ def report_goal_lost(
 ) -> None:
     """Tell ``listener`` a goal was lost, with its cause if the listener takes one."""
     if _takes_cause(listener):
-        cast(GoalLossListener, listener).goal_lost(robot, goal_id, reason, cause=cause)
+        listener.goal_lost(robot, goal_id, reason, cause=cause)
     else:
-        listener.goal_lost(robot, goal_id, reason)
+        cast(Any, listener).goal_lost(robot, goal_id, reason)
 
 
 class RobotDriver(Protocol):
