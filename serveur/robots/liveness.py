@@ -27,8 +27,8 @@ shared/notes/ros2.md, "Liveness, measured on the same stack"):
 (the network, a robot switched off), the robot's ROS side stopped (refusals), the robot's nodes
 are silent behind a live bridge (rosapi answers), or Nav2 is not active. The goal under way
 is given up and cancelled on the robot, best effort (the link may not carry the cancel); its
-ids are kept and cancelled again when the next session starts (:meth:`LinkTracker.start`),
-before any new goal: a goal nobody watches keeps running on the robot until someone cancels it
+ids are kept and cancelled again at the start of each next session (:meth:`LinkTracker.start`)
+until one comes up, before any new goal: a goal nobody watches keeps running on the robot until someone cancels it
 (shared/notes/ros2.md). The core, told the link is down, takes the robot Offline and keeps its
 trip (hand-over after a while), so a link failure never fails a trip nor blocks a table.
 
@@ -208,20 +208,23 @@ class LinkTracker:
         self._bridge_at = -math.inf
         self._refusal: tuple[float, str, DownCause] | None = None
         self._recent: deque[str] = deque(maxlen=RECENT_GOALS)
+        self._stale: tuple[str, ...] = ()  # cancelled at this session's start
 
     # -- liveness ------------------------------------------------------------------------
 
     def start(self, now: float) -> list[Instruction]:
         """A session starts (connections just opened): nothing heard yet; goals of ours
-        that may still run on the robot are cancelled before anything else is sent."""
+        that may still run on the robot are cancelled before anything else is sent (at each
+        start until a session comes up)."""
         self.up = False
         self._heard.clear()
         self._alive_at = now
         self._paced_at = self._bridge_at = -math.inf
         self._refusal = None
-        stale = tuple(self._recent)
-        self._recent.clear()
-        return [Cancel(stale)] if stale else []
+        # Cancelled at every start until a session comes up: sent to a bridge whose ROS side
+        # is dead, a cancel goes nowhere, and the goal drives on until a live one carries it.
+        self._stale = tuple(self._recent)
+        return [Cancel(self._stale)] if self._stale else []
 
     def proof(self, now: float, kind: str) -> list[Instruction]:
         """The robot's own nodes sent something of ``kind`` ("status", "pose", "heartbeat",
@@ -234,6 +237,9 @@ class LinkTracker:
                 self.goal.proofs += 1
         if not self.up and self._required <= self._heard:
             self.up = True
+            for gid in self._stale:  # this session's bridge carried their cancels
+                self._forget(gid)
+            self._stale = ()
             return [LinkUp()]
         return []
 
