@@ -97,3 +97,15 @@ async def test_create_robot_takes_link_options_and_refuses_bad_ones(one_robot: R
         "create", type="robot", name="r9", url="ws://127.0.0.1:1", link={"ns": "/r9"}
     )
     assert reply["robot"]["link"] == {"ns": "/r9"}
+
+
+def test_a_ros2_robots_heartbeat_service_is_named_like_its_topics() -> None:
+    # Nav2's lifecycle service by default, under the robot's namespace; renamed for a robot
+    # whose navigator is another node (or a std_srvs/Trigger service).
+    assert RosNames().heartbeat == "/bt_navigator/get_state"
+    assert RosNames.from_options({"ros": "2", "ns": "r2"}).heartbeat == (
+        "/r2/bt_navigator/get_state"
+    )
+    n = RosNames.from_options({"ros": "2", "heartbeat": "/robot/ready"})
+    assert n.heartbeat == "/robot/ready"
+    assert "heartbeat" in OPTION_KEYS
