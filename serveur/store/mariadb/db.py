@@ -9,9 +9,10 @@ October 2025, it is untyped and rides on PyMySQL. asyncmy's risk is one maintain
 bursty releases (2025 had none); it keeps aiomysql's pool API, so switching would be small.
 On a 32-bit Pi OS (armv7) asyncmy has no wheel and builds from source (needs a C compiler).
 
-Transactions. A unit of work is a coroutine function given a :class:`Tx`; :meth:`Database.write`
-runs it in one transaction and *may run it again*: that is why the work is a function and not
-the body of an ``async with``. It is re-run only when the first run surely did not commit:
+Transactions. A unit of work is a coroutine function given a :class:`~serveur.store.sql.Tx`
+(here a :class:`MariaDBTx`); :meth:`Database.write` runs it in one transaction and *may run it
+again*: that is why the work is a function and not the body of an ``async with``. It is re-run
+only when the first run surely did not commit:
 
 * the server rolled it back itself (deadlock 1213, which is also Galera's certification
   failure, or lock wait timeout 1205), at any point, COMMIT included;
@@ -46,7 +47,7 @@ import time
 from collections.abc import Awaitable, Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, TypeVar
+from typing import Any, TypeVar
 from urllib.parse import parse_qsl, unquote, urlsplit
 
 import asyncmy
@@ -56,7 +57,7 @@ from asyncmy.cursors import DictCursor
 from serveur.errors import Conflict, ServeurError, StoreError
 from serveur.store.mariadb import backup as maintenance
 from serveur.store.migrations import Migration, load_migrations
-from serveur.store.sql import MARIADB, Dialect, Mode
+from serveur.store.sql import MARIADB, Dialect, Mode, Tx
 
 __all__ = [
     "DEFAULT_PORT",
@@ -65,7 +66,7 @@ __all__ = [
     "MIGRATION_LOCK_TIMEOUT",
     "Database",
     "MariaDBConfig",
-    "Tx",
+    "MariaDBTx",
     "split_statements",
 ]
 
@@ -205,7 +206,7 @@ def split_statements(script: str) -> list[str]:
     return [s for s in statements if s]
 
 
-class Tx:
+class MariaDBTx:
     """One connection inside one unit of work: :class:`~serveur.store.sql.Tx` in portable SQL
     (``?`` placeholders, turned into asyncmy's ``%s``), rows as dicts."""
 
@@ -382,9 +383,7 @@ class Database:
                 await asyncio.sleep(delay * (0.5 + random.random()))
                 delay = min(delay * 2, 1.0)
 
-    async def _attempt(
-        self, work: Callable[[Tx], Awaitable[T]], mode: Literal["write", "read", "auto"]
-    ) -> T:
+    async def _attempt(self, work: Callable[[Tx], Awaitable[T]], mode: Mode) -> T:
         pool = self._pool
         if pool is None:
             raise StoreError("store is not open")
@@ -400,9 +399,9 @@ class Database:
             if mode == "write":
                 await conn.begin()
             elif mode == "read":
-                await Tx(conn).run("SET TRANSACTION ISOLATION LEVEL REPEATABLE READ")
-                await Tx(conn).run("START TRANSACTION WITH CONSISTENT SNAPSHOT, READ ONLY")
-            result = await work(Tx(conn))
+                await MariaDBTx(conn).run("SET TRANSACTION ISOLATION LEVEL REPEATABLE READ")
+                await MariaDBTx(conn).run("START TRANSACTION WITH CONSISTENT SNAPSHOT, READ ONLY")
+            result = await work(MariaDBTx(conn))
             if mode != "auto":
                 committing = True
                 await conn.commit()
@@ -480,7 +479,7 @@ class Database:
         lock = f"serveur.migrate.{self.config.database}"
         try:
             async with pool.acquire() as conn:
-                db = Tx(conn)
+                db = MariaDBTx(conn)
                 try:
                     got = await db.one(
                         "SELECT GET_LOCK(?, ?) AS got", (lock, MIGRATION_LOCK_TIMEOUT)
@@ -501,7 +500,7 @@ class Database:
                 raise _Retry(exc) from exc
             raise self._error(exc, "migration failed") from exc
 
-    async def _apply(self, db: Tx, history: list[Migration]) -> None:
+    async def _apply(self, db: MariaDBTx, history: list[Migration]) -> None:
         # Looked up first rather than CREATE ... IF NOT EXISTS, which needs the CREATE right
         # even when the table exists: a migrated database opens with SELECT/INSERT/UPDATE/
         # DELETE alone, so a site may take the DDL rights back after the upgrade.
@@ -532,7 +531,7 @@ class Database:
             )
 
     @staticmethod
-    async def _create_history(db: Tx) -> None:
+    async def _create_history(db: MariaDBTx) -> None:
         await db.script(
             "CREATE TABLE IF NOT EXISTS schema_migrations ("
             " version INT NOT NULL PRIMARY KEY, name VARCHAR(255) NOT NULL,"
