@@ -137,8 +137,8 @@ def test_a_js_circle_is_found_and_named(tmp_path: Path) -> None:
             "js/a.js": 'import { b } from "./sub/b.js";\nexport const a = 1;\n',
             # A re-export, over several lines, is an import too.
             "js/sub/b.js": 'export {\n  c,\n} from "../c.js";\nexport const b = 2;\n',
-            # A dynamic import closes the circle a -> b -> c -> a.
-            "js/c.js": 'export const c = 3;\nexport const later = () => import("./a.js");\n',
+            # A dynamic import from the site's root closes the circle a -> b -> c -> a.
+            "js/c.js": 'export const c = 3;\nexport const later = () => import("/js/a.js");\n',
         },
     )
     problems = check_layout.check_js(site)

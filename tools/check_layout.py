@@ -18,7 +18,8 @@ design. Importing ``serveur.a.b`` also imports the packages ``serveur`` and ``se
    library;
 5. no circle of imports among the web UI's scripts (``serveur/web/site/**/*.js``): every static
    ``import … from "./x.js"`` / ``export … from "./x.js"`` / ``import "./x.js"`` and every
-   dynamic ``import("./x.js")`` with a relative path counts (comments and other strings do not).
+   dynamic ``import("./x.js")`` with a relative path (or one from the site's root, "/js/x.js")
+   counts; comments and other strings do not.
    A browser runs a circle of ES modules, but in an order that depends on which module a page
    loads first, so a name read at load time can be unset in one page and fine in another.
 
@@ -259,7 +260,8 @@ def js_imports(text: str) -> list[str]:
 
 
 def js_graph(site: Path) -> dict[str, set[str]]:
-    """Script -> the scripts it imports by a relative path, named from ``site`` ("js/ui.js").
+    """Script -> the scripts it imports by a relative or site-rooted path, named from ``site``
+    ("js/ui.js").
 
     A path that leaves ``site`` or names no file (``js/status-table.js`` is made by static.py
     when the server starts) is a leaf: it imports nothing here.
@@ -270,9 +272,12 @@ def js_graph(site: Path) -> dict[str, set[str]]:
         name = path.relative_to(site).as_posix()
         edges = graph.setdefault(name, set())
         for spec in js_imports(path.read_text("utf-8")):
-            if not spec.startswith(("./", "../")):
+            if spec.startswith(("./", "../")):
+                target = (path.parent / spec).resolve()
+            elif spec.startswith("/") and not spec.startswith("//"):
+                target = (site / spec[1:]).resolve()  # from the site's root, as served
+            else:
                 continue  # a bare name or a URL: not one of ours
-            target = (path.parent / spec).resolve()
             if target.is_relative_to(base):
                 edges.add(target.relative_to(base).as_posix())
     return graph
