@@ -22,8 +22,9 @@ import websockets
 from websockets.asyncio.client import ClientConnection, connect
 
 from serveur.app import App, RobotSpec
-from serveur.clock import ScaledClock
+from serveur.clock import Clock, ScaledClock
 from serveur.core.engine import CoreConfig
+from serveur.replay.vtime import LoopClock, VirtualTimeLoop
 
 # The private MariaDB server (once per session) and a fresh database for a test that asks.
 from tests.mariadb_server import mariadb_server, mariadb_url  # noqa: F401
@@ -195,12 +196,12 @@ class Client:
 class Restaurant:
     app: App
     sim: Any
-    clock: ScaledClock
+    clock: Clock
     db: Path | str  # a SQLite file, or a database URL (mariadb://...)
     specs: list[RobotSpec]
     clients: list[Client]
     #: How this restaurant's server is built: (db, clock, specs, port) -> App.
-    make: Callable[[Path | str, ScaledClock, list[RobotSpec], int], App] = lambda *a: make_app(*a)
+    make: Callable[[Path | str, Clock, list[RobotSpec], int], App] = lambda *a: make_app(*a)
 
     #: A staff token made at start (the database keeps it across restart_server).
     token: str = ""
@@ -235,9 +236,24 @@ class Restaurant:
         await self.app.start()
 
 
+def test_clock(time_scale: float = TIME_SCALE) -> Clock:
+    """The clock a test's server and robots share.
+
+    On a virtual-time loop (tests/core: time jumps when every task waits, as trio's autojump
+    clock) it is the loop's own: a robot's drive costs CPU time only. Elsewhere it is the wall
+    clock sped up ``time_scale`` times.
+    """
+    if isinstance(asyncio.get_running_loop(), VirtualTimeLoop):
+        return LoopClock()
+    return ScaledClock(time_scale)
+
+
+test_clock.__test__ = False  # type: ignore[attr-defined]  # a helper, not a test
+
+
 def make_app(
     db: Path | str,
-    clock: ScaledClock,
+    clock: Clock,
     specs: list[RobotSpec],
     port: int = 0,
     *,
@@ -280,7 +296,7 @@ async def restaurant(
     from serveur.maps.navigation import demo_map_path
     from serveur.robot_sim import start_simulation
 
-    clock = ScaledClock(time_scale)
+    clock = test_clock(time_scale)
     # The simulator's real-stack mode: AMCL latched and sparse (0.2 m / 30 degrees), as a real
     # robot publishes it; actionlib's stamp rule and move_base ignoring /cmd_vel are always on.
     sim_options.setdefault("amcl", "real")

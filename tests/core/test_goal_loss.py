@@ -15,11 +15,10 @@ from pathlib import Path
 import pytest
 
 from serveur.app import RobotSpec
-from serveur.clock import ScaledClock
 from serveur.maps.navigation import load_demo
 from serveur.robots.driver import GoalLoss
 from serveur.robots.fake import FakeDriver
-from tests.conftest import Client, Restaurant, make_app
+from tests.conftest import Client, Restaurant, make_app, test_clock
 from tests.test_e2e import activate, new_orders, staff
 
 
@@ -27,7 +26,7 @@ from tests.test_e2e import activate, new_orders, staff
 async def fake_robot(tmp_path: Path) -> AsyncIterator[Restaurant]:
     home = load_demo()[1]["home1"]
     url = f"fake://r1?x={home.x}&y={home.y}&yaw={home.yaw}&speed=0.5"
-    clock = ScaledClock(20.0)
+    clock = test_clock(20.0)
     app = make_app(tmp_path / "serveur.db", clock, [RobotSpec("r1", url, "home1")])
     await app.start()
     r = Restaurant(app, None, clock, tmp_path / "serveur.db", [], [])

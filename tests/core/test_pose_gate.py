@@ -12,6 +12,8 @@ import asyncio
 import time
 from pathlib import Path
 
+import pytest
+
 from serveur.core.pose_rate import MAX_RATE, SCAN_RATE_PARKED, PoseGate
 from tests.conftest import Client, restaurant
 from tests.test_e2e import activate, new_orders, staff
@@ -25,6 +27,7 @@ def pose_updates(c: Client, robot: str) -> list[dict[str, float]]:
     ]
 
 
+@pytest.mark.wall_clock  # "10 a wall second": measured on the wall clock
 async def test_a_moving_robot_at_time_scale_10_sends_at_most_10_poses_a_second(
     tmp_path: Path,
 ) -> None:
@@ -85,6 +88,7 @@ async def test_the_gate_keeps_the_latest_pose_and_delivers_the_last_one() -> Non
     gate.close()
 
 
+@pytest.mark.wall_clock  # once a wall second
 async def test_a_parked_robots_scan_is_sent_once_a_second(tmp_path: Path) -> None:
     async with restaurant(tmp_path, robots=1, time_scale=10.0, amcl="continuous") as r:
         c = await staff(r)
