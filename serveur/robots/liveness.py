@@ -27,10 +27,11 @@ shared/notes/ros2.md, "Liveness, measured on the same stack"):
 (the network, a robot switched off), the robot's ROS side stopped (refusals), the robot's nodes
 are silent behind a live bridge (rosapi answers), or Nav2 is not active. The goal under way
 is given up and cancelled on the robot, best effort (the link may not carry the cancel); its
-ids are kept and cancelled again at the start of each next session (:meth:`LinkTracker.start`)
-until one comes up, before any new goal: a goal nobody watches keeps running on the robot until someone cancels it
-(shared/notes/ros2.md). The core, told the link is down, takes the robot Offline and keeps its
-trip (hand-over after a while), so a link failure never fails a trip nor blocks a table.
+ids are kept and cancelled again at the start of each next session
+(:meth:`LinkTracker.start`) until one comes up, before any new goal: a goal nobody watches
+keeps running on the robot until someone cancels it (shared/notes/ros2.md). The core, told
+the link is down, takes the robot Offline and keeps its trip (hand-over after a while), so a
+link failure never fails a trip nor blocks a table.
 
 **A goal** is acknowledged by the robot (ROS1: its id in move_base's status list; ROS 2: its
 feedback) within ``ack_timeout`` of *proven life* after it was sent: the robot answering other

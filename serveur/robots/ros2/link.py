@@ -357,9 +357,6 @@ class Nav2Link(Reconnecting):
     def _on_publish(self, topic: str, msg: Any) -> None:
         if not isinstance(msg, dict):
             raise RosbridgeError(f"{topic}: msg is not an object")
-        proof = _PROOFS.get(topic)
-        if proof is not None:
-            self._apply(self._track.proof(self._clock.now(), proof))
         if topic == "/amcl_pose":
             x, y, yaw, stamp = rb.amcl_pose_from_msg(msg)
             self.pose = (x, y, yaw)
@@ -373,6 +370,10 @@ class Nav2Link(Reconnecting):
             self._listener.scan(self.name, msg)
         elif topic == "/map":
             self._listener.map(self.name, msg)
+        # After the report: the core knows where the robot is before it hears it is up.
+        proof = _PROOFS.get(topic)
+        if proof is not None:
+            self._apply(self._track.proof(self._clock.now(), proof))
 
     def _on_feedback(self, op: Mapping[str, Any]) -> None:
         goal = self._track.goal
