@@ -4,7 +4,8 @@ Owns :mod:`~serveur.robots.ros1.link` (:class:`~serveur.robots.ros1.link.RobotLi
 websocket client per robot, goals with acknowledgement, heartbeat, reconnect).
 
 May import: serveur.clock, serveur.robots.rosbridge, serveur.robots.names,
-serveur.robots.driver, serveur.robots.deadman, serveur.robots.reconnect.
+serveur.robots.driver, serveur.robots.deadman, serveur.robots.reconnect,
+serveur.robots.liveness.
 """
 
 __all__: list[str] = []

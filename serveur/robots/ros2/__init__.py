@@ -6,7 +6,8 @@ control and a goal connection per robot, goals accepted by their feedback, heart
 calls, reconnect).
 
 May import: serveur.clock, serveur.robots.rosbridge, serveur.robots.names,
-serveur.robots.driver, serveur.robots.deadman, serveur.robots.reconnect.
+serveur.robots.driver, serveur.robots.deadman, serveur.robots.reconnect,
+serveur.robots.liveness.
 """
 
 __all__: list[str] = []
