@@ -102,11 +102,13 @@ class LinkUp:
 @dataclass(frozen=True, slots=True)
 class LinkDown:
     """Abort the connections (a dead path never answers a closing handshake) and reconnect;
-    if ``report`` (the link was up), report it down with ``reason``."""
+    if ``report`` (the link was up), report it down with ``reason``; else the session never
+    came up, and ``summary`` (the reason without its timing, the same every time) says why."""
 
     reason: str
     cause: DownCause
     report: bool = True
+    summary: str = ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -264,32 +266,34 @@ class LinkTracker:
         goal's acknowledgement and progress (``pose``: the robot's last, for a lost result)."""
         silence = now - self._alive_at
         if silence > timeout:
-            reason, cause = self._why(silence)
+            summary, cause = self._why()
+            reason = f"{summary} for {silence:.1f}s"
             goal, self.goal = self.goal, None
             out: list[Instruction] = [Cancel(tuple(goal.ids))] if goal is not None else []
-            out.append(LinkDown(reason, cause, report=self.up))
+            out.append(LinkDown(reason, cause, report=self.up, summary=summary))
             self.up = False
             return out
         return self._check_goal(now, pose)
 
-    def _why(self, silence: float) -> tuple[str, DownCause]:
+    def _why(self) -> tuple[str, DownCause]:
+        """Why the robot is silent, in words that do not change from one time to the next."""
         refusal = self._refusal
         if refusal is not None and refusal[0] >= self._alive_at:
             _, detail, cause = refusal
             if cause is DownCause.ROS_STOPPED:
                 return (
                     f"the robot's ROS side stopped: its rosbridge answers calls with an "
-                    f"error ({detail}) and nothing came from the robot for {silence:.1f}s",
+                    f"error ({detail}) and nothing came from the robot",
                     cause,
                 )
-            return f"{detail} (for {silence:.1f}s)", cause
+            return detail, cause
         if self._bridge_at >= self._alive_at:
             return (
                 f"the robot's ROS nodes are silent behind a live rosbridge: no "
-                f"{self._proofs_words} for {silence:.1f}s",
+                f"{self._proofs_words}",
                 DownCause.ROBOT_GONE,
             )
-        return f"no {self._proofs_words} for {silence:.1f}s", DownCause.SILENT
+        return f"no {self._proofs_words}", DownCause.SILENT
 
     def link_lost(self) -> None:
         """The connection closed (or the server stops): the goal is given up without a

@@ -46,8 +46,15 @@ def open_rosbridge(url: str, *, ssl: ssl_module.SSLContext | None, open_timeout:
 
 
 class Reconnecting:
-    """The reconnect loop of a driver; the driver provides the four methods below."""
+    """The reconnect loop of a driver; the driver provides the four methods below.
 
+    ``last_failure`` is cleared when the robot comes up (:meth:`_announce`), not when a
+    connection opens: a robot whose bridge accepts connections but which never comes up (its
+    ROS side stopped, its navigator not active) is a failure to connect too, said once.
+    """
+
+    name: str
+    _listener: LinkListener
     _backoff: tuple[float, float]
     connects: int
     last_failure: str
@@ -77,7 +84,6 @@ class Reconnecting:
                 async with self._open():
                     self.connects += 1
                     delay = self._backoff[0]
-                    self.last_failure = ""
                     await self._serve()
                     reason = "connection closed"
             except asyncio.CancelledError:
@@ -93,6 +99,15 @@ class Reconnecting:
             self._set_down(reason)
             await asyncio.sleep(delay)
             delay = min(delay * 2, self._backoff[1])
+
+    def _announce(self, act: Instruction, log: logging.Logger, where: str) -> bool:
+        """:func:`announce` for this driver; a session that never came up is a failure to
+        connect, said to the listener once per distinct reason in a row."""
+        if isinstance(act, LinkUp):
+            self.last_failure = ""
+        elif isinstance(act, LinkDown) and not act.report:
+            self._connect_failed(f"the robot never came up: {act.summary}")
+        return announce(self._listener, self.name, act, log, where)
 
 
 def announce(

@@ -131,7 +131,9 @@ def test_nothing_at_all_is_silence() -> None:
     up(t)
     assert t.check(2.0, TIMEOUT) == []
     [down] = t.check(2.1, TIMEOUT)
-    assert down == LinkDown("no move_base status for 2.1s", DownCause.SILENT)
+    assert down == LinkDown(
+        "no move_base status for 2.1s", DownCause.SILENT, summary="no move_base status"
+    )
 
 
 def test_a_navigator_not_active_is_not_ready() -> None:
@@ -154,8 +156,15 @@ def test_a_navigator_not_active_is_not_ready() -> None:
 def test_a_session_that_never_comes_up_is_aborted_without_a_report() -> None:
     t = ros2()
     t.start(0.0)
+    t.refused(2.0, "rcl node's context is invalid")
     [down] = t.check(2.5, TIMEOUT)
     assert isinstance(down, LinkDown) and not down.report
+    # Its summary is the same every time (the link says it once as a failure to connect).
+    t.start(3.0)
+    t.refused(5.2, "rcl node's context is invalid")
+    [again] = t.check(5.7, TIMEOUT)
+    assert isinstance(again, LinkDown) and again.summary == down.summary
+    assert again.summary.startswith("the robot's ROS side stopped")
 
 
 def test_a_proof_keeps_the_link_up() -> None:

@@ -156,7 +156,7 @@ class Recorder:
         self.events.append(("down", (reason,)))
 
     def link_failed(self, robot: str, reason: str) -> None:
-        pass
+        self.events.append(("failed", (reason,)))
 
     def pose(self, robot: str, x: float, y: float, yaw: float, stamp: float) -> None:
         pass
@@ -292,3 +292,28 @@ async def test_staff_read_nav2s_words_for_a_ros2_robot(humble: Restaurant) -> No
     robot = await c.status("r1", "Error")
     assert robot["last_error"].startswith("Nav2 navigate_to_pose ABORTED"), robot["last_error"]
     await asyncio.sleep(0)
+
+
+async def test_a_robot_that_never_comes_up_says_why_once() -> None:
+    # The bridge accepts connections but its ROS side is dead from the start: the robot stays
+    # Offline, and staff read why (link_failed, once), not nothing.
+    clock = ScaledClock(10.0)
+    sim = await start_simulation(
+        1, port=0, map_path=demo_map_path(), clock=clock, ros=2, release="jazzy", amcl="real"
+    )
+    sim.robots[0].stop_bridge_ros_side()
+    rec = Recorder()
+    link = Nav2Link("r1", sim.urls[0], rec, clock, ack_timeout=3.0, names=RosNames(ros=2))
+    link.start()
+    try:
+        await until(lambda: link.connects >= 3, "three sessions that never came up")
+        [(reason,)] = rec.of("failed")
+        assert reason.startswith("the robot never came up: the robot's ROS side stopped"), reason
+        assert "context is invalid" in reason and link.last_failure == reason
+        assert not link.up and rec.of("up") == []
+        await sim.restart_rosbridge(0)
+        await until(lambda: link.up, "the link up once a new rosbridge runs")
+        assert link.last_failure == ""
+    finally:
+        await link.close()
+        await sim.close()

@@ -74,7 +74,7 @@ from serveur.robots.liveness import (
     TrackedGoal,
 )
 from serveur.robots.names import RosNames
-from serveur.robots.reconnect import Reconnecting, announce, open_rosbridge
+from serveur.robots.reconnect import Reconnecting, open_rosbridge
 
 __all__ = ["LinkListener", "RobotLink"]
 
@@ -297,7 +297,7 @@ class RobotLink(Reconnecting):
 
     def _apply(self, todo: list[Instruction]) -> None:
         """What a frame made the tracker decide: reports now, sends soon (on the loop)."""
-        rest = [act for act in todo if not announce(self._listener, self.name, act, log, self.url)]
+        rest = [act for act in todo if not self._announce(act, log, self.url)]
         if rest:
             self._spawn(self._perform(rest))
         if todo:
@@ -306,7 +306,7 @@ class RobotLink(Reconnecting):
     async def _carry_out(self, todo: list[Instruction]) -> None:
         """Do what the tracker said, in order: reports, then sends."""
         for act in todo:
-            if not announce(self._listener, self.name, act, log, self.url):
+            if not self._announce(act, log, self.url):
                 await self._perform([act])
         self._rates_changed()
 

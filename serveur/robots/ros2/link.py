@@ -69,7 +69,7 @@ from serveur.robots.liveness import (
     TrackedGoal,
 )
 from serveur.robots.names import RosNames
-from serveur.robots.reconnect import Reconnecting, announce, open_rosbridge
+from serveur.robots.reconnect import Reconnecting, open_rosbridge
 from serveur.robots.ros2 import messages as m2
 
 __all__ = ["PING_PERIOD", "Nav2Link"]
@@ -270,7 +270,7 @@ class Nav2Link(Reconnecting):
     def _apply(self, todo: list[Instruction]) -> None:
         """What a frame made the tracker decide: reports now, sends soon (on the loop)."""
         where = f"{self.url}, {self.kind}"
-        rest = [act for act in todo if not announce(self._listener, self.name, act, log, where)]
+        rest = [act for act in todo if not self._announce(act, log, where)]
         if rest:
             self._spawn(self._perform(rest))
 
@@ -278,7 +278,7 @@ class Nav2Link(Reconnecting):
         """Do what the tracker said, in order: reports, then sends."""
         where = f"{self.url}, {self.kind}"
         for act in todo:
-            if not announce(self._listener, self.name, act, log, where):
+            if not self._announce(act, log, where):
                 await self._perform([act])
 
     async def _perform(self, todo: list[Instruction]) -> None:
