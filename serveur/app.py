@@ -142,7 +142,7 @@ class App:
         if self._waypoints:
             await import_waypoints(self.store, self._waypoints.values(), now=now)
         for zone in self._zones:  # a zones file given at start: its zones as drawn there
-            await self.store.put_zone(zone, replace=True, now=now, by="zones file")
+            await self.store.zones.put_zone(zone, replace=True, now=now, by="zones file")
         for spec in self._robots:
             await self._register(spec, now)
         self.core = Core(
@@ -189,7 +189,7 @@ class App:
 
     async def _register(self, spec: RobotSpec, now: float) -> None:
         try:
-            await self.store.add_robot(
+            await self.store.robots.add_robot(
                 spec.name,
                 spec.url,
                 home=spec.home,
@@ -198,9 +198,11 @@ class App:
                 now=now,
             )
         except Conflict:
-            await self.store.update_robot(spec.name, url=spec.url, home=spec.home, link=spec.link)
+            await self.store.robots.update_robot(
+                spec.name, url=spec.url, home=spec.home, link=spec.link
+            )
         if spec.trays is not None:
-            await self.store.set_trays(spec.name, spec.trays, now=now)
+            await self.store.robots.set_trays(spec.name, spec.trays, now=now)
 
     @property
     def url(self) -> str:
@@ -231,6 +233,6 @@ async def import_waypoints(store: Store, waypoints: Iterable[Any], *, now: float
     n = 0
     for w in waypoints:
         rec = WaypointRecord(name=w.name, x=w.x, y=w.y, yaw=w.yaw, kind=WaypointKind(w.kind))
-        await store.put_waypoint(rec, replace=True, now=now)
+        await store.waypoints.put_waypoint(rec, replace=True, now=now)
         n += 1
     return n

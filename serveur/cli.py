@@ -294,15 +294,15 @@ async def _demo_accounts(app: Any, specs: Sequence[Any], waypoints: Any) -> dict
 
     assert app.sessions is not None
     creds: dict[str, str] = {}
-    existing = {u.name: u.role for u in await app.store.list_users()}
+    existing = {u.name: u.role for u in await app.store.accounts.list_users()}
     for name, role in (("owner", "owner"), ("staff", "staff")):
         password = auth.new_password()
         pw_hash = await asyncio.to_thread(auth.hash_password, password)
         if name in existing:
             # A demo started again on its database (--db): the same accounts, new passwords.
-            await app.store.set_password(name, pw_hash, now=app.clock.epoch())
+            await app.store.accounts.set_password(name, pw_hash, now=app.clock.epoch())
         else:
-            await app.store.add_user(name, role, pw_hash, now=app.clock.epoch())
+            await app.store.accounts.add_user(name, role, pw_hash, now=app.clock.epoch())
         creds[name] = password
     for spec in specs:
         creds[spec.name] = await app.issue_token("robot-screen", robot=spec.name, label="demo")

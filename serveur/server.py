@@ -129,7 +129,7 @@ class Server:
         self.stats = stats or StatsService(core.store, None)
         #: ``stats forecast``: a recorded day replayed with other fleets, in child processes.
         self.forecaster = Forecaster(
-            core.store.list_orders,
+            core.store.orders.list_orders,
             lambda folder: SiteFiles(*core.write_site(folder)),
             lambda rec: core.publisher.pub("forecast", _forecast_info(rec)),
         )
@@ -382,7 +382,7 @@ class Server:
             before_id=msg.before,
             limit=msg.limit,
         )
-        return {"audit": await self.core.store.search_audit(q)}
+        return {"audit": await self.core.store.audit.search_audit(q)}
 
     async def _login(self, conn: _Conn, msg: P.LoginMsg) -> dict[str, Any]:
         p, token = await self.sessions.login(msg, conn.peer)
@@ -456,7 +456,7 @@ class Server:
 
     async def _snapshot(self, topic: str) -> Any:
         if topic == "audit":
-            return await self.core.store.recent_audit(100)
+            return await self.core.store.audit.recent_audit(100)
         if topic == "forecast":
             fc = self.forecaster.current
             return None if fc is None else _forecast_info(fc.as_dict())

@@ -478,13 +478,13 @@ class LiveRestaurant:
         # ``cancel_task`` also cancels an *active* trip — without the locks a trip taken
         # meanwhile would be cancelled under a Delivering robot (a harness bug, not a server one).
         async with self._robots_locked():
-            queued = await store.list_tasks(status=TaskStatus.QUEUED)
+            queued = await store.tasks.list_tasks(status=TaskStatus.QUEUED)
             for task in queued[: max(0, len(queued) - MAX_QUEUED)]:
-                await store.cancel_task(task.id, now=now, reason="fuzz: backlog")
-        pending = await store.list_orders(status=OrderStatus.PENDING)
+                await store.tasks.cancel_task(task.id, now=now, reason="fuzz: backlog")
+        pending = await store.orders.list_orders(status=OrderStatus.PENDING)
         for order in pending[: max(0, len(pending) - MAX_PENDING)]:
             with contextlib.suppress(Conflict):  # put on a trip meanwhile
-                await store.cancel_order(order.id, now=now)
+                await store.orders.cancel_order(order.id, now=now)
 
     async def _run(self, steps: list[Step]) -> None:
         assert self.observer is not None

@@ -247,7 +247,7 @@ async def test_restart_mid_service_finishes_the_service(one_robot: Restaurant) -
     second = await serve_current_stop(c, "r1")
     assert {first["table"], second["table"]} == {"T5", "T9"}
     await c.status("r1", "Awaiting")
-    orders = await one_robot.app.store.list_orders()
+    orders = await one_robot.app.store.orders.list_orders()
     assert [(o.id, o.status.value) for o in orders] == [(i, "delivered") for i in ids]
 
 
@@ -296,7 +296,11 @@ async def test_bad_input_gets_its_code_and_changes_nothing(one_robot: Restaurant
     c = await staff(one_robot)
     await c.status("r1", "Ready")
     store = one_robot.app.store
-    before = (await store.list_orders(), await store.list_tasks(), await store.list_robots())
+    before = (
+        await store.orders.list_orders(),
+        await store.tasks.list_tasks(),
+        await store.robots.list_robots(),
+    )
     for i, (frame, code) in enumerate(BAD_INPUTS):
         await c.ws.send(frame)
         reply = await c.until(
@@ -308,7 +312,11 @@ async def test_bad_input_gets_its_code_and_changes_nothing(one_robot: Restaurant
     # An id is echoed even when the message is otherwise invalid.
     bad = await c.call("create", type="order")
     assert bad["servermsg"] == "error" and bad["id"] is not None
-    after = (await store.list_orders(), await store.list_tasks(), await store.list_robots())
+    after = (
+        await store.orders.list_orders(),
+        await store.tasks.list_tasks(),
+        await store.robots.list_robots(),
+    )
     assert [o.id for o in after[0]] == [o.id for o in before[0]] == []
     assert after[1] == before[1]
     assert [r.status for r in after[2]] == [r.status for r in before[2]]

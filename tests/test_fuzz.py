@@ -304,10 +304,10 @@ async def _restaurant_db(path: Path) -> tuple[int, int]:
         for name, x in (("home1", 0.0), ("home2", 1.0), ("T1", 3.0), ("T2", 5.0)):
             kind = WaypointKind.HOME if name.startswith("home") else WaypointKind.TABLE
             wp = WaypointRecord(name=name, x=x, y=0.0, yaw=0.0, kind=kind)
-            await store.put_waypoint(wp, now=1.0)
+            await store.waypoints.put_waypoint(wp, now=1.0)
         for name in ("r1", "r2"):
-            await store.add_robot(name, "ws://127.0.0.1:9/", home=f"home{name[1]}", now=1.0)
-            await store.save_robot_state(
+            await store.robots.add_robot(name, "ws://127.0.0.1:9/", home=f"home{name[1]}", now=1.0)
+            await store.robots.save_robot_state(
                 name,
                 status=RobotStatus.AWAITING,
                 mode=RobotMode.AUTO,
@@ -315,14 +315,14 @@ async def _restaurant_db(path: Path) -> tuple[int, int]:
                 last_error=None,
                 now=2.0,
             )
-        a = await store.add_order("Laksa", "T1", ready_at=3.0, now=3.0)
-        b = await store.add_order("Pho", "T2", ready_at=3.0, now=3.0)
-        c = await store.add_order("Teh", "T2", ready_at=3.0, now=3.0)
-        await store.add_order("Roti", "T1", ready_at=3.0, now=3.0)
-        [active] = await store.create_tasks([[("T1", [a.id]), ("T2", [b.id])]], now=4.0)
-        [queued] = await store.create_tasks([[("T2", [c.id])]], now=4.0)
-        await store.start_task(active.id, "r1", now=5.0)
-        await store.save_robot_state(
+        a = await store.orders.add_order("Laksa", "T1", ready_at=3.0, now=3.0)
+        b = await store.orders.add_order("Pho", "T2", ready_at=3.0, now=3.0)
+        c = await store.orders.add_order("Teh", "T2", ready_at=3.0, now=3.0)
+        await store.orders.add_order("Roti", "T1", ready_at=3.0, now=3.0)
+        [active] = await store.tasks.create_tasks([[("T1", [a.id]), ("T2", [b.id])]], now=4.0)
+        [queued] = await store.tasks.create_tasks([[("T2", [c.id])]], now=4.0)
+        await store.tasks.start_task(active.id, "r1", now=5.0)
+        await store.robots.save_robot_state(
             "r1",
             status=RobotStatus.DELIVERING,
             mode=RobotMode.AUTO,
@@ -330,8 +330,8 @@ async def _restaurant_db(path: Path) -> tuple[int, int]:
             last_error=None,
             now=5.0,
         )
-        await store.arrive_stop(active.id, 0, now=6.0)
-        await store.save_robot_state(
+        await store.tasks.arrive_stop(active.id, 0, now=6.0)
+        await store.robots.save_robot_state(
             "r1",
             status=RobotStatus.DELIVERED,
             mode=RobotMode.AUTO,

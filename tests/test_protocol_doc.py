@@ -365,10 +365,12 @@ async def world(tmp_path: Path) -> AsyncIterator[World]:
     async with restaurant(tmp_path, robots=1, config=SITE) as r:
         assert r.app.sessions is not None
         store = r.app.store
-        await store.add_user(
+        await store.accounts.add_user(
             "alice", "staff", auth.hash_password("correct horse battery", n=2**4), now=0.0
         )
-        await store.add_user("olga", "owner", auth.hash_password("olga's pw", n=2**4), now=0.0)
+        await store.accounts.add_user(
+            "olga", "owner", auth.hash_password("olga's pw", n=2**4), now=0.0
+        )
         helper = await r.client()
         await helper.subscribe(*ALL_TOPICS, f"scan:{ROBOT}")
         # The doc's restaurant has been open a while: its robot has reported its battery.

@@ -70,7 +70,7 @@ class Creation:
         """A dish for a table that must exist: ready at the pass now, or ordered."""
         now = self._clock.epoch()
         self._places.waypoint(table)
-        order = await self._store.add_order(
+        order = await self._store.orders.add_order(
             dish,
             table,
             ready_at=now,
@@ -90,7 +90,7 @@ class Creation:
         store from the key; only the orders still pending are planned otherwise.
         """
         fp = _fingerprint({"orders": sorted(order_ids)})
-        orders: list[Order] = [await self._store.get_order(i) for i in order_ids]
+        orders: list[Order] = [await self._store.orders.get_order(i) for i in order_ids]
         pending = [o for o in orders if o.status is OrderStatus.PENDING]
         if key is None and len(pending) != len(orders):
             bad = sorted(o.id for o in orders if o.status is not OrderStatus.PENDING)
@@ -102,7 +102,7 @@ class Creation:
             trips = plan_trips(
                 pending or orders, self._origin(), self._places.distance, self._config.capacity
             )
-        tasks = await self._store.create_tasks(
+        tasks = await self._store.tasks.create_tasks(
             trips, key=key, fingerprint=fp, now=self._clock.epoch()
         )
         for t in tasks:
@@ -113,7 +113,7 @@ class Creation:
 
     async def waypoint(self, wp: WaypointRecord, *, replace: bool) -> WaypointRecord:
         """Store a waypoint (``replace`` to move one); its path distances are then planned."""
-        wp = await self._store.put_waypoint(wp, replace=replace, now=self._clock.epoch())
+        wp = await self._store.waypoints.put_waypoint(wp, replace=replace, now=self._clock.epoch())
         self._places.put(wp)
         self._publisher.pub("waypoints", wp)
         return wp

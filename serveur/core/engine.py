@@ -264,8 +264,8 @@ class Core:
         await self.site.load_settings()
         await self.traffic.load_zones()
         # Path distances between all waypoints are planned before any robot is driven.
-        await self.places.load(await self.store.list_waypoints())
-        for robot in await self.store.list_robots():
+        await self.places.load(await self.store.waypoints.list_waypoints())
+        for robot in await self.store.robots.list_robots():
             # Every robot starts Offline and resumes what it was doing once its link is up.
             resume = robot.resume if robot.status is S.OFFLINE else robot.status
             # A robot already Offline before the restart has been away since its last state
@@ -393,10 +393,10 @@ class Core:
             OrderStatus.ASSIGNED,
             OrderStatus.RETURNED,
         ]
-        return await self.store.list_orders(status=live)
+        return await self.store.orders.list_orders(status=live)
 
     async def _live_tasks(self) -> Any:
-        return await self.store.list_tasks(status=[TaskStatus.QUEUED, TaskStatus.ACTIVE])
+        return await self.store.tasks.list_tasks(status=[TaskStatus.QUEUED, TaskStatus.ACTIVE])
 
     # -- instructions -----------------------------------------------------------------------
 
@@ -418,7 +418,10 @@ class Core:
     # -- dispatcher (scheduler.Fleet) -------------------------------------------------------
 
     async def queued_tasks(self) -> list[tuple[int, int]]:
-        return [(t.id, len(t.stops)) for t in await self.store.list_tasks(status=TaskStatus.QUEUED)]
+        return [
+            (t.id, len(t.stops))
+            for t in await self.store.tasks.list_tasks(status=TaskStatus.QUEUED)
+        ]
 
     def free_robots(self) -> list[Candidate]:
         return [
@@ -527,7 +530,7 @@ async def _alerts(core: Core) -> Any:
 
 
 async def _menu(core: Core) -> Any:
-    return await core.store.list_menu()
+    return await core.store.service.list_menu()
 
 
 async def _blocks(core: Core) -> Any:

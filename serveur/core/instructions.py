@@ -138,7 +138,7 @@ class Instructions:
     async def _order(self, msg: P.OrderMsg, actor: str | None) -> dict[str, Any]:
         if msg.table:
             self.places.waypoint(msg.table)
-            return {"orders": await self.store.cart(msg.table)}
+            return {"orders": await self.store.orders.cart(msg.table)}
         assert msg.robot is not None
         ctl = self.fleet.controller(msg.robot)
         return {"orders": await self.trips.stop_orders(ctl.name)}

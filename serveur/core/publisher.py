@@ -36,7 +36,7 @@ class Publisher:
 
     async def skip_stored_events(self) -> None:
         """Start the feed after the events already stored (those of earlier runs)."""
-        while batch := await self._store.list_events(since_id=self._last_event, limit=1000):
+        while batch := await self._store.events.list_events(since_id=self._last_event, limit=1000):
             self._last_event = batch[-1].id
 
     def pub(self, topic: str, record: Any) -> None:
@@ -60,7 +60,7 @@ class Publisher:
         """Publish the orders ``ids`` as stored now (read only if anyone watches orders)."""
         if self._hub.watched("orders"):
             for oid in ids:
-                self.pub("orders", await self._store.get_order(oid))
+                self.pub("orders", await self._store.orders.get_order(oid))
 
     async def flush_events(self) -> None:
         """Push the events recorded since the last flush to ``events`` subscribers.
@@ -69,7 +69,9 @@ class Publisher:
         them back here (by id, so nothing is missed or repeated) keeps that one source of truth.
         """
         async with self._events_lock:
-            while batch := await self._store.list_events(since_id=self._last_event, limit=500):
+            while batch := await self._store.events.list_events(
+                since_id=self._last_event, limit=500
+            ):
                 self._last_event = batch[-1].id
                 if self._hub.watched("events"):
                     for ev in batch:
@@ -78,4 +80,4 @@ class Publisher:
     async def events_snapshot(self) -> list[EventRecord]:
         """The ``events`` topic's snapshot: the last hundred or so events, flushed first."""
         await self.flush_events()
-        return await self._store.list_events(since_id=max(0, self._last_event - 100))
+        return await self._store.events.list_events(since_id=max(0, self._last_event - 100))

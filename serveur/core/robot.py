@@ -119,7 +119,7 @@ class RobotController:
         """
         crew, rt = self.crew, self.rt
         last_error = self.record.last_error if keep_error else error
-        robot = await crew.store.save_robot_state(
+        robot = await crew.store.robots.save_robot_state(
             self.name,
             status=st.status,
             mode=st.mode,
@@ -156,7 +156,7 @@ class RobotController:
         """Store the robot's last pose and battery (for the map after a restart)."""
         rt = self.rt
         if rt.pose is not None:
-            await self.crew.store.save_robot_pose(
+            await self.crew.store.robots.save_robot_pose(
                 self.name,
                 x=rt.pose[0],
                 y=rt.pose[1],
@@ -450,12 +450,7 @@ class RobotController:
 
     async def _failed(self, reason: str, *, block: bool = True) -> None:
         rt, dest = self.rt, self.rt.dest
-        if (
-            block
-            and rt.state.status is S.DELIVERING
-            and dest is not None
-            and dest.kind == "table"
-        ):
+        if block and rt.state.status is S.DELIVERING and dest is not None and dest.kind == "table":
             # No second robot is sent where this one could not go: the table is blocked
             # until staff clear it (its dishes wait at the pass, with the reason).
             await self.crew.service.block(dest.name, f"{self.name}: {reason}", self.name)

@@ -77,7 +77,7 @@ class Service:
         self._task: asyncio.Task[None] | None = None
 
     async def start(self, host: ServiceHost) -> None:
-        self.blocks = {b.table: b for b in await self._store.list_blocks()}
+        self.blocks = {b.table: b for b in await self._store.service.list_blocks()}
         self._task = asyncio.create_task(self._watch(host), name="service-watch")
 
     async def stop(self) -> None:
@@ -106,7 +106,7 @@ class Service:
                 f"{action.value} takes no quantity, note or table (edit does)", field="action"
             )
         if seen is not None:
-            now_is = (await self._store.get_order(order_id)).status
+            now_is = (await self._store.orders.get_order(order_id)).status
             if now_is is not seen:
                 raise Stale(
                     f"order {order_id} is {now_is.value} now, not {seen.value}",
@@ -115,7 +115,7 @@ class Service:
                 )
         if table is not None:
             self._places.waypoint(table)
-        order = await self._store.step_order(
+        order = await self._store.orders.step_order(
             order_id,
             action,
             now=self._clock.epoch(),
@@ -128,7 +128,7 @@ class Service:
         return order
 
     async def put_dish(self, item: MenuItem, by: str | None) -> MenuItem:
-        item = await self._store.put_dish(item, now=self._clock.epoch(), by=by)
+        item = await self._store.service.put_dish(item, now=self._clock.epoch(), by=by)
         self._publisher.pub("menu", item)
         return item
 
@@ -149,14 +149,16 @@ class Service:
         """A robot could not reach ``table``: no robot is sent there until staff clear it."""
         if table in self.blocks:
             return
-        block = await self._store.block_table(table, reason, robot=robot, now=self._clock.epoch())
+        block = await self._store.service.block_table(
+            table, reason, robot=robot, now=self._clock.epoch()
+        )
         self.blocks[table] = block
         self._publisher.pub("blocks", block)
         log.warning("table %s blocked: %s", table, reason)
 
     async def clear(self, table: str, by: str | None) -> dict[str, Any]:
         self._places.waypoint(table)
-        cleared = await self._store.unblock_table(table, now=self._clock.epoch(), by=by)
+        cleared = await self._store.service.unblock_table(table, now=self._clock.epoch(), by=by)
         block = self.blocks.pop(table, None)
         if block is not None:
             # Screens drop a block whose reason is gone (the record with an empty reason).
@@ -168,7 +170,7 @@ class Service:
 
     async def ack(self, alert_id: int, by: str) -> Alert:
         alert = self.alerts.ack(alert_id, by, self._clock.epoch())
-        await self._store.add_event(
+        await self._store.events.add_event(
             "alert.acked",
             data={"alert": alert.id, "kind": alert.kind.value, "subject": alert.subject, "by": by},
             now=self._clock.epoch(),
@@ -179,7 +181,7 @@ class Service:
     async def evaluate(self, host: ServiceHost) -> list[Alert]:
         """Raise and clear alerts from the restaurant as it is now."""
         now = self._clock.epoch()
-        pending = await self._store.list_orders(status=OrderStatus.PENDING)
+        pending = await self._store.orders.list_orders(status=OrderStatus.PENDING)
         dishes = [DishFact(o.table, o.ready_at) for o in pending if o.ready_at is not None]
         holding = conditions(
             host.robot_facts(),
@@ -195,7 +197,7 @@ class Service:
             data = {"alert": alert.id, "kind": alert.kind.value, "subject": alert.subject}
             if alert.cleared_at is None:
                 data["message"] = alert.message
-            await self._store.add_event(kind, data=data, now=now)
+            await self._store.events.add_event(kind, data=data, now=now)
             self._publisher.pub("alerts", alert)
         return changed
 

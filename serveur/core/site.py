@@ -112,7 +112,7 @@ class Site:
 
     async def load_settings(self) -> None:
         """Apply the settings the owner saved (at start; unknown names are ignored)."""
-        self._apply_settings(await self.store.get_settings())
+        self._apply_settings(await self.store.service.get_settings())
 
     def _apply_settings(self, values: dict[str, Any]) -> None:
         if "table_timeout" in values:
@@ -135,7 +135,7 @@ class Site:
         if lang not in langs:
             raise InvalidField(f"{lang} is not among the languages offered", field="language")
         changes["language"] = lang
-        await self.store.put_settings(changes, now=self.clock.epoch(), by=actor)
+        await self.store.service.put_settings(changes, now=self.clock.epoch(), by=actor)
         self._apply_settings(changes)
         self.publisher.pub("settings", self.settings())
         self._kick()  # more trays, no table timeout...: what is queued may go now
@@ -152,7 +152,7 @@ class Site:
             RosNames.from_options(link)
         except ValueError as exc:
             raise InvalidField(str(exc), field="link") from None
-        robot = await self.store.add_robot(
+        robot = await self.store.robots.add_robot(
             msg.name,
             msg.url,
             home=msg.home,
@@ -161,8 +161,8 @@ class Site:
             now=self.clock.epoch(),
         )
         if msg.trays is not None and msg.trays != robot.trays:
-            await self.store.set_trays(robot.name, msg.trays, now=self.clock.epoch())
-            robot = await self.store.get_robot(robot.name)
+            await self.store.robots.set_trays(robot.name, msg.trays, now=self.clock.epoch())
+            robot = await self.store.robots.get_robot(robot.name)
             if robot.name in self._robots:
                 self._robots[robot.name] = robot
         if self.fleet.has_robot(robot.name):
@@ -193,7 +193,9 @@ class Site:
                     robot=rt.name,
                     trip=old.current_task,
                 )
-            robot = await self.store.edit_robot(rt.name, changes, now=self.clock.epoch(), by=actor)
+            robot = await self.store.robots.edit_robot(
+                rt.name, changes, now=self.clock.epoch(), by=actor
+            )
             # Keep the live status fields: the core's record is the one the links update.
             self._robots[rt.name] = old.model_copy(
                 update={k: getattr(robot, k) for k in (*_RELINK, "home", "trays")}
@@ -221,7 +223,9 @@ class Site:
         ctl = self.fleet.controller(msg.robot)
         rt = ctl.rt
         async with rt.lock:
-            revoked = await self.store.remove_robot(rt.name, now=self.clock.epoch(), by=actor)
+            revoked = await self.store.robots.remove_robot(
+                rt.name, now=self.clock.epoch(), by=actor
+            )
             robot = ctl.view()
         await self.fleet.remove_robot(ctl)
         self.publisher.pub("robots", robot.model_copy(update={"removed": True}))
@@ -232,12 +236,12 @@ class Site:
 
     async def dependents(self, msg: P.SiteDependents) -> dict[str, Any]:
         wp = self.places.waypoint(msg.waypoint)
-        deps = await self.store.waypoint_dependents(wp.name)
+        deps = await self.store.waypoints.waypoint_dependents(wp.name)
         return {"waypoint": wp, "dependents": deps.as_dict()}
 
     async def rename_waypoint(self, msg: P.SiteRenameWaypoint, actor: str | None) -> dict[str, Any]:
         old = self.places.waypoint(msg.waypoint)
-        wp, deps = await self.store.rename_waypoint(
+        wp, deps = await self.store.waypoints.rename_waypoint(
             old.name, msg.name, now=self.clock.epoch(), by=actor
         )
         self._waypoint_gone(old)
@@ -259,7 +263,7 @@ class Site:
 
     async def remove_waypoint(self, msg: P.SiteRemoveWaypoint, actor: str | None) -> dict[str, Any]:
         wp = self.places.waypoint(msg.waypoint)
-        deps = await self.store.remove_waypoint(wp.name, now=self.clock.epoch(), by=actor)
+        deps = await self.store.waypoints.remove_waypoint(wp.name, now=self.clock.epoch(), by=actor)
         self._waypoint_gone(wp)
         block = self.service.blocks.pop(wp.name, None)
         if block is not None:

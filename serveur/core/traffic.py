@@ -93,8 +93,9 @@ class Traffic:
     # -- zones ------------------------------------------------------------------------------
 
     async def load_zones(self) -> None:
-        self.zone_records = {z.name: z for z in await self.store.list_zones()}
+        self.zone_records = {z.name: z for z in await self.store.zones.list_zones()}
         self.leases.set_zones(_zone(z) for z in self.zone_records.values())
+
     async def create_zone(self, msg: P.CreateZone, actor: str | None) -> dict[str, Any]:
         rec = ZoneRecord(
             name=msg.name,
@@ -102,7 +103,7 @@ class Traffic:
             capacity=msg.capacity,
             wait_at=msg.wait_at,
         )
-        saved = await self.store.put_zone(
+        saved = await self.store.zones.put_zone(
             rec, replace=msg.replace, now=self.clock.epoch(), by=actor
         )
         self.zone_records[saved.name] = saved
@@ -111,7 +112,7 @@ class Traffic:
         return {"zone": saved}
 
     async def remove_zone(self, msg: P.SiteRemoveZone, actor: str | None) -> dict[str, Any]:
-        gone = await self.store.delete_zone(msg.zone, now=self.clock.epoch(), by=actor)
+        gone = await self.store.zones.delete_zone(msg.zone, now=self.clock.epoch(), by=actor)
         self.zone_records.pop(gone.name, None)
         gone = gone.model_copy(update={"removed": True})
         self.publisher.pub("zones", gone)
@@ -124,7 +125,7 @@ class Traffic:
         broken, grants = self.leases.break_lease(msg.zone, msg.robot)
         if broken:
             log.warning("lease on %s broken by %s: %s", msg.zone, actor, ", ".join(broken))
-            await self.store.add_event(
+            await self.store.events.add_event(
                 "lease.broken",
                 now=self.clock.epoch(),
                 data={"zone": msg.zone, "robots": broken, "by": actor},
@@ -235,7 +236,7 @@ class Traffic:
             self._granted(self.leases.expire(rt.name))
             robot.publish()
             return
-        await self.store.add_event(
+        await self.store.events.add_event(
             "lease.waited",
             now=self.clock.epoch(),
             robot=rt.name,

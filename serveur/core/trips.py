@@ -79,13 +79,13 @@ class Trips:
             resume = None
         task_id = robot.current_task
         if task_id is not None:
-            task = await self._store.get_task(task_id)
+            task = await self._store.tasks.get_task(task_id)
             if task.status is not TaskStatus.ACTIVE:  # the store frees robots in the same tx
                 log.error("%s holds trip %d, which is %s", robot.name, task_id, task.status)
             elif task.current_stop >= len(task.stops):
                 log.warning("%s: closing trip %d, served before the restart", robot.name, task_id)
-                await self._store.finish_task(task_id, now=self._clock.epoch())
-                robot = await self._store.get_robot(robot.name)
+                await self._store.tasks.finish_task(task_id, now=self._clock.epoch())
+                robot = await self._store.robots.get_robot(robot.name)
             else:
                 reached = task.stops[task.current_stop].status is StopStatus.ARRIVED
                 on_trip = (S.LOADING, S.DELIVERING, S.DELIVERED, S.STOPPED, S.ERROR)
@@ -107,35 +107,35 @@ class Trips:
         task_id = self._robots[robot].current_task
         if task_id is None:
             raise Conflict(f"robot {robot} has no trip")
-        return await self._store.get_task(task_id)
+        return await self._store.tasks.get_task(task_id)
 
     async def stop_orders(self, robot: str) -> list[Order]:
         """The orders for the robot's current stop (none without a trip or once all served)."""
         task_id = self._robots[robot].current_task
         if task_id is None:
             return []
-        task = await self._store.get_task(task_id)
+        task = await self._store.tasks.get_task(task_id)
         if task.current_stop >= len(task.stops):
             return []
         ids = set(task.stops[task.current_stop].orders)
-        return [o for o in await self._store.list_orders(task_id=task_id) if o.id in ids]
+        return [o for o in await self._store.orders.list_orders(task_id=task_id) if o.id in ids]
 
     async def take(self, task_id: int, robot: str) -> Task | None:
         """Give a queued trip to the robot, stops in route order; None if it was taken."""
         home = self._robots[robot].home or self._origin()
-        task = await self._store.get_task(task_id)
+        task = await self._store.tasks.get_task(task_id)
         order = [s.table for s in task.stops]
         if self._config.policy == "baseline":
             stop_order = order  # the cart's order, as the design report's robot does
         else:
             stop_order = order_stops(home, order, self._places.distance, end=home)
         try:
-            task = await self._store.start_task(
+            task = await self._store.tasks.start_task(
                 task_id, robot, stop_order=stop_order, now=self._clock.epoch()
             )
         except Conflict:
             return None
-        self._robots[robot] = await self._store.get_robot(robot)
+        self._robots[robot] = await self._store.robots.get_robot(robot)
         self._publisher.pub_task(task)
         await self._publisher.pub_orders([o for s in task.stops for o in s.orders])
         return task
@@ -143,7 +143,7 @@ class Trips:
     async def arrive(self, robot: str) -> None:
         """The robot reached the current stop of its trip."""
         task = await self.current(robot)
-        task = await self._store.arrive_stop(
+        task = await self._store.tasks.arrive_stop(
             task.id, task.stops[task.current_stop].seq, now=self._clock.epoch()
         )
         self._publisher.pub_task(task)
@@ -152,7 +152,7 @@ class Trips:
         """Food collected at the current stop; the trip, finished (``done``) after the last."""
         task = await self.current(robot)
         stop = task.stops[task.current_stop]
-        task = await self._store.complete_stop(task.id, stop.seq, now=self._clock.epoch())
+        task = await self._store.tasks.complete_stop(task.id, stop.seq, now=self._clock.epoch())
         return await self._left_stop(robot, task, stop.orders)
 
     async def skip_stop(self, robot: str, reason: str, by: str | None) -> Task:
@@ -160,7 +160,7 @@ class Trips:
         after its last stop."""
         task = await self.current(robot)
         stop = task.stops[task.current_stop]
-        task = await self._store.skip_stop(
+        task = await self._store.tasks.skip_stop(
             task.id, stop.seq, now=self._clock.epoch(), reason=reason, by=by
         )
         return await self._left_stop(robot, task, stop.orders)
@@ -170,22 +170,22 @@ class Trips:
         self._publisher.pub_task(task)
         await self._publisher.pub_orders(orders)
         if task.current_stop >= len(task.stops):
-            task = await self._store.finish_task(task.id, now=self._clock.epoch())
-            self._robots[robot] = await self._store.get_robot(robot)
+            task = await self._store.tasks.finish_task(task.id, now=self._clock.epoch())
+            self._robots[robot] = await self._store.robots.get_robot(robot)
             self._publisher.pub_task(task)
         return task
 
     async def drop_blocked(self, task_id: int, blocks: Mapping[str, object]) -> Task | None:
         """A queued trip without its blocked tables (their dishes back at the pass, pending);
         None if nothing is left of it (cancelled) or it was taken meanwhile."""
-        task = await self._store.get_task(task_id)
+        task = await self._store.tasks.get_task(task_id)
         if task.status is not TaskStatus.QUEUED:
             return None
         tables = [s.table for s in task.stops if s.table in blocks]
         if not tables:
             return task
         orders = [o for s in task.stops if s.table in blocks for o in s.orders]
-        task = await self._store.drop_stops(task_id, tables, now=self._clock.epoch())
+        task = await self._store.tasks.drop_stops(task_id, tables, now=self._clock.epoch())
         self._publisher.pub_task(task)
         await self._publisher.pub_orders(orders)
         return task if task.status is TaskStatus.QUEUED else None
@@ -195,9 +195,9 @@ class Trips:
         task_id = self._robots[robot].current_task
         if task_id is None:
             return
-        aboard = [o.id for o in await self._store.list_orders(task_id=task_id)]
-        task = await self._store.cancel_task(task_id, now=self._clock.epoch(), reason=reason)
-        self._robots[robot] = await self._store.get_robot(robot)
+        aboard = [o.id for o in await self._store.orders.list_orders(task_id=task_id)]
+        task = await self._store.tasks.cancel_task(task_id, now=self._clock.epoch(), reason=reason)
+        self._robots[robot] = await self._store.robots.get_robot(robot)
         self._publisher.pub_task(task)
         await self._publisher.pub_orders(aboard)
 
@@ -205,10 +205,10 @@ class Trips:
         """Take the trip off a robot gone too long and requeue it whole for another robot."""
         now = self._clock.epoch()
         try:
-            task = await self._store.requeue_task(task_id, now=now, reason=reason)
+            task = await self._store.tasks.requeue_task(task_id, now=now, reason=reason)
         except Conflict:
             # Every stop was served before the link dropped: the trip is over, not handed on.
-            task = await self._store.finish_task(task_id, now=now)
-        self._robots[robot] = await self._store.get_robot(robot)
+            task = await self._store.tasks.finish_task(task_id, now=now)
+        self._robots[robot] = await self._store.robots.get_robot(robot)
         self._publisher.pub_task(task)
         await self._publisher.pub_orders([o for s in task.stops for o in s.orders])

@@ -333,7 +333,7 @@ def _cmd_recorded(ns: argparse.Namespace) -> int:
 
     async def read() -> list[Any]:
         async with open_store(ns.from_db) as store:
-            return await store.list_orders()
+            return await store.orders.list_orders()
 
     try:
         log = [LogOrder(*row) for row in recorded_orders(asyncio.run(read()), start, end)]

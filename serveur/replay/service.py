@@ -442,7 +442,7 @@ class _Service:
         store = app.store
         by_line = {o.line: o for o in self.log}
         robot_of: dict[int, str | None] = {}
-        for t in await store.list_tasks():
+        for t in await store.tasks.list_tasks():
             stops = t.stops
             robot_of[t.id] = t.robot
             result.trips.append(
@@ -460,7 +460,7 @@ class _Service:
             )
         events: list[dict[str, Any]] = []
         last = 0
-        while batch := await store.list_events(since_id=last, limit=1000):
+        while batch := await store.events.list_events(since_id=last, limit=1000):
             last = batch[-1].id
             events += [
                 {
@@ -475,7 +475,7 @@ class _Service:
         ev = service_events(events, self.now())
         result.zone_waits = zone_waits(events)
         lines = dict(self.staff.line_of)
-        for o in await store.list_orders():
+        for o in await store.orders.list_orders():
             line = lines.get(o.id)
             if line is None:
                 continue

@@ -15,8 +15,10 @@ A TLS failure is reported as such: retrying will not help until someone fixes a 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import ssl as ssl_module
+from collections.abc import Coroutine
 from contextlib import AbstractAsyncContextManager
 from typing import Any
 
@@ -24,7 +26,14 @@ import websockets
 from websockets.asyncio.client import connect
 
 from serveur.robots.driver import LinkListener, report_goal_lost
-from serveur.robots.liveness import GoalDone, GoalLost, Instruction, LinkDown, LinkUp
+from serveur.robots.liveness import (
+    GoalDone,
+    GoalLost,
+    Instruction,
+    LinkDown,
+    LinkTracker,
+    LinkUp,
+)
 
 __all__ = ["Reconnecting", "announce", "open_rosbridge"]
 
@@ -46,7 +55,9 @@ def open_rosbridge(url: str, *, ssl: ssl_module.SSLContext | None, open_timeout:
 
 
 class Reconnecting:
-    """The reconnect loop of a driver; the driver provides the four methods below.
+    """The reconnect loop of a driver and the carrying out of its tracker's decisions; the
+    driver provides its connections (the first methods below) and how it sends
+    (:meth:`_perform`).
 
     ``last_failure`` is cleared when the robot comes up (:meth:`_announce`), not when a
     connection opens: a robot whose bridge accepts connections but which never comes up (its
@@ -54,10 +65,16 @@ class Reconnecting:
     """
 
     name: str
+    url: str
+    kind: str
     _listener: LinkListener
+    _track: LinkTracker
+    _jobs: set[asyncio.Task[None]]
     _backoff: tuple[float, float]
     connects: int
     last_failure: str
+    #: The driver's own logger (what it reports is logged under its name).
+    _log: logging.Logger
 
     def _open(self) -> AbstractAsyncContextManager[None]:
         """Open the robot's connections and keep them on the driver until the block exits."""
@@ -71,11 +88,45 @@ class Reconnecting:
         """Forget the connections (they are closed)."""
         raise NotImplementedError
 
-    def _set_down(self, reason: str) -> None:
-        raise NotImplementedError
-
     def _connect_failed(self, reason: str) -> str:
         raise NotImplementedError
+
+    async def _perform(self, todo: list[Instruction]) -> None:
+        """Send what the tracker said to send (cancels, re-sends) on the driver's connections,
+        best effort; abort them on a :class:`LinkDown`."""
+        raise NotImplementedError
+
+    def _decided(self) -> None:
+        """The tracker decided something (a goal ended...): the driver may adjust (rates)."""
+
+    def _set_down(self, reason: str) -> None:
+        """The connections closed (or the server stops): the link is down, said if it was up."""
+        was_up = self._track.up
+        self._track.link_lost()
+        if was_up:
+            self._log.warning("%s: link down (%s)", self.name, reason)
+            self._listener.link_down(self.name, reason)
+
+    def _apply(self, todo: list[Instruction]) -> None:
+        """What a frame made the tracker decide: reports now, sends soon (on the loop)."""
+        rest = [act for act in todo if not self._announce(act)]
+        if rest:
+            self._spawn(self._perform(rest))
+        if todo:
+            self._decided()
+
+    async def _carry_out(self, todo: list[Instruction]) -> None:
+        """Do what the tracker said, in order: reports, and sends awaited."""
+        for act in todo:
+            if not self._announce(act):
+                await self._perform([act])
+        self._decided()
+
+    def _spawn(self, job: Coroutine[Any, Any, None]) -> None:
+        with contextlib.suppress(RuntimeError):  # no running loop: nothing to send on
+            task = asyncio.get_running_loop().create_task(job)
+            self._jobs.add(task)  # the loop keeps only a weak reference
+            task.add_done_callback(self._jobs.discard)
 
     async def _run(self) -> None:
         delay = self._backoff[0]
@@ -100,14 +151,14 @@ class Reconnecting:
             await asyncio.sleep(delay)
             delay = min(delay * 2, self._backoff[1])
 
-    def _announce(self, act: Instruction, log: logging.Logger, where: str) -> bool:
+    def _announce(self, act: Instruction) -> bool:
         """:func:`announce` for this driver; a session that never came up is a failure to
         connect, said to the listener once per distinct reason in a row."""
         if isinstance(act, LinkUp):
             self.last_failure = ""
         elif isinstance(act, LinkDown) and not act.report:
             self._connect_failed(f"the robot never came up: {act.summary}")
-        return announce(self._listener, self.name, act, log, where)
+        return announce(self._listener, self.name, act, self._log, f"{self.url}, {self.kind}")
 
 
 def announce(

@@ -73,27 +73,27 @@ async def handle_account(sessions: Sessions, p: Principal | None, msg: Any) -> d
     """Carry out one ``account`` request (already authorized) and return the reply fields."""
     store, now = sessions.store, sessions.clock.epoch()
     if isinstance(msg, P.AccountListUsers):
-        return {"users": [_user(u) for u in await store.list_users()]}
+        return {"users": [_user(u) for u in await store.accounts.list_users()]}
     if isinstance(msg, P.AccountAddUser):
         password = auth.new_password()
         pw_hash = await asyncio.to_thread(auth.hash_password, password)
-        user = await store.add_user(msg.username, msg.role, pw_hash, now=now)
+        user = await store.accounts.add_user(msg.username, msg.role, pw_hash, now=now)
         return {"user": _user(user), "password": password}
     if isinstance(msg, P.AccountSetRole):
-        user, ended = await store.set_role(msg.username, msg.role, now=now)
+        user, ended = await store.accounts.set_role(msg.username, msg.role, now=now)
         sessions.end(ended, "your role changed: log in again")
         return {"user": _user(user)}
     if isinstance(msg, P.AccountResetPassword):
         password = auth.new_password()
         pw_hash = await asyncio.to_thread(auth.hash_password, password)
-        ended = await store.set_password(msg.username, pw_hash, now=now)
+        ended = await store.accounts.set_password(msg.username, pw_hash, now=now)
         sessions.end(ended, "password changed: log in again")
-        found = await store.user_credentials(msg.username)
+        found = await store.accounts.user_credentials(msg.username)
         assert found is not None
         return {"user": _user(found[0]), "password": password}
     if isinstance(msg, P.AccountRemoveUser):
-        found = await store.user_credentials(msg.username)
-        ended = await store.remove_user(msg.username)
+        found = await store.accounts.user_credentials(msg.username)
+        ended = await store.accounts.remove_user(msg.username)
         sessions.end(ended, "user removed")
         assert found is not None  # remove_user raised not_found otherwise
         return {"user": _user(found[0])}
@@ -105,12 +105,12 @@ async def handle_account(sessions: Sessions, p: Principal | None, msg: Any) -> d
         qr = await asyncio.to_thread(qr_svg, (msg.base or "") + link)
         return {"device": _token(rec), "token": token, "link": link, "qr": qr}
     if isinstance(msg, P.AccountListTokens):
-        recs = await store.list_tokens(include_ended=msg.all, now=now, kind="device")
+        recs = await store.accounts.list_tokens(include_ended=msg.all, now=now, kind="device")
         return {"tokens": [_token(t) for t in recs]}
     if isinstance(msg, P.AccountRevokeToken):
         if p is not None and msg.token == p.token_id:
             raise Conflict("this is your own session: log out instead", token=msg.token)
-        rec = await store.revoke_token(msg.token, now=now)
+        rec = await store.accounts.revoke_token(msg.token, now=now)
         sessions.end([rec.id], "token revoked")
         return {"device": _token(rec)}
     raise AssertionError(f"unhandled account action {msg.action!r}")

@@ -86,7 +86,7 @@ async def _user_add(ns: argparse.Namespace) -> int:
     pw_hash = await asyncio.to_thread(auth.hash_password, password)
 
     async def work(store: Store) -> int:
-        await store.add_user(ns.name, ns.role, pw_hash, now=time.time())
+        await store.accounts.add_user(ns.name, ns.role, pw_hash, now=time.time())
         print(f"user {ns.name} ({ns.role}) added")
         return 0
 
@@ -95,7 +95,7 @@ async def _user_add(ns: argparse.Namespace) -> int:
 
 async def _user_list(ns: argparse.Namespace) -> int:
     async def work(store: Store) -> int:
-        for u in await store.list_users():
+        for u in await store.accounts.list_users():
             print(
                 f"{u.name}\t{u.role}\tcreated {_when(u.created_at)}\t"
                 f"password changed {_when(u.changed_at)}"
@@ -107,7 +107,7 @@ async def _user_list(ns: argparse.Namespace) -> int:
 
 async def _user_remove(ns: argparse.Namespace) -> int:
     async def work(store: Store) -> int:
-        ended = await store.remove_user(ns.name)
+        ended = await store.accounts.remove_user(ns.name)
         print(f"user {ns.name} removed ({len(ended)} sessions ended)")
         return 0
 
@@ -119,7 +119,7 @@ async def _user_passwd(ns: argparse.Namespace) -> int:
     pw_hash = await asyncio.to_thread(auth.hash_password, password)
 
     async def work(store: Store) -> int:
-        ended = await store.set_password(ns.name, pw_hash, now=time.time())
+        ended = await store.accounts.set_password(ns.name, pw_hash, now=time.time())
         print(f"password of {ns.name} changed ({len(ended)} sessions ended)")
         return 0
 
@@ -165,7 +165,7 @@ async def _token_create(ns: argparse.Namespace) -> int:
 async def _token_list(ns: argparse.Namespace) -> int:
     async def work(store: Store) -> int:
         now = time.time()
-        for t in await store.list_tokens(include_ended=ns.all, now=now):
+        for t in await store.accounts.list_tokens(include_ended=ns.all, now=now):
             state = (
                 "revoked"
                 if t.revoked_at is not None
@@ -186,7 +186,7 @@ async def _token_list(ns: argparse.Namespace) -> int:
 async def _token_revoke(ns: argparse.Namespace) -> int:
     async def work(store: Store) -> int:
         for tid in ns.ids:
-            await store.revoke_token(tid, now=time.time())
+            await store.accounts.revoke_token(tid, now=time.time())
             print(f"token {tid} revoked")
         return 0
 
@@ -195,7 +195,7 @@ async def _token_revoke(ns: argparse.Namespace) -> int:
 
 async def _audit(ns: argparse.Namespace) -> int:
     async def work(store: Store) -> int:
-        for a in await store.recent_audit(ns.limit):
+        for a in await store.audit.recent_audit(ns.limit):
             extra = f"\t{a.data}" if a.data else ""
             print(
                 f"{_when(a.ts)}\t{a.actor}\t{a.role}\t{a.peer}\t{a.verb}\t"

@@ -149,12 +149,12 @@ class Sessions:
 
         Returns None when users exist: the password is shown once, at the first start only.
         """
-        if await self.store.count_users():
+        if await self.store.accounts.count_users():
             return None
         password = auth.new_password()
         pw_hash = await asyncio.to_thread(auth.hash_password, password)
         try:
-            await self.store.add_user(name, "owner", pw_hash, now=self.clock.epoch())
+            await self.store.accounts.add_user(name, "owner", pw_hash, now=self.clock.epoch())
         except Conflict:  # another process won the race: it prints the password, not us
             return None
         return password
@@ -190,7 +190,7 @@ class Sessions:
             raise InvalidField("an integration token needs at least one scope")
         now = self.clock.epoch()
         token = auth.new_token()
-        rec = await self.store.add_token(
+        rec = await self.store.accounts.add_token(
             auth.token_digest(token),
             kind="device",
             role=role.value,
@@ -209,12 +209,12 @@ class Sessions:
         """The principal of a presented token, or Unauthorized (unknown, revoked, expired)."""
         if not token.startswith(auth.TOKEN_PREFIX) or len(token) > P.MAX_TOKEN:
             raise Unauthorized("unknown token")
-        rec = await self.store.token_by_digest(auth.token_digest(token))
+        rec = await self.store.accounts.token_by_digest(auth.token_digest(token))
         now = self.clock.epoch()
         if rec is None or not rec.usable(now):
             raise Unauthorized("unknown, expired or revoked token")
         with contextlib.suppress(ServeurError):  # bookkeeping must not refuse a valid login
-            await self.store.touch_token(rec.id, now=now)
+            await self.store.accounts.touch_token(rec.id, now=now)
         return principal_of(rec)
 
     async def login(self, msg: P.LoginMsg, peer: str) -> tuple[Principal, str | None]:
@@ -240,7 +240,7 @@ class Sessions:
         return p, token
 
     async def _password_login(self, username: str, password: str) -> tuple[Principal, str]:
-        found = await self.store.user_credentials(username)
+        found = await self.store.accounts.user_credentials(username)
         # Hash even for an unknown user, so the reply time does not tell which names exist.
         stored = found[1] if found else _dummy_hash()
         ok = await asyncio.to_thread(auth.verify_password, password, stored)
@@ -249,7 +249,7 @@ class Sessions:
         user = found[0]
         token = auth.new_token()
         now = self.clock.epoch()
-        rec = await self.store.add_token(
+        rec = await self.store.accounts.add_token(
             auth.token_digest(token),
             kind="session",
             role=user.role,
@@ -263,7 +263,7 @@ class Sessions:
     async def logout(self, p: Principal) -> None:
         """End a password session for good; a device token stays valid (revoke it instead)."""
         if p.user is not None:
-            await self.store.revoke_token(p.token_id, now=self.clock.epoch())
+            await self.store.accounts.revoke_token(p.token_id, now=self.clock.epoch())
             self._kick([p.token_id], "logged out")
 
     # -- live connections -------------------------------------------------------------------
@@ -290,7 +290,7 @@ class Sessions:
     async def sweep(self) -> None:
         """Close the connections of tokens that ended since the last sweep."""
         live_ids = list(self._live)
-        alive = await self.store.tokens_alive(live_ids, now=self.clock.epoch())
+        alive = await self.store.accounts.tokens_alive(live_ids, now=self.clock.epoch())
         live = [t for t in live_ids if t not in alive]
         if live:
             log.info("closing connections of %d ended tokens", len(live))
@@ -318,7 +318,7 @@ class Sessions:
     ) -> None:
         """Record one instruction. An audit failure is logged, never fails the request."""
         try:
-            rec = await self.store.add_audit(
+            rec = await self.store.audit.add_audit(
                 ts=self.clock.epoch(),
                 actor=p.actor if p else "anonymous",
                 role=p.role.value if p else "-",

@@ -19,7 +19,7 @@ async def load_events(store: Store, *, page: int = PAGE) -> list[EventRecord]:
     with the last id seen), so that neither backend is asked for the whole table at once."""
     out: list[EventRecord] = []
     last = 0
-    while batch := await store.list_events(since_id=last, limit=page):
+    while batch := await store.events.list_events(since_id=last, limit=page):
         out += batch
         last = batch[-1].id
         if len(batch) < page:

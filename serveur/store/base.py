@@ -30,10 +30,9 @@ wheel and applied in order at :meth:`Store.open`, each in its own transaction, r
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Concatenate, Generic, ParamSpec, Self, TypeVar, overload
+from typing import Self
 
 from serveur.store.accounts import Accounts, Audit, TokenRecord, UserRecord
 from serveur.store.events import Events
@@ -46,32 +45,6 @@ from serveur.store.waypoints import Waypoints
 from serveur.store.zones import Zones
 
 __all__ = ["Store", "TokenRecord", "UserRecord"]
-
-P = ParamSpec("P")
-R = TypeVar("R")
-
-
-class _Via(Generic[P, R]):
-    """A flat name of the store that is one part's method: ``store.add_robot`` is
-    ``store.robots.add_robot`` (same signature, checked by mypy from the part's method)."""
-
-    __slots__ = ("_name", "_part")
-
-    def __init__(self, part: str, method: Callable[Concatenate[Any, P], R]) -> None:
-        self._part = part
-        self._name = method.__name__
-
-    @overload
-    def __get__(self, obj: None, owner: type) -> Self: ...
-
-    @overload
-    def __get__(self, obj: object, owner: type) -> Callable[P, R]: ...
-
-    def __get__(self, obj: object | None, owner: type) -> Self | Callable[P, R]:
-        if obj is None:
-            return self
-        method: Callable[P, R] = getattr(getattr(obj, self._part), self._name)
-        return method
 
 
 class Store:
@@ -135,80 +108,3 @@ class Store:
     async def integrity_check(self) -> str:
         """``"ok"`` when the database is sound, else the problems found, one per line."""
         return await self.db.integrity_check()
-
-    # -- the flat names -------------------------------------------------------------------
-    # Every part's method is also the store's, under the same name, for the callers written
-    # before the parts (issue 27): a table of names, no code. A caller that says which part
-    # it means (``store.tasks.cancel_task``) does not need them.
-
-    # store.robots
-    add_robot = _Via("robots", Robots.add_robot)
-    update_robot = _Via("robots", Robots.update_robot)
-    get_robot = _Via("robots", Robots.get_robot)
-    list_robots = _Via("robots", Robots.list_robots)
-    save_robot_state = _Via("robots", Robots.save_robot_state)
-    save_robot_pose = _Via("robots", Robots.save_robot_pose)
-    edit_robot = _Via("robots", Robots.edit_robot)
-    remove_robot = _Via("robots", Robots.remove_robot)
-    set_trays = _Via("robots", Robots.set_trays)
-    # store.waypoints
-    put_waypoint = _Via("waypoints", Waypoints.put_waypoint)
-    get_waypoint = _Via("waypoints", Waypoints.get_waypoint)
-    list_waypoints = _Via("waypoints", Waypoints.list_waypoints)
-    delete_waypoint = _Via("waypoints", Waypoints.delete_waypoint)
-    waypoint_dependents = _Via("waypoints", Waypoints.waypoint_dependents)
-    rename_waypoint = _Via("waypoints", Waypoints.rename_waypoint)
-    remove_waypoint = _Via("waypoints", Waypoints.remove_waypoint)
-    # store.orders
-    add_order = _Via("orders", Orders.add_order)
-    get_order = _Via("orders", Orders.get_order)
-    list_orders = _Via("orders", Orders.list_orders)
-    cancel_order = _Via("orders", Orders.cancel_order)
-    cart = _Via("orders", Orders.cart)
-    step_order = _Via("orders", Orders.step_order)
-    # store.tasks
-    create_tasks = _Via("tasks", Tasks.create_tasks)
-    get_task = _Via("tasks", Tasks.get_task)
-    list_tasks = _Via("tasks", Tasks.list_tasks)
-    start_task = _Via("tasks", Tasks.start_task)
-    arrive_stop = _Via("tasks", Tasks.arrive_stop)
-    complete_stop = _Via("tasks", Tasks.complete_stop)
-    skip_stop = _Via("tasks", Tasks.skip_stop)
-    finish_task = _Via("tasks", Tasks.finish_task)
-    cancel_task = _Via("tasks", Tasks.cancel_task)
-    requeue_task = _Via("tasks", Tasks.requeue_task)
-    drop_stops = _Via("tasks", Tasks.drop_stops)
-    # store.events
-    add_event = _Via("events", Events.add_event)
-    list_events = _Via("events", Events.list_events)
-    # store.accounts
-    add_user = _Via("accounts", Accounts.add_user)
-    user_credentials = _Via("accounts", Accounts.user_credentials)
-    list_users = _Via("accounts", Accounts.list_users)
-    count_users = _Via("accounts", Accounts.count_users)
-    remove_user = _Via("accounts", Accounts.remove_user)
-    set_role = _Via("accounts", Accounts.set_role)
-    set_password = _Via("accounts", Accounts.set_password)
-    add_token = _Via("accounts", Accounts.add_token)
-    token_by_digest = _Via("accounts", Accounts.token_by_digest)
-    touch_token = _Via("accounts", Accounts.touch_token)
-    list_tokens = _Via("accounts", Accounts.list_tokens)
-    revoke_token = _Via("accounts", Accounts.revoke_token)
-    tokens_alive = _Via("accounts", Accounts.tokens_alive)
-    # store.audit
-    add_audit = _Via("audit", Audit.add_audit)
-    list_audit = _Via("audit", Audit.list_audit)
-    recent_audit = _Via("audit", Audit.recent_audit)
-    search_audit = _Via("audit", Audit.search_audit)
-    # store.service
-    list_menu = _Via("service", Service.list_menu)
-    put_dish = _Via("service", Service.put_dish)
-    list_blocks = _Via("service", Service.list_blocks)
-    block_table = _Via("service", Service.block_table)
-    unblock_table = _Via("service", Service.unblock_table)
-    get_settings = _Via("service", Service.get_settings)
-    put_settings = _Via("service", Service.put_settings)
-    # store.zones
-    list_zones = _Via("zones", Zones.list_zones)
-    put_zone = _Via("zones", Zones.put_zone)
-    delete_zone = _Via("zones", Zones.delete_zone)

@@ -21,7 +21,7 @@ async def _offline_alerts(db: Path) -> list[str]:
     async with open_store(str(db)) as store:
         return [
             e.kind
-            for e in await store.list_events()
+            for e in await store.events.list_events()
             if e.kind.startswith("alert.") and e.data.get("kind") == "robot_offline"
         ]
 

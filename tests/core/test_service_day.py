@@ -220,7 +220,7 @@ async def test_a_dish_from_order_to_pass_with_quantity_note_edit_and_void(
     await c.error("dish", "invalid_field", order=o["id"], action="edit", quantity=0)
     await c.error("dish", "not_found", order=o["id"] + 99, action="void")
     # Each step is recorded with who took it.
-    rows = await pass_site.app.store.list_events(limit=10_000)
+    rows = await pass_site.app.store.events.list_events(limit=10_000)
     steps = [(e.kind, e.data.get("by")) for e in rows if e.order_id == o["id"]]
     assert [k for k, _ in steps] == [
         "order.created",

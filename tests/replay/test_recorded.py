@@ -25,15 +25,17 @@ async def recorded_night(db: Path) -> None:
     async with SQLiteStore(db) as store:
         _, wps = load_demo()
         await import_waypoints(store, wps.values(), now=DINNER)
-        await store.add_order("Laksa", "T1", ready_at=DINNER + 60, now=DINNER, quantity=2)
-        await store.add_order("Satay", "T6", ready_at=DINNER + 90, now=DINNER)
-        voided = await store.add_order("Cendol", "T6", ready_at=DINNER + 95, now=DINNER)
-        await store.step_order(voided.id, DishAction.VOID, now=DINNER + 100)
+        await store.orders.add_order("Laksa", "T1", ready_at=DINNER + 60, now=DINNER, quantity=2)
+        await store.orders.add_order("Satay", "T6", ready_at=DINNER + 90, now=DINNER)
+        voided = await store.orders.add_order("Cendol", "T6", ready_at=DINNER + 95, now=DINNER)
+        await store.orders.step_order(voided.id, DishAction.VOID, now=DINNER + 100)
         # Still at the kitchen when the night ended: never ready, not in the log.
-        await store.add_order("Kopi", "T2", ready_at=None, now=DINNER, status=OrderStatus.ORDERED)
-        await store.add_order("Teh", "T2", ready_at=DINNER + 150, now=DINNER)
+        await store.orders.add_order(
+            "Kopi", "T2", ready_at=None, now=DINNER, status=OrderStatus.ORDERED
+        )
+        await store.orders.add_order("Teh", "T2", ready_at=DINNER + 150, now=DINNER)
         # The next service day (after 04:00): not in Tuesday's log.
-        await store.add_order("Roti", "T1", ready_at=DINNER + 11 * 3600, now=DINNER)
+        await store.orders.add_order("Roti", "T1", ready_at=DINNER + 11 * 3600, now=DINNER)
 
 
 def test_a_recorded_night_is_an_order_log_the_replay_plays_again(

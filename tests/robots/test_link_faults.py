@@ -66,7 +66,7 @@ async def test_robot_dropping_off_the_network_resumes_its_trip(one_robot: Restau
     assert robot["current_task"] is not None  # the dishes stay with the robot
     drops = [
         e
-        for e in await one_robot.app.store.list_events()
+        for e in await one_robot.app.store.events.list_events()
         if e.kind == "robot.status" and e.data.get("status") == "Offline"
     ]
     assert drops and drops[-1].data["event"] == "link_down", drops

@@ -64,15 +64,19 @@ def test_robot_spec_takes_link_options() -> None:
 async def test_link_options_are_stored_with_the_robot_and_updated(tmp_path: Path) -> None:
     db = tmp_path / "serveur.db"
     async with open_store(str(db)) as store:
-        r = await store.add_robot("r1", "ws://h:9090", home=None, link={"ns": "/r1"}, now=1.0)
+        r = await store.robots.add_robot(
+            "r1", "ws://h:9090", home=None, link={"ns": "/r1"}, now=1.0
+        )
         assert r.link == {"ns": "/r1"}
-        again = await store.add_robot("r1", "ws://h:9090", home=None, link={"ns": "/r1"}, now=2.0)
+        again = await store.robots.add_robot(
+            "r1", "ws://h:9090", home=None, link={"ns": "/r1"}, now=2.0
+        )
         assert again == r  # an identical resend
     async with open_store(str(db)) as store:
-        assert (await store.get_robot("r1")).link == {"ns": "/r1"}
-        r = await store.update_robot("r1", link={"ns": "/r2", "frame": "world"})
+        assert (await store.robots.get_robot("r1")).link == {"ns": "/r1"}
+        r = await store.robots.update_robot("r1", link={"ns": "/r2", "frame": "world"})
         assert r.link == {"ns": "/r2", "frame": "world"}
-        events = [e for e in await store.list_events() if e.kind == "robot.updated"]
+        events = [e for e in await store.events.list_events() if e.kind == "robot.updated"]
         assert events[-1].data["link"] == {"ns": "/r2", "frame": "world"}
 
 

@@ -212,7 +212,7 @@ async def test_no_token_ever_carries_the_accounts_scope(tmp_path: Path) -> None:
             await app.sessions.create_token("integration", scopes=["accounts", "read"])
         assert _db(tmp_path) == before
         # Even one written straight into the database would not grant it.
-        await app.store.add_token(
+        await app.store.accounts.add_token(
             auth.token_digest("srv_planted-token-0000"),
             kind="device",
             role="integration",

@@ -20,7 +20,7 @@ async def _write(db: Path) -> None:
                 data = dict(e.data)
                 if isinstance(data.get("ready_at"), float):
                     data["ready_at"] = data["ready_at"] + 3600 * hour  # type: ignore[operator]
-                await store.add_event(
+                await store.events.add_event(
                     e.kind,
                     robot=e.robot,
                     task_id=e.task_id,

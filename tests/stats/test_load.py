@@ -27,7 +27,7 @@ async def test_every_event_in_pages_on_both_backends(url: str) -> None:
     async with open_store(url) as store:
         before = len(await load_events(store))  # a new database may hold its own first events
         for e in made:
-            await store.add_event(
+            await store.events.add_event(
                 e.kind,
                 robot=e.robot,
                 task_id=e.task_id,

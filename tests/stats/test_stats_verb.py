@@ -73,7 +73,7 @@ def _trips_msg(start: str | None, end: str | None) -> dict[str, Any]:
 
 async def _copy(events: list[EventRecord], store: Store) -> None:
     for e in events:
-        await store.add_event(
+        await store.events.add_event(
             e.kind,
             robot=e.robot,
             task_id=e.task_id,

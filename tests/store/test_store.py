@@ -27,7 +27,7 @@ from serveur.domain import (
 )
 from serveur.errors import Conflict, InvalidField, NotFound, StoreError
 from serveur.status import RobotMode, RobotStatus
-from serveur.store.base import Store, _Via
+from serveur.store.base import Store
 from serveur.store.factory import open_store
 from serveur.store.migrations import load_migrations
 from serveur.store.sqlite.store import SQLiteStore, split_sql
@@ -186,32 +186,6 @@ async def test_open_twice_close_twice_and_closed_store(backend: Backend) -> None
 async def test_unopenable_path(tmp_path: Path) -> None:
     with pytest.raises(StoreError):
         await SQLiteStore(tmp_path / "missing" / "dir" / "x.db").open()
-
-
-def test_the_flat_names_are_the_parts_methods(tmp_path: Path) -> None:
-    """``store.add_robot`` is ``store.robots.add_robot``, and so for every public method of
-    every part: callers written before the parts (issue 27) get the same methods."""
-    store = SQLiteStore(tmp_path / "x.db")
-    parts = {
-        "robots": store.robots,
-        "waypoints": store.waypoints,
-        "orders": store.orders,
-        "tasks": store.tasks,
-        "events": store.events,
-        "accounts": store.accounts,
-        "audit": store.audit,
-        "service": store.service,
-        "zones": store.zones,
-    }
-    flat = {name for name in vars(Store) if isinstance(vars(Store)[name], _Via)}
-    seen: set[str] = set()
-    for part in parts.values():
-        for name in (n for n in dir(type(part)) if not n.startswith("_")):
-            method = getattr(store, name)
-            assert method.__self__ is part and method.__func__ is getattr(type(part), name)
-            assert name not in seen, f"{name} is in two parts"
-            seen.add(name)
-    assert flat == seen
 
 
 # -- robots --------------------------------------------------------------------------------

@@ -63,7 +63,7 @@ async def stats_server(db: Path) -> AsyncIterator[App]:
     try:
         for hour in (0, 1):
             for e in service():
-                await app.store.add_event(
+                await app.store.events.add_event(
                     e.kind,
                     robot=e.robot,
                     task_id=None if e.task_id is None else e.task_id + 10 * hour,

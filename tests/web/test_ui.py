@@ -233,7 +233,7 @@ async def test_a_whole_delivery_by_clicking(tmp_path: Path, browser: Any) -> Non
         await expect(table.get_by_role("list", name="Served")).to_contain_text("Laksa")
         await expect(table.get_by_role("list", name="On the way")).to_contain_text("Nothing")
         await table.screenshot(path=str(SHOTS / "table.png"))
-        orders = {o.dish: (o.table, o.status.value) for o in await r.app.store.list_orders()}
+        orders = {o.dish: (o.table, o.status.value) for o in await r.app.store.orders.list_orders()}
         assert orders["Laksa"] == ("T3", "delivered")
         assert {o[1] for d, o in orders.items() if d != "Laksa"} == {"pending"}
         await expect(staff.get_by_role("listitem").filter(has_text="r1")).to_contain_text("Free")
@@ -593,7 +593,7 @@ async def test_the_owner_registers_a_robot_staff_cannot(tmp_path: Path, browser:
                 await expect(page.get_by_role("listitem").filter(has_text="r2")).to_contain_text(
                     "Ready"
                 )
-            robot = await r.app.store.get_robot("r2")
+            robot = await r.app.store.robots.get_robot("r2")
             assert (robot.url, robot.home, robot.kinematics) == (
                 extra.urls[0],
                 "home2",

@@ -115,6 +115,7 @@ class RobotLink(Reconnecting):
     """One ROS1 robot's rosbridge connection, kept up for the life of the server."""
 
     kind = "ROS1 move_base"
+    _log = log
 
     def __init__(
         self,
@@ -288,28 +289,6 @@ class RobotLink(Reconnecting):
         stall = self._stall * self._clock.time_scale
         return max(self._heartbeat, 2.0 * period + stall)
 
-    def _set_down(self, reason: str) -> None:
-        was_up = self._track.up
-        self._track.link_lost()
-        if was_up:
-            log.warning("%s: link down (%s)", self.name, reason)
-            self._listener.link_down(self.name, reason)
-
-    def _apply(self, todo: list[Instruction]) -> None:
-        """What a frame made the tracker decide: reports now, sends soon (on the loop)."""
-        rest = [act for act in todo if not self._announce(act, log, self.url)]
-        if rest:
-            self._spawn(self._perform(rest))
-        if todo:
-            self._rates_changed()
-
-    async def _carry_out(self, todo: list[Instruction]) -> None:
-        """Do what the tracker said, in order: reports, then sends."""
-        for act in todo:
-            if not self._announce(act, log, self.url):
-                await self._perform([act])
-        self._rates_changed()
-
     async def _perform(self, todo: list[Instruction]) -> None:
         """Cancels and re-sends go out even while the link is coming down (best effort: a
         dead path loses them); a :class:`LinkDown` aborts the socket."""
@@ -329,12 +308,6 @@ class RobotLink(Reconnecting):
             if isinstance(act, LinkDown):
                 # Down now, not after a closing handshake a dead path will never answer.
                 ws.transport.abort()
-
-    def _spawn(self, job: Any) -> None:
-        with contextlib.suppress(RuntimeError):  # no running loop: nothing to send on
-            task = asyncio.get_running_loop().create_task(job)
-            self._jobs.add(task)  # the loop keeps only a weak reference
-            task.add_done_callback(self._jobs.discard)
 
     # -- incoming ----------------------------------------------------------------------------
 
@@ -505,6 +478,9 @@ class RobotLink(Reconnecting):
     def _status_throttle(self) -> int:
         """Full rate while a goal needs its ack and end (or teleop), else heartbeat only."""
         return self._status_ms if self._moving() else self._idle_status_ms
+
+    def _decided(self) -> None:
+        self._rates_changed()
 
     def _rates_changed(self) -> None:
         """From a synchronous callback (a goal ended): re-subscribe soon if a rate changed."""
