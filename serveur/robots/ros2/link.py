@@ -94,6 +94,7 @@ class Nav2Link(Reconnecting):
     """One ROS 2 robot's rosbridge 2.x connections, kept up for the life of the server."""
 
     kind = "ROS 2 Nav2"
+    _log = log
 
     def __init__(
         self,
@@ -260,27 +261,6 @@ class Nav2Link(Reconnecting):
         """Two ping periods plus the Wi-Fi stall allowance (wall, scaled to the clock)."""
         return max(self._heartbeat, 2.0 * PING_PERIOD + self._stall * self._clock.time_scale)
 
-    def _set_down(self, reason: str) -> None:
-        was_up = self._track.up
-        self._track.link_lost()
-        if was_up:
-            log.warning("%s: link down (%s)", self.name, reason)
-            self._listener.link_down(self.name, reason)
-
-    def _apply(self, todo: list[Instruction]) -> None:
-        """What a frame made the tracker decide: reports now, sends soon (on the loop)."""
-        where = f"{self.url}, {self.kind}"
-        rest = [act for act in todo if not self._announce(act, log, where)]
-        if rest:
-            self._spawn(self._perform(rest))
-
-    async def _carry_out(self, todo: list[Instruction]) -> None:
-        """Do what the tracker said, in order: reports, then sends."""
-        where = f"{self.url}, {self.kind}"
-        for act in todo:
-            if not self._announce(act, log, where):
-                await self._perform([act])
-
     async def _perform(self, todo: list[Instruction]) -> None:
         """Cancels (on the control connection: never queued behind a goal) and re-sends go
         out even while the link is coming down (best effort: a dead bridge loses them); a
@@ -299,12 +279,6 @@ class Nav2Link(Reconnecting):
                 for ws in (ctl, nav):
                     if ws is not None:
                         ws.transport.abort()
-
-    def _spawn(self, job: Any) -> None:
-        with contextlib.suppress(RuntimeError):  # no running loop: nothing to send on
-            task = asyncio.get_running_loop().create_task(job)
-            self._jobs.add(task)  # the loop keeps only a weak reference
-            task.add_done_callback(self._jobs.discard)
 
     # -- incoming ------------------------------------------------------------------------
 
