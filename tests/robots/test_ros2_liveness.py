@@ -317,3 +317,41 @@ async def test_a_robot_that_never_comes_up_says_why_once() -> None:
     finally:
         await link.close()
         await sim.close()
+
+
+@pytest.mark.cuts_links
+@pytest.mark.parametrize("ros", [1, 2], ids=["ros1", "ros2"])
+async def test_a_goal_left_running_by_a_dropped_link_is_cancelled_when_it_is_back(
+    ros: int,
+) -> None:
+    # Closing a connection cancels nothing: the robot drives on with nobody watching. When
+    # the link is back, the goal it was given is cancelled before anything else.
+    clock = ScaledClock(10.0)
+    sim = await start_simulation(
+        1, port=0, map_path=demo_map_path(), clock=clock, ros=ros, amcl="real"
+    )
+    rec = Recorder()
+    names = RosNames(ros=ros)
+    link: RobotLink | Nav2Link = (
+        Nav2Link("r1", sim.urls[0], rec, clock, names=names)
+        if ros == 2
+        else RobotLink("r1", sim.urls[0], rec, clock, names=names)
+    )
+    robot = sim.robots[0]
+    link.start()
+    try:
+        await until(lambda: link.up, "the link up")
+        await link.send_goal(*FAR)
+        await until(lambda: math.hypot(*robot.velocity[:2]) > 0.1, "the robot moving")
+        await sim.stop_endpoint(0)
+        await until(lambda: not link.up, "the link down")
+        assert math.hypot(*robot.velocity[:2]) > 0.1  # it drives on
+        await sim.start_endpoint(0)
+        await until(lambda: link.up, "the link back")
+        await until(lambda: math.hypot(*robot.velocity[:2]) < 0.01, "the robot stopped")
+        assert math.hypot(robot.pose[0] - FAR[0], robot.pose[1] - FAR[1]) > 1.0
+        assert [s for _, s, _ in robot.goal_statuses][-1] is rb.GoalStatus.PREEMPTED
+        assert rec.of("done") == [] and rec.of("lost") == []  # the core heard "down" instead
+    finally:
+        await link.close()
+        await sim.close()
