@@ -206,7 +206,7 @@ class LinkTracker:
         self.up = False
         self.goal: TrackedGoal | None = None
         self._heard: set[str] = set()
-        self._alive_at = 0.0
+        self._alive_at = self._started = 0.0
         self._paced_at = -math.inf
         self._bridge_at = -math.inf
         self._refusal: tuple[float, str, DownCause] | None = None
@@ -221,7 +221,7 @@ class LinkTracker:
         start until a session comes up)."""
         self.up = False
         self._heard.clear()
-        self._alive_at = now
+        self._alive_at = self._started = now
         self._paced_at = self._bridge_at = -math.inf
         self._refusal = None
         # Cancelled at every start until a session comes up: sent to a bridge whose ROS side
@@ -273,6 +273,19 @@ class LinkTracker:
             out.append(LinkDown(reason, cause, report=self.up, summary=summary))
             self.up = False
             return out
+        if not self.up and now - self._started > timeout:
+            # Alive but not all there (no pose: AMCL not localised): a fresh session
+            # subscribes again, and the reason is said.
+            missing = " or ".join(sorted(self._required - self._heard))
+            summary = f"no {missing} from the robot"
+            return [
+                LinkDown(
+                    f"{summary} for {now - self._started:.1f}s",
+                    DownCause.NOT_READY,
+                    report=False,
+                    summary=summary,
+                )
+            ]
         return self._check_goal(now, pose)
 
     def _why(self) -> tuple[str, DownCause]:

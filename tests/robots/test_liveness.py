@@ -167,6 +167,15 @@ def test_a_session_that_never_comes_up_is_aborted_without_a_report() -> None:
     assert again.summary.startswith("the robot's ROS side stopped")
 
 
+def test_a_robot_alive_but_never_localised_is_said_and_retried() -> None:
+    t = ros2()
+    t.start(0.0)
+    assert beat(t, 0.5, 2.0) == []  # the heartbeat answers; no pose yet
+    [down] = t.check(2.5, TIMEOUT)
+    assert isinstance(down, LinkDown) and not down.report
+    assert down.summary == "no pose from the robot"
+
+
 def test_a_proof_keeps_the_link_up() -> None:
     t = ros2()
     up(t)
