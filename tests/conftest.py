@@ -12,7 +12,7 @@ import itertools
 import json
 import logging
 import time
-from collections.abc import AsyncIterator, Callable, Iterator
+from collections.abc import AsyncIterator, Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -60,6 +60,47 @@ class _LinkDrops(logging.Handler):
             self.drops.append(msg)
 
 
+#: Tests that run on virtual time (serveur.replay.vtime: the loop's clock jumps to the next
+#: timer once every task waits, as trio's autojump clock): the rules of the core and whole
+#: services through the real server and simulated robots, whose waits are a matter of rules,
+#: not of the wall. Not here: tests with a browser or another process on the other end of a
+#: socket (its replies take wall time: virtual time would jump past them), tests of wall-clock
+#: rules (sessions, idle connections, rate limits, Wi-Fi stalls and heartbeats measured in wall
+#: seconds), and tests marked ``wall_clock``.
+VIRTUAL_TIME = (
+    "tests/core/",
+    "tests/test_e2e.py",
+    "tests/test_protocol_doc.py",
+    "tests/test_scheduler.py",
+    "tests/robots/test_nav2_link.py",
+    "tests/robots/test_names.py",
+    "tests/robots/test_link_faults.py",
+)
+
+
+def pytest_asyncio_loop_factories(config: Any, item: Any) -> Mapping[str, Any]:
+    path = Path(str(item.path)).relative_to(Path(str(config.rootpath))).as_posix()
+    if path.startswith(VIRTUAL_TIME) and item.get_closest_marker("wall_clock") is None:
+        return {"virtual-time": VirtualTimeLoop}
+    return {"asyncio": asyncio.SelectorEventLoop}
+
+
+@pytest.fixture(autouse=True)
+def _queries_hold_time(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    """Every server a test starts on a virtual-time loop holds time still while its SQLite
+    queries run in aiosqlite's thread (the replay does the same for its server)."""
+    start = App.start
+
+    async def holding(self: App) -> App:
+        loop = asyncio.get_running_loop()
+        if isinstance(loop, VirtualTimeLoop):
+            loop.add_busy(self.store.busy)
+        return await start(self)
+
+    monkeypatch.setattr(App, "start", holding)
+    yield
+
+
 @pytest.fixture(autouse=True)
 def no_robot_offline_by_accident(request: pytest.FixtureRequest) -> Iterator[None]:
     """No robot goes Offline in a test unless the test cuts links on purpose (``cuts_links``):
@@ -77,6 +118,15 @@ def no_robot_offline_by_accident(request: pytest.FixtureRequest) -> Iterator[Non
 
 
 WAIT = 30.0  # wall seconds: generous for a loaded 2-core CI box; tests end as soon as they can
+
+
+def budget(timeout: float) -> float:
+    """A wait's bound on the running loop: ``timeout`` wall seconds, or on virtual time the
+    simulated time those cover at ``TIME_SCALE`` (a robot charging for two simulated minutes
+    fits in 30 wall seconds at 10x; 30 virtual seconds it does not)."""
+    if isinstance(asyncio.get_running_loop(), VirtualTimeLoop):
+        return timeout * TIME_SCALE
+    return timeout
 
 
 class Client:
@@ -133,7 +183,7 @@ class Client:
         fut: asyncio.Future[dict[str, Any]] = asyncio.get_running_loop().create_future()
         self._pending[rid] = fut
         await self.ws.send(json.dumps({"clientmsg": verb, "id": rid, **fields}))
-        return await asyncio.wait_for(fut, WAIT)
+        return await asyncio.wait_for(fut, budget(WAIT))
 
     async def ok(self, verb: str, **fields: Any) -> dict[str, Any]:
         reply = await self.call(verb, **fields)
@@ -173,7 +223,7 @@ class Client:
                 return res
 
         try:
-            return await asyncio.wait_for(wait(), timeout)
+            return await asyncio.wait_for(wait(), budget(timeout))
         except TimeoutError:
             raise AssertionError(f"timed out waiting for {what or cond}") from None
 

@@ -783,6 +783,7 @@ async def test_stats_examples_on_an_empty_database() -> None:
     await _replay_stats(":memory:")
 
 
+@pytest.mark.wall_clock  # the stats verb runs `serveur stats` in a child process
 async def test_stats_examples_on_an_empty_database_file(tmp_path: Path) -> None:
     """The same on a SQLite file: the figures come from ``serveur stats --json`` in a child
     process (docs/protocol.md, ``stats``). (It failed with ``internal_error`` while the child
