@@ -396,10 +396,10 @@ async def test_a_joystick_that_goes_quiet_stops_the_robot(
 
 async def test_initial_pose_puts_the_robot_there(rig: Rig) -> None:
     await up(rig)
-    # Not in the link's first second: a ROS1 link subscribes to an idle robot's /amcl_pose at
+    # At once after the link came up: a ROS1 link subscribes to an idle robot's /amcl_pose at
     # one message a second, and rosbridge's throttle drops (not delays) the one pose AMCL
-    # publishes after /initialpose if it comes sooner than that after the latched first one.
-    await rig.pass_time(1.5)
+    # publishes after /initialpose when it comes sooner than that after the latched first one
+    # — the link must lift the throttle until the new pose has come.
     spot = (HOME.x + 0.5, HOME.y - 0.5, 0.0)
     await rig.driver.initial_pose(*spot)
     await rig.until(

@@ -52,6 +52,7 @@ import asyncio
 import contextlib
 import itertools
 import logging
+import math
 import secrets
 import ssl as ssl_module
 from collections.abc import AsyncIterator, Mapping
@@ -81,6 +82,8 @@ __all__ = ["LinkListener", "RobotLink"]
 log = logging.getLogger(__name__)
 
 _SUBSCRIPTIONS = ("/move_base/result",)
+#: A pose this close (m) to one set by /initialpose is AMCL's answer to it.
+RELOCALISED = 0.5
 #: /amcl_pose throttle (ms) while nobody watches the robot's pose and it is not moving: the
 #: server then only needs to know where the robot stands (a 10 Hz AMCL stream costs ~90 us a
 #: message to decode and apply, most of an idle server's CPU with ten robots).
@@ -184,6 +187,8 @@ class RobotLink(Reconnecting):
         self._battery_ms = max(battery_ms, BATTERY_MS)
         self._pose_watched = pose_watched
         self._pose_ms: int | None = None  # the throttle of our /amcl_pose subscription
+        #: (x, y, clock time) of an /initialpose sent: /amcl_pose at full rate until it shows.
+        self._relocalising: tuple[float, float, float] | None = None
         self._idle_status_ms = max(status_ms, min(IDLE_STATUS_MS, int(heartbeat * 500)))
         self._status_sub_ms: int | None = None  # ... and of our /move_base/status one
         self._jobs: set[asyncio.Task[None]] = set()
@@ -335,6 +340,13 @@ class RobotLink(Reconnecting):
             x, y, yaw, stamp = rb.amcl_pose_from_msg(msg)
             self.pose = (x, y, yaw)
             self._listener.pose(self.name, x, y, yaw, stamp)
+            set_at = self._relocalising
+            if set_at is not None and (
+                math.hypot(x - set_at[0], y - set_at[1]) < RELOCALISED
+                or self._clock.now() - set_at[2] > 1.0
+            ):
+                self._relocalising = None  # AMCL took the pose set (or will not): idle rates
+                self._rates_changed()
             self._apply(self._track.proof(self._clock.now(), "pose"))
         elif topic == "/move_base/result":
             st = msg["status"]
@@ -449,11 +461,13 @@ class RobotLink(Reconnecting):
             await self._send(self._pub("/cmd_vel", rb.twist(0.0, 0.0, 0.0)))
         await self._update_rates()
 
-    @property
-    def _teleop(self) -> bool:
-        return self._deadman.held
-
     async def initial_pose(self, x: float, y: float, yaw: float) -> None:
+        """Set the robot's pose. AMCL answers with one pose (it publishes only on motion
+        otherwise), which a throttled /amcl_pose subscription would drop, not delay, if it came
+        within the throttle of the last one (rosbridge's throttle): so /amcl_pose streams at
+        full rate from now until a pose near the one set (or a second later) has come."""
+        self._relocalising = (x, y, self._clock.now())
+        await self._update_rates()
         await self._send(
             self._pub(
                 "/initialpose",
@@ -467,11 +481,11 @@ class RobotLink(Reconnecting):
         await self._update_rates()
 
     def _moving(self) -> bool:
-        return self._track.goal is not None or self._teleop
+        return self._track.goal is not None or self._deadman.held
 
     def _pose_throttle(self) -> int:
         """Full rate while watched or moving (arrival checks need a fresh pose), else idle."""
-        if self._pose_watched:
+        if self._pose_watched or self._relocalising is not None:
             return 0
         return self._moving_pose_ms if self._moving() else self._idle_pose_ms
 
@@ -484,13 +498,11 @@ class RobotLink(Reconnecting):
 
     def _rates_changed(self) -> None:
         """From a synchronous callback (a goal ended): re-subscribe soon if a rate changed."""
-        if self._ws is not None and self._rates_stale():
-            self._spawn(self._update_rates())
-
-    def _rates_stale(self) -> bool:
-        return (
+        stale = (
             self._pose_throttle() != self._pose_ms or self._status_throttle() != self._status_sub_ms
         )
+        if self._ws is not None and stale:
+            self._spawn(self._update_rates())
 
     async def _update_rates(self, ws: ClientConnection | None = None) -> None:
         """(Re-)subscribe /amcl_pose and /move_base/status at the wanted throttles; rosbridge
