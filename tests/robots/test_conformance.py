@@ -88,6 +88,10 @@ class Recorder:
     def count(self, kind: str, since: int = 0) -> int:
         return sum(1 for k, _ in self.events[since:] if k == kind)
 
+    def of(self, kind: str) -> list[tuple[Any, ...]]:
+        """The arguments of every report of ``kind``, in order."""
+        return [a for k, a in self.events if k == kind]
+
     def ends(self, handle: str) -> list[tuple[str, tuple[Any, ...]]]:
         """What was reported of goal ``handle``'s end (done or lost)."""
         return [(k, a) for k, a in self.events if k in ("done", "lost") and a[0] == handle]

@@ -36,6 +36,7 @@ from serveur.robots.ros1.link import RobotLink
 from serveur.robots.ros2.link import Nav2Link
 from serveur.sim.bridge import BridgeClient
 from tests.conftest import Client, Restaurant, poll_until, restaurant
+from tests.robots.test_conformance import Recorder
 from tests.test_e2e import activate, new_orders, serve_current_stop, staff
 
 CONFIG = CoreConfig(heartbeat=2.0, ack_timeout=3.0, auto_depart=True)
@@ -141,45 +142,6 @@ async def test_a_robot_node_dying_mid_trip_is_offline_and_the_table_stays_open(
 
 
 # -- 3. the words and the cause, at the driver ------------------------------------------
-
-
-class Recorder:
-    """A listener that takes the cause of a lost goal, as the core's should."""
-
-    def __init__(self) -> None:
-        self.events: list[tuple[str, tuple[Any, ...]]] = []
-
-    def link_up(self, robot: str) -> None:
-        self.events.append(("up", ()))
-
-    def link_down(self, robot: str, reason: str) -> None:
-        self.events.append(("down", (reason,)))
-
-    def link_failed(self, robot: str, reason: str) -> None:
-        self.events.append(("failed", (reason,)))
-
-    def pose(self, robot: str, x: float, y: float, yaw: float, stamp: float) -> None:
-        pass
-
-    def battery(self, robot: str, fraction: float) -> None:
-        pass
-
-    def goal_done(self, robot: str, goal_id: str, status: rb.GoalStatus, text: str) -> None:
-        self.events.append(("done", (goal_id, status, text)))
-
-    def goal_lost(
-        self, robot: str, goal_id: str, reason: str, *, cause: GoalLoss = GoalLoss.NAVIGATION
-    ) -> None:
-        self.events.append(("lost", (goal_id, reason, cause)))
-
-    def scan(self, robot: str, msg: Any) -> None:
-        pass
-
-    def map(self, robot: str, msg: Any) -> None:
-        pass
-
-    def of(self, kind: str) -> list[tuple[Any, ...]]:
-        return [a for k, a in self.events if k == kind]
 
 
 async def until(cond: Callable[[], Any], what: str, timeout: float = 30.0) -> None:
