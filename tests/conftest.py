@@ -11,6 +11,8 @@ import contextlib
 import itertools
 import json
 import logging
+import os
+import tempfile
 import time
 from collections.abc import AsyncIterator, Callable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -31,6 +33,16 @@ from tests.mariadb_server import mariadb_server, mariadb_url  # noqa: F401
 from tests.netproxy import LinkProxy
 
 TIME_SCALE = 10.0
+
+# The plan cache (serveur.maps.plancache) of this test run: shared by both workers and every
+# server they start in a child process, fresh for each run (never the developer's own).
+os.environ.setdefault(
+    "SERVEUR_PLAN_CACHE",
+    str(
+        Path(tempfile.gettempdir())
+        / f"serveur-test-plans-{os.environ.get('PYTEST_XDIST_TESTRUNUID', os.getpid())}"
+    ),
+)
 
 
 async def poll_until(cond: Callable[[], Any], timeout: float, what: str) -> Any:

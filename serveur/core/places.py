@@ -140,9 +140,13 @@ class Places:
             "planned %d path distances in %.1f s (%s)",
             len(result.pairs),
             time.monotonic() - started,
-            "child process" if self._plan_in_child else "worker thread",
+            "from the plan cache"
+            if result.cached
+            else "child process"
+            if self._plan_in_child
+            else "worker thread",
         )
-        if not self._plan_in_child:
+        if not self._plan_in_child and not result.cached:
             trim_heap()  # the worker thread's freed distance fields (serveur.maps.memory)
         if self.map is None:
             self._set_map(result.map)

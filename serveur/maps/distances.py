@@ -33,9 +33,11 @@ from array import array
 from collections import OrderedDict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from serveur.errors import MapError, NavigationError
+from serveur.maps import plancache
 
 __all__ = ["Distances", "MapData", "PlanRequest", "plan", "plan_async"]
 
@@ -194,6 +196,8 @@ class PlanResult:
     #: The planned path of each reachable pair, from its first name to its second (the zones
     #: a leg crosses are read off it: serveur.core.leases).
     paths: dict[tuple[str, str], list[tuple[float, float]]] = field(default_factory=dict)
+    #: Read from the plan cache on disk rather than planned by this run (not serialised).
+    cached: bool = False
 
     def to_json(self) -> str:
         return json.dumps(
@@ -264,7 +268,9 @@ async def plan_async(req: PlanRequest, *, in_child: bool, reuse: bool = True) ->
     A failure in the child (a bad map file, say) comes back as the ServeurError the child
     raised, with its code and message; anything else the child dies of is a NavigationError.
     With ``reuse``, an identical request planned earlier in this process is answered from
-    memory (a map file is read again each time: it may have changed on disk).
+    memory (a map file is read again each time: it may have changed on disk), and one planned
+    by an earlier run from the plan cache on disk (:mod:`serveur.maps.plancache`, keyed by the
+    request and the map file's bytes).
     """
     key = hashlib.sha256(req.to_json().encode()).hexdigest() if req.map is not None else ""
     if reuse and key and (hit := _RECENT.get(key)) is not None:
@@ -283,7 +289,11 @@ async def plan_async(req: PlanRequest, *, in_child: bool, reuse: bool = True) ->
     if key:
         _INFLIGHT[key] = fut
     try:
-        result = await (asyncio.to_thread(plan, req) if not in_child else _plan_in_child(req))
+        # Read, hashed and parsed off the loop: a cached plan is a few hundred kB of JSON.
+        result = await asyncio.to_thread(_from_disk, req) if reuse else None
+        if result is None:
+            result = await (asyncio.to_thread(plan, req) if not in_child else _plan_in_child(req))
+            await asyncio.to_thread(_to_disk, req, result)
     except Exception as exc:
         fut.set_exception(exc)
         fut.exception()  # retrieved: nobody else may be waiting
@@ -300,6 +310,43 @@ async def plan_async(req: PlanRequest, *, in_child: bool, reuse: bool = True) ->
         while len(_RECENT) > _RECENT_MAX:
             _RECENT.popitem(last=False)
     return result
+
+
+def _disk_key(req: PlanRequest) -> str | None:
+    """The plan cache's key of ``req``: its JSON, and the map file's bytes when it names one
+    (so an edited map is another key). None when the map file cannot be read (planning then
+    reports why)."""
+    parts = [req.to_json().encode()]
+    if req.map is None and req.map_path is not None:
+        import yaml
+
+        try:
+            meta_bytes = Path(req.map_path).read_bytes()
+            image = yaml.safe_load(meta_bytes).get("image")
+            parts += [meta_bytes, (Path(req.map_path).parent / str(image)).read_bytes()]
+        except (OSError, ValueError, AttributeError, yaml.YAMLError):
+            return None
+    return plancache.digest(*parts)
+
+
+def _from_disk(req: PlanRequest) -> PlanResult | None:
+    key = _disk_key(req)
+    text = plancache.load(key) if key is not None else None
+    if text is None:
+        return None
+    try:
+        result = PlanResult.from_json(text)
+        result.cached = True
+        return result
+    except (ValueError, KeyError, TypeError, MapError) as exc:
+        log.warning("plan cache entry %s unreadable (planning again): %s", key, exc)
+        return None
+
+
+def _to_disk(req: PlanRequest, result: PlanResult) -> None:
+    key = _disk_key(req)
+    if key is not None:
+        plancache.store(key, result.to_json())
 
 
 async def _plan_in_child(req: PlanRequest) -> PlanResult:

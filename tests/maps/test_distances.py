@@ -124,7 +124,10 @@ async def test_a_new_waypoint_gets_path_distances(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(not Path("/proc/self/maps").exists(), reason="reads /proc/PID/maps")
-async def test_serveur_run_plans_in_a_child_and_never_loads_numpy(tmp_path: Path) -> None:
+async def test_serveur_run_plans_in_a_child_and_never_loads_numpy(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("SERVEUR_PLAN_CACHE", "off")  # a cached plan spawns no child
     server = ServerProcess(
         tmp_path / "serveur.db", {}, time_scale=1.0, extra=["--map", str(demo_map_path())]
     )
