@@ -151,7 +151,7 @@ async def _drive(sim: Simulation) -> None:
                 goal = rb.move_base_action_goal(
                     f"{robot.name}-{next(counter)}", w.x, w.y, w.yaw, stamp=sim.clock.epoch()
                 )
-                robot.handle_publish("/move_base/goal", goal)
+                robot.inbox.handle_publish("/move_base/goal", goal)
         await asyncio.sleep(0.25)
 
 

@@ -191,7 +191,7 @@ class Simulation:
             done = 0
             for goal in goals:
                 with contextlib.suppress(ServeurError):
-                    robot._plan_blocking(start, goal)
+                    robot.navigator.plan_blocking(start, goal)
                     done += 1
             return done
 
@@ -210,7 +210,7 @@ class Simulation:
         t = clock.now()
         groups: dict[float, list[SimRobot]] = {}
         for r, (ticks, offset) in zip(self.robots, self.phases(), strict=True):
-            r._t = t + offset  # stamps stay the sim time of the robot's own steps
+            r.state.t = t + offset  # stamps stay the sim time of the robot's own steps
             if self.spread:
                 r._ticks = -ticks
             groups.setdefault(offset, []).append(r)
@@ -229,7 +229,7 @@ class Simulation:
                 if slip > TICK * MAX_CATCH_UP:  # hopelessly behind: let sim time slip
                     t += slip
                     for r in self.robots:
-                        r._t += slip
+                        r.state.t += slip
             for offset, group in passes:
                 if offset > 0.0 and (lag := t + offset - clock.now()) > 0:
                     await clock.sleep(lag)

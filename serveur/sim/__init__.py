@@ -1,9 +1,10 @@
 """The simulator's parts: one robot's ROS graph, its rosbridge server, its physics.
 
 Owns :mod:`~serveur.sim.robot` (move_base or Nav2, AMCL, odometry, laser, battery of one
-robot: its construction, control cycle and physics step) and the robot's parts it inherits,
-:mod:`~serveur.sim.base` (their shared state), :mod:`~serveur.sim.sensors` (subscriptions and
-what is published), :mod:`~serveur.sim.navigator` (a goal's life and plan),
+robot: its construction, control cycle and physics step) and the parts the robot is made of,
+each an object it creates and hands what it needs: :mod:`~serveur.sim.state` (what they share),
+:mod:`~serveur.sim.outbox` (subscriptions and frames), :mod:`~serveur.sim.sensors` (what is
+published, at which rates), :mod:`~serveur.sim.navigator` (a goal's life and plan),
 :mod:`~serveur.sim.inbox` (what clients send) and :mod:`~serveur.sim.floor` (other robots);
 :mod:`~serveur.sim.bridge` (its rosbridge v2 server: ops, subscriptions, queues, and
 rosbridge 2.x's action ops), :mod:`~serveur.sim.ros2` (the ROS 2 dialect's names and shapes),

@@ -206,7 +206,7 @@ class BridgeClient:
     def __init__(self, endpoint: Endpoint, ws: ServerConnection) -> None:
         self.endpoint = endpoint
         self.robot = endpoint.robot
-        self.clock = endpoint.robot._clock
+        self.clock = endpoint.robot.state.clock
         self.ws = ws
         self.subs: dict[str, Sub] = {}
         self.advertised: set[str] = set()
@@ -456,7 +456,7 @@ class BridgeClient:
         except ServeurError as exc:
             self._fail(goal, exc.message)
             return
-        taken = self.robot.nav2_goal(goal, frame, x, y, q, None if oid is None else str(oid))
+        taken = self.robot.inbox.nav2_goal(goal, frame, x, y, q, None if oid is None else str(oid))
         if not taken and self.robot.rosbridge_fix:
             self._fail(goal, "Action goal was rejected")
         # Rejected without the fix: no frame, the handler waits for ever.
@@ -474,7 +474,7 @@ class BridgeClient:
             oid = action.split("#", 1)[1]
         goal = self.endpoint.actions.get(oid)
         if goal is not None and not goal.done and not self.robot.node_dead:
-            goal.client.robot.nav2_cancel(goal)
+            goal.client.robot.inbox.nav2_cancel(goal)
 
     def _topic(self, msg: Mapping[str, Any]) -> str:
         """The op's topic as the robot names it inside (its namespace taken off).
@@ -501,7 +501,7 @@ class BridgeClient:
             raise RosbridgeError(f"unknown topic {topic}: the robot does not subscribe to it")
         if self.robot.node_dead:
             return  # published to a topic whose only subscriber died: nobody gets it
-        warning = self.robot.handle_publish(topic, body)
+        warning = self.robot.inbox.handle_publish(topic, body)
         if warning:
             self.status("warning", warning, oid)
 
@@ -532,8 +532,8 @@ class BridgeClient:
         sub.params[oid] = SubParams(throttle, qlen, compression == "cbor")
         sub.recompute()
         if new:
-            self.robot._add_sub(sub)
-        self.robot._offer_latched(sub)
+            self.robot.outbox.add(sub)
+        self.robot.outbox.offer_latched(sub)
 
     def _unsubscribe(self, msg: Mapping[str, Any], oid: str | int | None) -> None:
         topic = self._topic(msg)
@@ -552,7 +552,7 @@ class BridgeClient:
 
     def _drop_sub(self, sub: Sub) -> None:
         self.subs.pop(sub.topic, None)
-        self.robot._remove_sub(sub)
+        self.robot.outbox.remove(sub)
 
     def _advertise(self, msg: Mapping[str, Any]) -> None:
         topic = self._topic(msg)

@@ -1,6 +1,8 @@
 """Other robots on a simulated robot's floor: seen, waited for, planned around, given up on.
 
-Split from :mod:`serveur.sim.robot` (the robot's part for sharing the floor).
+Split from :mod:`serveur.sim.robot` (the robot's part for sharing the floor): :class:`Floor`
+reads the other robots from the shared state and acts on the navigator's path and goal (its
+:class:`~serveur.sim.navigator.Wait` holds the wait under way).
 
 Other robots are not obstacles unless the fleet says so (:meth:`SimRobot.share_floor`, the
 fleet's ``robots_see_each_other``; off by default). Then each robot's footprint, a disc of the
@@ -34,9 +36,9 @@ from serveur.errors import ServeurError
 from serveur.maps.navigation import OccupancyMap, Planner
 from serveur.robots.rosbridge import GoalStatus
 from serveur.sim import ros2
-from serveur.sim.base import Goal, RobotBase
 from serveur.sim.kinematics import PathFollower
 from serveur.sim.navigator import Navigator
+from serveur.sim.state import Goal, RobotState
 
 __all__ = [
     "ROBOT_GAP",
@@ -81,12 +83,18 @@ def _detour_pool() -> concurrent.futures.ThreadPoolExecutor:
     return _DETOURS
 
 
-class Floor(Navigator):
-    """The robot among other robots (:meth:`share_floor`; see the module's docstring)."""
+class Floor:
+    """The robot among other robots (:meth:`share`; see the module's docstring)."""
 
-    def share_floor(self, others: Sequence[RobotBase], patience: float = ROBOT_PATIENCE) -> None:
+    def __init__(self, state: RobotState, navigator: Navigator) -> None:
+        self.state = state
+        self.navigator = navigator
+        self._patience = ROBOT_PATIENCE
+
+    def share(self, others: Sequence[RobotState], patience: float = ROBOT_PATIENCE) -> None:
         """Make ``others`` solid for this robot: their footprints (discs of their
-        :attr:`radius`) show in its ``/scan`` and it never drives its own into theirs.
+        :attr:`~serveur.sim.state.RobotState.radius`) show in its ``/scan`` and it never drives
+        its own into theirs.
 
         Driving a goal, the robot slows down to stop :data:`ROBOT_GAP` short of a robot in its
         way and waits; after :data:`ROBOT_REPLAN_AFTER` s, if the robots in the way stand still,
@@ -99,24 +107,24 @@ class Floor(Navigator):
         """
         if not (math.isfinite(patience) and patience > 0):
             raise ValueError("patience must be a positive number of seconds")
-        self._others = tuple(o for o in others if o is not self)
+        self.state.others = tuple(o for o in others if o is not self.state)
         self._patience = float(patience)
-        self._wait_since = None
+        self.navigator.wait.since = None
 
     # -- other robots (share_floor) ----------------------------------------------------------
 
-    def _gap_ahead(self, dx: float, dy: float) -> tuple[float, RobotBase | None]:
+    def _gap_ahead(self, dx: float, dy: float) -> tuple[float, RobotState | None]:
         """How far (m) this robot's footprint can go along the unit vector (dx, dy) before it
         touches another robot's, and which robot that is (inf, None: nothing in the way)."""
-        m = self._motion
+        m = self.state.motion
         best, who = math.inf, None
-        for o in self._others:
-            om = o._motion
+        for o in self.state.others:
+            om = o.motion
             px, py = om.x - m.x, om.y - m.y
             s = px * dx + py * dy
             if s <= 0.0:
                 continue  # beside or behind
-            reach = self.radius + o.radius
+            reach = self.state.radius + o.radius
             h2 = px * px + py * py - s * s
             if h2 >= reach * reach:
                 continue  # passes clear of it
@@ -125,13 +133,14 @@ class Floor(Navigator):
                 best, who = gap, o
         return best, who
 
-    def _mind_robots(self, g: Goal, cmd: tuple[float, float, float]) -> tuple[float, float, float]:
+    def mind_robots(self, g: Goal, cmd: tuple[float, float, float]) -> tuple[float, float, float]:
         """The local planner facing other robots: slow down to stop short of one in the way,
         wait, plan around robots standing still, and abort after the patience."""
-        m = self._motion
-        if self._detour is not None and self._t >= self._detour[0] - 1e-9:
+        nav = self.navigator
+        m = self.state.motion
+        if nav.wait.detour is not None and self.state.t >= nav.wait.detour[0] - 1e-9:
             self._take_detour(g)
-            cmd = self._follower.command(m.x, m.y, m.yaw) if self._follower else (0.0, 0.0, 0.0)
+            cmd = nav.follower.command(m.x, m.y, m.yaw) if nav.follower else (0.0, 0.0, 0.0)
         vx, vy, wz = cmd
         speed = math.hypot(vx, vy)
         gap, who = math.inf, None
@@ -140,26 +149,26 @@ class Floor(Navigator):
             gap, who = self._gap_ahead((vx * c - vy * s) / speed, (vx * s + vy * c) / speed)
         room = gap - ROBOT_GAP
         if room > _ROBOT_STOP:
-            if self._wait_since is not None and (
-                math.hypot(m.x - self._wait_at[0], m.y - self._wait_at[1]) >= ROBOT_PROGRESS
+            if nav.wait.since is not None and (
+                math.hypot(m.x - nav.wait.at[0], m.y - nav.wait.at[1]) >= ROBOT_PROGRESS
             ):
-                self._wait_since = None  # got away: a new block starts a new wait
+                nav.wait.since = None  # got away: a new block starts a new wait
             if gap < math.inf:
-                lim = self.limits
+                lim = nav.limits
                 v = min(math.sqrt(2.0 * 0.8 * lim.max_accel * room), 2.0 * room)
                 if v < speed:
                     k = v / speed
                     return vx * k, vy * k, wz
             return cmd
-        t = self._t
-        if self._wait_since is None:
-            self._wait_since, self._wait_at = t, (m.x, m.y)
+        t = self.state.t
+        if nav.wait.since is None:
+            nav.wait.since, nav.wait.at = t, (m.x, m.y)
             # waiting for a robot is not slowness: the goal's deadline leaves room for it
-            self._goal_deadline = max(self._goal_deadline, t + self._patience + 1.0)
-        waited = t - self._wait_since
+            nav.goal_deadline = max(nav.goal_deadline, t + self._patience + 1.0)
+        waited = t - nav.wait.since
         if waited >= self._patience:
             name = who.name if who is not None else "?"
-            self._finish(
+            nav.finish(
                 g,
                 GoalStatus.ABORTED,
                 f"blocked by another robot ({name}) for {waited:.0f} s",
@@ -167,10 +176,10 @@ class Floor(Navigator):
             )
         elif (
             waited >= ROBOT_REPLAN_AFTER
-            and t - self._replanned >= ROBOT_REPLAN_EVERY
-            and self._detour is None
+            and t - nav.wait.replanned >= ROBOT_REPLAN_EVERY
+            and nav.wait.detour is None
         ):
-            self._replanned = t
+            nav.wait.replanned = t
             self._plan_around(g)
         return 0.0, 0.0, 0.0
 
@@ -184,21 +193,22 @@ class Floor(Navigator):
         s of sim time later, so neither the physics loop stalls nor a run's outcome depends on
         the machine's speed (a slow plan is waited for then).
         """
-        still = [o for o in self._others if o._motion.speed < _ROBOT_STILL]
+        nav = self.navigator
+        still = [o for o in self.state.others if o.motion.speed < _ROBOT_STILL]
         if not still:
             return
-        base = self._map
+        base = self.state.map
         grid = base.grid.copy()
         res, (ox, oy, _) = base.resolution, base.origin
         rows, cols = np.ogrid[0 : base.height, 0 : base.width]
         for o in still:
-            om = o._motion
+            om = o.motion
             cx, cy = (om.x - ox) / res - 0.5, (om.y - oy) / res - 0.5  # in cell-centre units
             r = o.radius / res
             grid[(rows - cy) ** 2 + (cols - cx) ** 2 <= r * r] = 100
-        m = self._motion
+        m = self.state.motion
         start, goal = (m.x, m.y), (g.x, g.y)
-        radius, clearance = self._planner.robot_radius, self._planner.clearance
+        radius, clearance = self.state.planner.robot_radius, self.state.planner.clearance
 
         def work() -> list[tuple[float, float]]:
             planner = Planner(
@@ -208,38 +218,39 @@ class Floor(Navigator):
 
         fut = _detour_pool().submit(work)
         fut.add_done_callback(lambda f: f.cancelled() or f.exception())
-        self._detour = (self._t + ROBOT_REPLAN_TAKES, start, fut)
+        nav.wait.detour = (self.state.t + ROBOT_REPLAN_TAKES, start, fut)
 
     def _take_detour(self, g: Goal) -> None:
         """Follow the plan :meth:`_plan_around` asked for (waiting for it if it is late), unless
         there is none or the robot moved since it asked."""
-        due = self._detour
-        self._detour = None
+        nav = self.navigator
+        due = nav.wait.detour
+        nav.wait.detour = None
         assert due is not None
         _, (x0, y0), fut = due
-        m = self._motion
+        m = self.state.motion
         try:
             path = fut.result()
         except ServeurError as exc:
-            log.debug("%s: no way around the robots in the way: %s", self.name, exc)
+            log.debug("%s: no way around the robots in the way: %s", self.state.name, exc)
             return
         except Exception:
-            log.exception("%s: planning around the robots in the way failed", self.name)
+            log.exception("%s: planning around the robots in the way failed", self.state.name)
             return
         if math.hypot(m.x - x0, m.y - y0) > 0.05:
             return  # the way cleared meanwhile and the robot drove on
-        self._follower = PathFollower(path, g.yaw, self.kinematics, self.limits)
+        nav.follower = PathFollower(path, g.yaw, nav.kinematics, nav.limits)
         length = sum(math.dist(a, b) for a, b in itertools.pairwise(path))
-        self._goal_deadline = max(
-            self._goal_deadline, self._t + 30.0 + 3.0 * length / self.limits.max_speed
+        nav.goal_deadline = max(
+            nav.goal_deadline, self.state.t + 30.0 + 3.0 * length / nav.limits.max_speed
         )
 
-    def _into_robot(self, x0: float, y0: float, x1: float, y1: float) -> bool:
+    def into_robot(self, x0: float, y0: float, x1: float, y1: float) -> bool:
         """Whether moving from (x0, y0) to (x1, y1) drives this robot's footprint into another
         robot's (robots already overlapping may still move apart)."""
-        for o in self._others:
-            om = o._motion
-            reach = self.radius + o.radius
+        for o in self.state.others:
+            om = o.motion
+            reach = self.state.radius + o.radius
             d1 = math.hypot(x1 - om.x, y1 - om.y)
             if d1 < reach and d1 < math.hypot(x0 - om.x, y0 - om.y):
                 return True

@@ -4,7 +4,8 @@ Split from :mod:`serveur.sim.robot`: the topics the robot subscribes to (``/move
 ``/move_base_simple/goal``, ``/move_base/cancel``, ``/cmd_vel``, ``/initialpose``; a ROS 2
 robot's ``/cmd_vel``, ``/initialpose``, ``/goal_pose``) and Nav2's ``navigate_to_pose`` goals
 and cancels; a shape the ROS type cannot hold raises :class:`~serveur.errors.RosbridgeError`.
-A goal once taken is the navigator's (:mod:`serveur.sim.navigator`).
+A goal once taken is the navigator's (:mod:`serveur.sim.navigator`); :class:`Inbox` keeps the
+action server's own memory (the goal ids it made, the last goal's and the last cancel's stamps).
 
 move_base's goals follow actionlib's ActionServer and SimpleActionServer (actionlib
 ``action_server.py``, ``status_tracker.py``, ``simple_action_server.py``; C++ move_base uses
@@ -32,6 +33,7 @@ the same rules) and shared/notes/rosbridge.md, checked on a real ROS1 stack:
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 from collections.abc import Mapping
@@ -41,8 +43,10 @@ from serveur.errors import RosbridgeError
 from serveur.robots import rosbridge as rb
 from serveur.robots.rosbridge import GoalStatus
 from serveur.sim import ros2
-from serveur.sim.base import Goal
 from serveur.sim.navigator import LAST_CANCEL_CANCELED, SAS_CANCELED, Navigator
+from serveur.sim.outbox import Outbox
+from serveur.sim.sensors import Sensors
+from serveur.sim.state import Goal, RobotState
 from serveur.sim.topics import ActionSink
 
 __all__ = ["Inbox"]
@@ -52,14 +56,43 @@ log = logging.getLogger("serveur.robot_sim")
 _MAP_FRAMES: Final = frozenset({"map", "/map", ""})
 
 
-class Inbox(Navigator):
+class Inbox:
     """The robot's subscriptions' handlers and Nav2's goal and cancel (module's docstring)."""
+
+    def __init__(
+        self,
+        state: RobotState,
+        outbox: Outbox,
+        navigator: Navigator,
+        sensors: Sensors,
+        *,
+        twist_stamped: bool,
+    ) -> None:
+        self.state = state
+        self.outbox = outbox
+        self.navigator = navigator
+        self.sensors = sensors
+        #: ROS 2: ``/cmd_vel`` is geometry_msgs/msg/TwistStamped.
+        self.twist_stamped = twist_stamped
+        #: Fault (``SimRobot.ignore_goals``): goals are listed, never run nor answered.
+        self.ignore_goals = False
+        self._goal_counter = itertools.count(1)
+        #: Stamp of the last goal the SimpleActionServer took (its current or next goal).
+        self._sas_stamp = 0.0
+        #: Latest stamp of a cancel-by-stamp (ActionServer's ``last_cancel``).
+        self._last_cancel = 0.0
+
+    def relocalise(self, x: float, y: float, yaw: float) -> None:
+        """The robot is at (x, y, yaw) now (an initial pose; a test's teleport)."""
+        self.state.motion.teleport(x, y, yaw)
+        self.sensors.relocalised()
+        self.navigator.replan()
 
     # -- incoming messages (raise RosbridgeError on shapes the ROS type cannot hold) ----------
 
     def handle_publish(self, topic: str, msg: Mapping[str, Any]) -> str | None:
         """Apply a client's message on a topic the robot subscribes; returns a warning or None."""
-        if self.ros == 2:
+        if self.state.ros == 2:
             return self._handle_publish2(topic, msg)
         if topic == "/cmd_vel":
             warn = self._on_cmd_vel(msg)
@@ -73,7 +106,7 @@ class Inbox(Navigator):
             warn = self._on_initialpose(msg)
         else:  # pragma: no cover - the endpoint checks ROBOT_SUBSCRIBES first
             raise RosbridgeError(f"the robot does not subscribe to {topic}")
-        self._relay(topic, msg)
+        self.outbox.relay(topic, msg)
         return warn
 
     def _handle_publish2(self, topic: str, msg: Mapping[str, Any]) -> str | None:
@@ -94,7 +127,7 @@ class Inbox(Navigator):
             self.nav2_goal(None, frame, x, y, q)
         else:  # pragma: no cover - the endpoint checks subscribes first
             raise RosbridgeError(f"the robot does not subscribe to {topic}")
-        self._relay(topic, msg)
+        self.outbox.relay(topic, msg)
         return None
 
     def _on_initialpose2(self, msg: Mapping[str, Any]) -> None:
@@ -105,15 +138,15 @@ class Inbox(Navigator):
         frame = _header_frame(m)
         x, y, yaw = rb.pose_from_msg(_obj(_obj(m.get("pose"), "pose").get("pose"), "pose.pose"))
         if frame.lstrip("/") != "map":
-            log.warning("%s: amcl ignores an initial pose in frame %r", self.name, frame)
+            log.warning("%s: amcl ignores an initial pose in frame %r", self.state.name, frame)
             return
         if not all(math.isfinite(v) for v in (x, y, yaw)) or not self._on_map(x, y):
-            log.warning("%s: amcl ignores an initial pose off the map or with NaN", self.name)
+            log.warning("%s: amcl ignores an initial pose off the map or with NaN", self.state.name)
             return
-        self._relocalise(x, y, yaw)
+        self.relocalise(x, y, yaw)
 
     def _on_map(self, x: float, y: float) -> bool:
-        g = self._map
+        g = self.state.map
         ox, oy = g.origin[0], g.origin[1]
         return ox <= x < ox + g.width * g.resolution and oy <= y < oy + g.height * g.resolution
 
@@ -130,37 +163,40 @@ class Inbox(Navigator):
     ) -> bool:
         """A NavigateToPose goal reaching the navigator; False if it is rejected.
 
-        ``gid`` is the id the client gave the goal (rosbridge's op id): :attr:`goal_statuses`
-        lists the goal under it, so a test sees which ids a driver sent (else ``nav2-N``).
+        ``gid`` is the id the client gave the goal (rosbridge's op id):
+        ``SimRobot.goal_statuses`` lists the goal under it, so a test sees which ids a driver
+        sent (else ``nav2-N``).
 
         A goal the navigator cannot take (not in the map frame, NaN, not a rotation about z,
         off the map) is rejected: rosbridge before its 2026 fix then sends no frame at all
         (shared/notes/ros2.md), so the owner never hears of it. A taken goal aborts (status 6)
         the one the navigator was driving: a new goal to Nav2's navigator is not a cancel.
         """
+        nav = self.navigator
         gid = gid if gid is not None else f"nav2-{next(self._goal_counter)}"
-        if self._ignore_goals:  # a hung navigator: the goal is listed, never run nor answered
-            self._goals.append(Goal(gid, self.epoch(), x, y, 0.0))
+        if self.ignore_goals:  # a hung navigator: the goal is listed, never run nor answered
+            nav.goals.append(Goal(gid, self.state.epoch(), x, y, 0.0))
             return True
         if _goal_problem(frame, x, y, q) is not None or not self._on_map(x, y):
             return False
-        goal = Goal(gid, self.epoch(), x, y, 0.0)
+        goal = Goal(gid, self.state.epoch(), x, y, 0.0)
         goal.yaw = rb.yaw_from_quaternion({"x": q[0], "y": q[1], "z": q[2], "w": q[3]})
-        goal.owner, goal.started = owner, self._t
-        for g in self._goals:
+        goal.owner, goal.started = owner, self.state.t
+        for g in nav.goals:
             if not g.terminal:
-                self._finish(g, GoalStatus.ABORTED, "preempted by a newer goal")
-        self._goals.append(goal)
-        self._teleop = None
-        self._pending = goal
+                nav.finish(g, GoalStatus.ABORTED, "preempted by a newer goal")
+        nav.goals.append(goal)
+        self.state.teleop = None
+        nav.pending = goal
         return True
 
     def nav2_cancel(self, owner: ActionSink) -> None:
         """A cancel request for the goal ``owner`` sent: CANCELING, then CANCELED at the
         navigator's next cycle (~20 ms after the cancel on a real stack)."""
-        for g in self._goals:
+        nav = self.navigator
+        for g in nav.goals:
             if g.owner is owner and not g.terminal:
-                self._cancel_one(g, "")
+                nav.cancel_one(g, "")
 
     def _on_cmd_vel(self, msg: Mapping[str, Any]) -> str | None:
         """A teleop command drives the base only while move_base has no goal.
@@ -170,13 +206,14 @@ class Inbox(Navigator):
         overrides a teleop command, so the command is dropped. Nav2's controller_server does
         the same to a ROS 2 robot's teleop.
         """
+        nav = self.navigator
         vx, vy, wz = rb.twist_from_msg(msg)
         if not all(math.isfinite(v) for v in (vx, vy, wz)):
             raise RosbridgeError("cmd_vel holds a non-finite velocity")
-        if self._active is not None or self._pending is not None:
+        if nav.active is not None or nav.pending is not None:
             return None
-        self._teleop = (vx, vy, wz)
-        self._teleop_t = self._clock.now()
+        self.state.teleop = (vx, vy, wz)
+        self.state.teleop_t = self.state.clock.now()
         return None
 
     def _on_initialpose(self, msg: Mapping[str, Any]) -> str | None:
@@ -187,7 +224,7 @@ class Inbox(Navigator):
             raise RosbridgeError(f"initialpose must be in the map frame, not {frame!r}")
         if not all(math.isfinite(v) for v in (x, y, yaw)):
             raise RosbridgeError("initialpose holds a non-finite value")
-        self._relocalise(x, y, yaw)
+        self.relocalise(x, y, yaw)
         return None
 
     def _on_action_goal(self, msg: Mapping[str, Any]) -> str | None:
@@ -203,51 +240,53 @@ class Inbox(Navigator):
 
     def _new_goal(self, gid: str, gstamp: float, target: Mapping[str, Any]) -> str | None:
         """A goal reaching move_base's action server (rules in the module's docstring)."""
+        nav = self.navigator
         frame = _header_frame(target)
         pose = _obj(target.get("pose"), "pose")
         x, y, _ = rb.point_from_msg(_obj(pose.get("position"), "position"))
         q = rb.quaternion_from_msg(_obj(pose.get("orientation"), "orientation"))
-        if self._ignore_goals:
+        if self.ignore_goals:
             return None
-        now = self.epoch()
+        now = self.state.epoch()
         if not gid:
             gid = f"/move_base-{next(self._goal_counter)}-{now:.9f}"
-        if any(g.id == gid for g in self._goals):
+        if any(g.id == gid for g in nav.goals):
             return f"goal {gid} is a duplicate; ignored"
         # StatusTracker: a zero stamp becomes the robot's now, so such a goal is the newest.
         goal = Goal(gid, gstamp if gstamp != 0.0 else now, x, y, 0.0)
-        self._goals.append(goal)
+        nav.goals.append(goal)
         if gstamp != 0.0 and gstamp <= self._last_cancel:  # ActionServer
-            self._finish(goal, GoalStatus.RECALLED, LAST_CANCEL_CANCELED)
+            nav.finish(goal, GoalStatus.RECALLED, LAST_CANCEL_CANCELED)
             return None
         if goal.stamp < self._sas_stamp:  # SimpleActionServer: older than the goal it has
-            self._finish(goal, GoalStatus.RECALLED, SAS_CANCELED)
+            nav.finish(goal, GoalStatus.RECALLED, SAS_CANCELED)
             return None
         self._sas_stamp = goal.stamp
         reason = _goal_problem(frame, x, y, q)
         if reason is not None:
-            self._finish(goal, GoalStatus.REJECTED, reason)
+            nav.finish(goal, GoalStatus.REJECTED, reason)
             return None
         goal.yaw = rb.yaw_from_quaternion({"x": q[0], "y": q[1], "z": q[2], "w": q[3]})
         # The newer goal preempts the current one (SimpleActionServer.accept_new_goal) and
         # bumps one still pending (internal_goal_callback).
-        for g in self._goals:
+        for g in nav.goals:
             if g is not goal and not g.terminal:
-                self._cancel_one(g, SAS_CANCELED, at_once=True)
-        self._teleop = None
-        self._pending = goal
-        self._publish_status()
+                nav.cancel_one(g, SAS_CANCELED, at_once=True)
+        self.state.teleop = None
+        nav.pending = goal
+        nav.publish_status()
         return None
 
     def _on_cancel(self, msg: Mapping[str, Any]) -> str | None:
         """ActionServer ``internal_cancel_callback``: all, by id, or up to a stamp."""
+        nav = self.navigator
         gid, stamp = rb.goal_id_from_msg(_obj(msg, "cancel"))
         everything = not gid and stamp == 0.0
-        for g in list(self._goals):
+        for g in list(nav.goals):
             if not g.terminal and (
                 everything or g.id == gid or (stamp != 0.0 and g.stamp <= stamp)
             ):
-                self._cancel_one(g, "")
+                nav.cancel_one(g, "")
         self._last_cancel = max(self._last_cancel, stamp)
         return None
 

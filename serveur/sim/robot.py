@@ -23,13 +23,13 @@ A robot made with ``ros=2`` is a ROS 2 robot running Nav2 behind rosbridge 2.x
 :mod:`serveur.sim.bridge`). The same body, planner and sensors, with these differences:
 
 * No ``/move_base/*`` topics: goals come as ``send_action_goal`` to ``navigate_to_pose``
-  (:meth:`SimRobot.nav2_goal`) or on ``/goal_pose`` (RViz2), and the robot answers the goal's
-  sender alone: feedback every physics tick (20 Hz, unthrottled, as the navigator's feedback
-  reached clients on a real stack) and one result, SUCCEEDED 4, CANCELED 5 (a cancel: CANCELING
-  until the navigator's next cycle) or ABORTED 6 (blocked, stuck, too slow, no path, or a newer
-  goal: Nav2's navigator aborts the goal it drives when another arrives). A goal it cannot take
-  (not in ``map``, NaN, not a rotation about z, off the map) is rejected, which rosbridge
-  before its 2026 fix never reports.
+  (:meth:`serveur.sim.inbox.Inbox.nav2_goal`) or on ``/goal_pose`` (RViz2), and the robot
+  answers the goal's sender alone: feedback every physics tick (20 Hz, unthrottled, as the
+  navigator's feedback reached clients on a real stack) and one result, SUCCEEDED 4, CANCELED 5
+  (a cancel: CANCELING until the navigator's next cycle) or ABORTED 6 (blocked, stuck, too slow,
+  no path, or a newer goal: Nav2's navigator aborts the goal it drives when another arrives). A
+  goal it cannot take (not in ``map``, NaN, not a rotation about z, off the map) is rejected,
+  which rosbridge before its 2026 fix never reports.
 * Every message has ROS 2 shapes: ``{sec, nanosec}`` stamps, headers without ``seq``;
   ``/battery_state`` leaves the temperature it does not measure NaN (``null``).
 * AMCL's "real" mode uses Nav2 amcl's defaults, 0.25 m / 0.2 rad.
@@ -44,22 +44,25 @@ A robot made with ``ros=2`` is a ROS 2 robot running Nav2 behind rosbridge 2.x
 Other robots are not obstacles unless the fleet says so (:meth:`SimRobot.share_floor`, the
 fleet's ``robots_see_each_other``; off by default): :mod:`serveur.sim.floor`.
 
-The robot is :class:`SimRobot`, built from one part per concern, each a class it inherits:
-:mod:`~serveur.sim.base` (the state they share, names, clock, pose),
-:mod:`~serveur.sim.sensors` (subscriptions and what is published),
-:mod:`~serveur.sim.navigator` (a goal's life and plan), :mod:`~serveur.sim.inbox` (what
+The robot is :class:`SimRobot`, composed of one part per concern: it owns a
+:class:`~serveur.sim.state.RobotState` (what the parts share: settings, clock, body, time) and
+creates its parts, each given the state and the parts it calls, none inheriting another —
+:mod:`~serveur.sim.outbox` (subscriptions and frames), :mod:`~serveur.sim.navigator` (a goal's
+life and plan; publishes through the outbox), :mod:`~serveur.sim.sensors` (what is published
+when; reads the navigator's goal for feedback and status), :mod:`~serveur.sim.inbox` (what
 clients send: goals, cancels, teleop, initial poses; move_base's rules for taking a goal) and
-:mod:`~serveur.sim.floor` (other robots). This module keeps the robot's construction, its fault
-hooks, the control cycle and the physics step, and re-exports the parts' public constants.
+:mod:`~serveur.sim.floor` (other robots; acts on the navigator's path). This module keeps the
+robot's construction, its public reads and fault hooks, the control cycle and the physics step,
+and re-exports the parts' public constants.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 import random
 import threading
-from typing import Final
+from collections.abc import Callable, Sequence
+from typing import Any, Final
 
 import numpy as np
 
@@ -68,11 +71,11 @@ from serveur.maps.navigation import OccupancyMap, Planner
 from serveur.robots import rosbridge as rb
 from serveur.robots.rosbridge import GoalStatus
 from serveur.sim import ros2
-from serveur.sim.base import TICK
 from serveur.sim.floor import ROBOT_GAP, ROBOT_PATIENCE, Floor
 from serveur.sim.inbox import Inbox
 from serveur.sim.kinematics import Kind, Limits, MotionModel, OdometryModel, wrap_angle
-from serveur.sim.navigator import LAST_CANCEL_CANCELED, SAS_ACCEPTED, SAS_CANCELED
+from serveur.sim.navigator import LAST_CANCEL_CANCELED, SAS_ACCEPTED, SAS_CANCELED, Navigator
+from serveur.sim.outbox import Outbox
 from serveur.sim.sensors import (
     AMCL_MODES,
     AMCL_TICKS,
@@ -81,8 +84,10 @@ from serveur.sim.sensors import (
     NAV2_UPDATE_MIN_A,
     NAV2_UPDATE_MIN_D,
     SCAN_RAYS,
+    Sensors,
 )
-from serveur.sim.topics import Frame
+from serveur.sim.state import TICK, RobotState
+from serveur.sim.topics import Frame, Sub
 
 __all__ = [
     "AMCL_MODES",
@@ -122,7 +127,7 @@ ROS1_SUBSCRIBES: Final = frozenset(
 ROS2_SUBSCRIBES: Final = frozenset({"/cmd_vel", "/initialpose", "/goal_pose"})
 
 
-class SimRobot(Inbox, Floor):
+class SimRobot:
     """One simulated robot: its body, its move_base, its sensors, and what it publishes.
 
     Public read-only state: ``name``, ``pose`` (true pose), ``kinematics``, ``battery``
@@ -134,6 +139,11 @@ class SimRobot(Inbox, Floor):
 
     ``clock_offset`` (seconds) is added to every stamp the robot makes (:meth:`epoch`);
     ``amcl`` is one of :data:`AMCL_MODES` (see the module's docstring).
+
+    Its parts, each given the shared :attr:`state` and the parts it calls: :attr:`outbox`
+    (subscriptions, frames), :attr:`navigator` (goals, plans), :attr:`sensors` (what is
+    published when), :attr:`inbox` (what clients send; the bridge hands it their messages) and
+    :attr:`floor` (other robots).
     """
 
     def __init__(
@@ -167,13 +177,7 @@ class SimRobot(Inbox, Floor):
             raise ValueError(f"release must be one of {ros2.RELEASES}, not {release!r}")
         if not math.isfinite(clock_offset):
             raise ValueError("clock_offset must be a finite number of seconds")
-        self.name = name
-        #: Every topic of the robot lives under this ROS namespace ("" for none, "/r1").
-        self.namespace = namespace.rstrip("/")
-        self.clock_offset = float(clock_offset)
         self.amcl = amcl
-        #: The dialect: 1 (rosbridge 0.11, move_base, amcl) or 2 (rosbridge 2.x, Nav2).
-        self.ros = ros
         #: ROS 2 release (:data:`serveur.sim.ros2.RELEASES`): the NavigateToPose result's shape
         #: and the defaults of the two switches below.
         self.release = release
@@ -188,83 +192,110 @@ class SimRobot(Inbox, Floor):
         if ros == 2:
             self.topic_types = ros2.topic_types(self.twist_stamped)
             self.subscribes = ROS2_SUBSCRIBES
-            self._amcl_min = (NAV2_UPDATE_MIN_D, NAV2_UPDATE_MIN_A)
         else:
             self.topic_types = dict(rb.TOPIC_TYPES)
             self.subscribes = ROS1_SUBSCRIBES
-            self._amcl_min = (AMCL_UPDATE_MIN_D, AMCL_UPDATE_MIN_A)
         self.index = index
         self.kinematics = kinematics
         self.home = home
         self.limits = limits or Limits()
-        self._map = grid
-        self._planner = planner
-        self._clock = clock
-        self._rng = random.Random(seed)
-        self._np_rng = np.random.default_rng(seed)
-        self._motion = MotionModel(kinematics, self.limits, *home)
-        self._odom = OdometryModel(self._rng)
-        self._battery = 1.0
-        self._charging = False
-        self._map_frame = map_frame
-        self._subs = {}
-        self._seqs = {}
-        self._t = clock.now()  # sim time of the last physics step
+        rng = random.Random(seed)
+        #: What the parts share (see :mod:`serveur.sim.state`).
+        self.state = state = RobotState(
+            name,
+            namespace=namespace.rstrip("/"),
+            clock_offset=float(clock_offset),
+            ros=ros,
+            clock=clock,
+            grid=grid,
+            planner=planner,
+            motion=MotionModel(kinematics, self.limits, *home),
+            odom=OdometryModel(rng),
+        )
         self._ticks = index  # staggers publishing across robots
-        # move_base
-        self._goals = []
-        self._pending = None
-        self._plan_fut = None
-        self._plan_goal = None
-        self._plan_lock = plan_lock or threading.Lock()
-        self._active = None
-        self._follower = None
-        self._goal_deadline = math.inf
-        self._blocked_since = None
-        self._stuck_for = 0.0
-        self._goal_counter = itertools.count(1)
-        #: Stamp of the last goal the SimpleActionServer took (its current or next goal).
-        self._sas_stamp = 0.0
-        #: Latest stamp of a cancel-by-stamp (ActionServer's ``last_cancel``).
-        self._last_cancel = 0.0
-        # AMCL in "real" mode: the latched pose, the true pose it was taken at, a forced update
-        self._amcl_frame = None
-        self._amcl_at = None
-        self._amcl_force = True
-        # teleop
-        self._teleop = None
-        self._teleop_t = -math.inf
-        # faults
         self._block_path = False
-        self._ignore_goals = False
-        self._drop_results = 0
-        self._ros_side_dead = False
-        self._node_dead = False
-        # laser
-        self._scan_rel = -math.pi + (2.0 * math.pi / SCAN_RAYS) * np.arange(SCAN_RAYS)
-        self._scan_cache = None
-        # other robots (share_floor): none unless the fleet makes them solid
-        #: Footprint radius (m): the planner's robot radius, a disc.
-        self.radius = planner.robot_radius
-        self._others = ()
-        self._patience = ROBOT_PATIENCE
-        self._wait_since = None  # sim time a robot in the way stopped this one
-        self._wait_at = (0.0, 0.0)  # where it stopped
-        self._replanned = -math.inf  # sim time of the last plan around standing robots
-        #: A plan around robots under way: (sim time to take it, where it starts, the plan).
-        self._detour = None
-        self._robots_scan = None
+        self.outbox = Outbox(state, map_frame)
+        self.navigator = Navigator(
+            state,
+            self.outbox,
+            kinematics=kinematics,
+            limits=self.limits,
+            release=release,
+            plan_lock=plan_lock or threading.Lock(),
+        )
+        self.sensors = Sensors(
+            state,
+            self.outbox,
+            self.navigator,
+            amcl=amcl,
+            rng=rng,
+            np_rng=np.random.default_rng(seed),
+        )
+        self.inbox = Inbox(
+            state, self.outbox, self.navigator, self.sensors, twist_stamped=self.twist_stamped
+        )
+        self.floor = Floor(state, self.navigator)
 
-    # -- public state and fault hooks ------------------------------------------------------
+    # -- public state ----------------------------------------------------------------------
+
+    @property
+    def name(self) -> str:
+        return self.state.name
+
+    @property
+    def namespace(self) -> str:
+        """Every topic of the robot lives under this ROS namespace ("" for none, "/r1")."""
+        return self.state.namespace
+
+    @property
+    def clock_offset(self) -> float:
+        return self.state.clock_offset
+
+    @property
+    def ros(self) -> int:
+        """The dialect: 1 (rosbridge 0.11, move_base, amcl) or 2 (rosbridge 2.x, Nav2)."""
+        return self.state.ros
+
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """True pose (x, y, yaw) in the map frame."""
+        return self.state.pose
+
+    @property
+    def velocity(self) -> tuple[float, float, float]:
+        """True body velocity (vx, vy, wz)."""
+        return self.state.velocity
+
+    def epoch(self) -> float:
+        """The robot's ROS time now: the fleet clock's Unix time plus ``clock_offset``."""
+        return self.state.epoch()
+
+    def wire(self, topic: str) -> str:
+        """A topic's name on the wire: under the robot's namespace, if it has one."""
+        return self.state.wire(topic)
+
+    def local(self, topic: str) -> str | None:
+        """A wire name without the namespace (None: a name outside the robot's namespace)."""
+        return self.state.local(topic)
+
+    @property
+    def ros_side_dead(self) -> bool:
+        """ROS 2 fault: rosbridge's ROS side stopped (see :meth:`stop_bridge_ros_side`)."""
+        return self.state.ros_side_dead
+
+    @property
+    def node_dead(self) -> bool:
+        """ROS 2 fault: the robot's node is dead behind a live bridge (:meth:`kill_node`)."""
+        return self.state.node_dead
 
     @property
     def battery(self) -> float:
         """State of charge, 0..1 (sensor_msgs/BatteryState.percentage)."""
-        return self._battery
+        return self.state.battery
 
     @battery.setter
     def battery(self, value: float) -> None:
-        self._battery = min(1.0, max(0.0, float(value)))
+        self.state.battery = min(1.0, max(0.0, float(value)))
 
     @property
     def goal_statuses(self) -> list[tuple[str, GoalStatus, str]]:
@@ -272,26 +303,46 @@ class SimRobot(Inbox, Floor):
         its navigator's goals the same way: under the client's goal id (``nav2-N`` without
         one), with actionlib statuses (a cancelled goal PREEMPTED, one aborted by a newer goal
         ABORTED; a goal taken while :meth:`ignore_goals` is on stays PENDING)."""
-        return [(g.id, g.status, g.text) for g in self._goals]
+        return [(g.id, g.status, g.text) for g in self.navigator.goals]
+
+    @property
+    def _subs(self) -> dict[str, list[Sub]]:
+        """The clients' subscriptions by topic (tests read their throttles)."""
+        return self.outbox.subs
+
+    @property
+    def _build_amcl(self) -> Callable[[int, float], dict[str, Any]]:
+        """What builds ``/amcl_pose``; a test swaps it to make the localisation drift."""
+        return self.sensors.amcl_builder
+
+    @_build_amcl.setter
+    def _build_amcl(self, build: Callable[[int, float], dict[str, Any]]) -> None:
+        self.sensors.amcl_builder = build
+
+    # -- fault hooks and other robots -------------------------------------------------------
+
+    def share_floor(self, others: Sequence[SimRobot], patience: float = ROBOT_PATIENCE) -> None:
+        """Make ``others`` solid for this robot (:meth:`serveur.sim.floor.Floor.share`)."""
+        self.floor.share([o.state for o in others], patience)
 
     def block_path(self, on: bool) -> None:
         """Fault hook: while on, the active goal (or the next one) ABORTs as if the aisle were
         blocked — the robot stops and gives up after ``BLOCKED_ABORT_AFTER`` s of sim time."""
         self._block_path = bool(on)
         if not on:
-            self._blocked_since = None
+            self.navigator.blocked_since = None
 
     def ignore_goals(self, on: bool) -> None:
         """Fault hook: while on, goals are never acknowledged — status keeps publishing without
         them, no result ever comes (a hung move_base). A ROS 2 goal then gets no frame at all,
         and with the queue trap its connection stays held."""
-        self._ignore_goals = bool(on)
+        self.inbox.ignore_goals = bool(on)
 
     def drop_results(self, n: int = 1) -> None:
         """Fault hook (ROS 2): the next ``n`` goals end on the robot but their ``action_result``
         never reaches the client (measured about once in 200 goals on a real Jazzy stack,
         shared/notes/ros2.md; the cause is unknown). The connection is not held by them."""
-        self._drop_results = max(0, int(n))
+        self.navigator.drop_results = max(0, int(n))
 
     def stop_bridge_ros_side(self) -> None:
         """Fault hook (ROS 2): rosbridge got SIGTERM or SIGINT (what ``ros2 launch`` and
@@ -304,14 +355,14 @@ class SimRobot(Inbox, Floor):
         ``action_result`` with ``result`` false and the same text (rosbridge's capability
         reports an exception so; inferred, not measured); other ops do nothing. Only a new
         rosbridge heals it: ``Simulation.restart_rosbridge``."""
-        self._ros_side_dead = True
-        self._teleop = None
+        self.state.ros_side_dead = True
+        self.state.teleop = None
 
     def bridge_restarted(self) -> None:
         """A new rosbridge process runs (its old connections are gone: the caller closes
         them): the robot's topics reach clients again, AMCL's latched pose first."""
-        self._ros_side_dead = False
-        self._amcl_force = True
+        self.state.ros_side_dead = False
+        self.sensors.force_amcl()
 
     def kill_node(self) -> None:
         """Fault hook (ROS 2): the robot's node dies while rosbridge and rosapi live
@@ -321,61 +372,62 @@ class SimRobot(Inbox, Floor):
         holding a Humble connection), a new goal gets no frame at all (no action server),
         cancels and ``/cmd_vel`` reach nobody — and ``/bt_navigator/get_state`` is never
         answered (rosapi still lists the dead node, so rosbridge waits for it)."""
-        self._node_dead = True
-        self._teleop = None
-        for g in list(self._goals):
+        self.state.node_dead = True
+        self.state.teleop = None
+        for g in list(self.navigator.goals):
             if not g.terminal:
                 g.owner = None  # its result never reaches the bridge
-                self._finish(g, GoalStatus.ABORTED, "the navigator died")
+                self.navigator.finish(g, GoalStatus.ABORTED, "the navigator died")
 
     def restart_node(self) -> None:
         """The robot's node is back: a fresh navigator (active, no goal), AMCL publishing
         its pose at start."""
-        self._node_dead = False
-        self._amcl_force = True
+        self.state.node_dead = False
+        self.sensors.force_amcl()
 
     def teleport(self, x: float, y: float, yaw: float) -> None:
         """Put the robot somewhere else (like /initialpose, for tests)."""
-        self._relocalise(x, y, yaw)
+        self.inbox.relocalise(x, y, yaw)
 
     # -- move_base's control cycle -----------------------------------------------------------
 
     def _command(self, now: float) -> tuple[float, float, float]:
-        if self._active is not None and self._active.status == GoalStatus.PREEMPTING:
+        st, nav = self.state, self.navigator
+        if nav.active is not None and nav.active.status == GoalStatus.PREEMPTING:
             # move_base's control cycle sees the preempt request: zero velocity, setPreempted()
-            self._finish(self._active, GoalStatus.PREEMPTED, "")
+            nav.finish(nav.active, GoalStatus.PREEMPTED, "")
             return 0.0, 0.0, 0.0
-        if self._teleop is not None:
-            if now - self._teleop_t > CMD_VEL_TIMEOUT * self._clock.time_scale:
-                self._teleop = None  # stale: stop, as a velocity watchdog does
+        if st.teleop is not None:
+            if now - st.teleop_t > CMD_VEL_TIMEOUT * st.clock.time_scale:
+                st.teleop = None  # stale: stop, as a velocity watchdog does
                 return 0.0, 0.0, 0.0
-            return self._teleop
-        if self._plan_fut is not None and self._plan_fut.done():
-            self._take_plan()
-        if self._pending is not None and self._plan_fut is None:
-            self._request_plan(self._pending)
-            if self._plan_fut is not None and self._plan_fut.done():  # planned at once
-                self._take_plan()
-        g, f = self._active, self._follower
+            return st.teleop
+        if nav.plan_fut is not None and nav.plan_fut.done():
+            nav.take_plan()
+        if nav.pending is not None and nav.plan_fut is None:
+            nav.request_plan(nav.pending)
+            if nav.plan_fut is not None and nav.plan_fut.done():  # planned at once
+                nav.take_plan()
+        g, f = nav.active, nav.follower
         if g is None or f is None:
             return 0.0, 0.0, 0.0
         if self._block_path:
-            if self._blocked_since is None:
-                self._blocked_since = self._t
-            elif self._t - self._blocked_since >= BLOCKED_ABORT_AFTER:
-                self._finish(
+            if nav.blocked_since is None:
+                nav.blocked_since = st.t
+            elif st.t - nav.blocked_since >= BLOCKED_ABORT_AFTER:
+                nav.finish(
                     g,
                     GoalStatus.ABORTED,
                     "path blocked: no valid plan (aisle obstructed)",
                     code=ros2.NO_VALID_PATH,
                 )
             return 0.0, 0.0, 0.0
-        if self._t > self._goal_deadline:
-            self._finish(
+        if st.t > nav.goal_deadline:
+            nav.finish(
                 g, GoalStatus.ABORTED, "the robot did not reach the goal in time", code=ros2.UNKNOWN
             )
             return 0.0, 0.0, 0.0
-        m = self._motion
+        m = st.motion
         cmd = f.command(m.x, m.y, m.yaw)
         if f.done and m.speed < 0.01 and abs(m.wz) < 0.02:
             dx, dy = g.x - m.x, g.y - m.y
@@ -383,22 +435,23 @@ class SimRobot(Inbox, Floor):
                 math.hypot(dx, dy) <= f.xy_tolerance
                 and abs(wrap_angle(g.yaw - m.yaw)) <= f.yaw_tolerance
             ):
-                self._finish(g, GoalStatus.SUCCEEDED, "Goal reached.")
+                nav.finish(g, GoalStatus.SUCCEEDED, "Goal reached.")
                 return 0.0, 0.0, 0.0
-        if self._others:
-            return self._mind_robots(g, cmd)
+        if st.others:
+            return self.floor.mind_robots(g, cmd)
         return cmd
 
     # -- physics -----------------------------------------------------------------------------
 
     def _step(self, dt: float) -> None:
-        self._t += dt
-        m = self._motion
+        st, nav = self.state, self.navigator
+        st.t += dt
+        m = st.motion
         if (
-            self._teleop is None
-            and self._active is None
-            and self._pending is None
-            and self._plan_fut is None
+            st.teleop is None
+            and nav.active is None
+            and nav.pending is None
+            and nav.plan_fut is None
             and m.vx == 0.0
             and m.vy == 0.0
             and m.wz == 0.0
@@ -407,21 +460,21 @@ class SimRobot(Inbox, Floor):
             # odometry reads zero; only the battery and the goal list age. Same state as the
             # general path below, at a fraction of its cost (five robots x 20 Hz, replayed at
             # 300x, are 30,000 steps a wall second).
-            self._odom.update(0.0, 0.0, 0.0, dt)
-            self._stuck_for = 0.0
+            st.odom.update(0.0, 0.0, 0.0, dt)
+            nav.stuck_for = 0.0
             self._battery_tick(dt)
-            if self._goals and self._goals[0].ended < self._t - TERMINAL_KEEP:
-                self._goals = [g for g in self._goals if g.ended >= self._t - TERMINAL_KEEP]
+            if nav.goals and nav.goals[0].ended < st.t - TERMINAL_KEEP:
+                nav.goals = [g for g in nav.goals if g.ended >= st.t - TERMINAL_KEEP]
             return
-        now = self._clock.now()
+        now = st.clock.now()
         cmd = self._command(now)
         if cmd == (0.0, 0.0, 0.0) and m.vx == 0.0 and m.vy == 0.0 and m.wz == 0.0:
             moved_ok = True  # at rest: nothing to integrate
-            self._odom.update(0.0, 0.0, 0.0, dt)
+            st.odom.update(0.0, 0.0, 0.0, dt)
         else:
             x0, y0 = m.x, m.y
-            moved_ok = m.step(*cmd, dt, self._planner.is_traversable)
-            if self._others and self._into_robot(x0, y0, m.x, m.y):
+            moved_ok = m.step(*cmd, dt, st.planner.is_traversable)
+            if st.others and self.floor.into_robot(x0, y0, m.x, m.y):
                 m.x, m.y = x0, y0  # never into another robot: the base stops short
                 m.vx = m.vy = 0.0
             if (
@@ -431,41 +484,43 @@ class SimRobot(Inbox, Floor):
                 and cmd == (0.0, 0.0, 0.0)
             ):
                 m.vx = m.vy = m.wz = 0.0
-            self._odom.update(m.vx, m.vy, m.wz, dt)
+            st.odom.update(m.vx, m.vy, m.wz, dt)
             self._battery_drain(math.hypot(m.x - x0, m.y - y0))
-        if not moved_ok and self._active is not None:
-            self._stuck_for += dt
-            if self._stuck_for >= STUCK_ABORT_AFTER:
-                self._finish(
-                    self._active,
+        if not moved_ok and nav.active is not None:
+            nav.stuck_for += dt
+            if nav.stuck_for >= STUCK_ABORT_AFTER:
+                nav.finish(
+                    nav.active,
                     GoalStatus.ABORTED,
                     "the robot is stuck against an obstacle",
                     code=ros2.FAILED_TO_MAKE_PROGRESS,
                 )
         elif moved_ok:
-            self._stuck_for = 0.0
+            nav.stuck_for = 0.0
         self._battery_tick(dt)
-        if self._goals and self._goals[0].ended < self._t - TERMINAL_KEEP:
-            self._goals = [g for g in self._goals if g.ended >= self._t - TERMINAL_KEEP]
+        if nav.goals and nav.goals[0].ended < st.t - TERMINAL_KEEP:
+            nav.goals = [g for g in nav.goals if g.ended >= st.t - TERMINAL_KEEP]
 
     def _battery_drain(self, distance: float) -> None:
-        self._battery = max(0.0, self._battery - distance / 4000.0)  # ~4 km of driving a charge
+        st = self.state
+        st.battery = max(0.0, st.battery - distance / 4000.0)  # ~4 km of driving a charge
 
     def _battery_tick(self, dt: float) -> None:
-        m = self._motion
+        st = self.state
+        m = st.motion
         hx, hy, _ = self.home
         at_home = (
             m.vx == 0.0
             and m.vy == 0.0
-            and self._active is None
-            and self._teleop is None
+            and self.navigator.active is None
+            and st.teleop is None
             and math.hypot(m.x - hx, m.y - hy) < 0.25
         )
-        self._charging = at_home
+        st.charging = at_home
         if at_home:
-            self._battery = min(1.0, self._battery + dt / 7200.0)  # full in 2 h
+            st.battery = min(1.0, st.battery + dt / 7200.0)  # full in 2 h
         else:
-            self._battery = max(0.0, self._battery - dt / 43200.0)  # 12 h idle
+            st.battery = max(0.0, st.battery - dt / 43200.0)  # 12 h idle
 
     # -- the tick: physics, then what falls due -----------------------------------------------
 
@@ -475,10 +530,11 @@ class SimRobot(Inbox, Floor):
         Publishing per tick (not once per pass) keeps publish rates and stamps tied to sim
         time when the loop has to catch up several ticks at once (high time scales, load).
         """
+        st = self.state
         for _ in range(steps):
             self._step(TICK)
             self._ticks = k = self._ticks + 1
             # A latched pose is kept without subscribers; a ROS 2 goal's feedback has none.
             # Nothing reaches clients while the robot's node or the bridge's ROS side is dead.
-            if (self._subs or self.amcl == "real" or self.ros == 2) and self._relaying:
-                self._publish_due(k)
+            if (self.outbox.subs or self.amcl == "real" or st.ros == 2) and st.relaying:
+                self.sensors.publish_due(k)

@@ -1,8 +1,8 @@
 """What a simulated robot publishes, at which rates: odometry, AMCL, laser, battery, status.
 
-Split from :mod:`serveur.sim.robot`: the robot's subscriptions (a client's, kept per topic, a
-latched topic's last message offered to a new one) and its publishing, each frame built only
-when a subscriber takes it now, at whole numbers of :data:`~serveur.sim.base.TICK`: ``/odom``
+Split from :mod:`serveur.sim.robot`: the robot's publishing schedule (through its
+:class:`~serveur.sim.outbox.Outbox`, each frame built only when a subscriber takes it now),
+at whole numbers of :data:`~serveur.sim.state.TICK`: ``/odom``
 20 Hz, ``/amcl_pose`` 10 Hz (or, in AMCL's "real" mode, latched and only after motion, see
 :mod:`serveur.sim.robot`), move_base's feedback 10 Hz and status 5 Hz (a ROS 2 goal's
 feedback every tick, to its sender alone), ``/scan`` 5 Hz (ray-cast on the map, other robots'
@@ -12,7 +12,8 @@ footprints in it when the floor is shared), ``/battery_state`` 1 Hz; noise on AM
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+import random
+from collections.abc import Callable
 from typing import Any, Final
 
 import numpy as np
@@ -21,9 +22,10 @@ import numpy.typing as npt
 from serveur.maps.navigation import raycast
 from serveur.robots import rosbridge as rb
 from serveur.sim import ros2
-from serveur.sim.base import TICK, Goal, RobotBase
 from serveur.sim.kinematics import wrap_angle
-from serveur.sim.topics import Frame, Sub
+from serveur.sim.navigator import Navigator
+from serveur.sim.outbox import Outbox
+from serveur.sim.state import TICK, Goal, RobotState
 
 __all__ = [
     "AMCL_MODES",
@@ -61,72 +63,63 @@ _AMCL_COVARIANCE[0] = _AMCL_COVARIANCE[7] = AMCL_NOISE_XY**2
 _AMCL_COVARIANCE[35] = AMCL_NOISE_YAW**2
 
 
-class Sensors(RobotBase):
-    """The robot's subscriptions and everything it publishes (see the module's docstring)."""
+class Sensors:
+    """What the robot publishes and when (see the module's docstring).
 
-    # -- subscriptions -----------------------------------------------------------------------
+    The navigator's feedback and status go out here at their rates; what it publishes when a
+    goal changes (status, results) it sends itself (:mod:`serveur.sim.navigator`).
+    """
 
-    def _add_sub(self, sub: Sub) -> None:
-        self._subs.setdefault(sub.topic, []).append(sub)
-
-    def _remove_sub(self, sub: Sub) -> None:
-        subs = self._subs.get(sub.topic)
-        if subs and sub in subs:
-            subs.remove(sub)
-            if not subs:
-                del self._subs[sub.topic]
-
-    def _next_seq(self, topic: str) -> int:
-        s = self._seqs.get(topic, 0)
-        self._seqs[topic] = s + 1
-        return s
-
-    def _publish(
+    def __init__(
         self,
-        topic: str,
-        build: Callable[[int, float], dict[str, Any]],
-        stamp: float | None = None,
+        state: RobotState,
+        outbox: Outbox,
+        navigator: Navigator,
+        *,
+        amcl: str,
+        rng: random.Random,
+        np_rng: np.random.Generator,
     ) -> None:
-        """Build (only if a subscriber takes it now) and hand one frame to every subscriber.
+        self.state = state
+        self.outbox = outbox
+        self.navigator = navigator
+        self.amcl = amcl
+        self._amcl_min = (
+            (NAV2_UPDATE_MIN_D, NAV2_UPDATE_MIN_A)
+            if state.ros == 2
+            else (AMCL_UPDATE_MIN_D, AMCL_UPDATE_MIN_A)
+        )
+        self._rng = rng
+        self._np_rng = np_rng
+        # AMCL in "real" mode: the true pose the latched pose was taken at, a forced update
+        self._amcl_at: tuple[float, float, float] | None = None
+        self._amcl_force = True
+        #: Builds ``/amcl_pose`` (a test swaps it, through ``SimRobot._build_amcl``, to make
+        #: the localisation drift).
+        self.amcl_builder: Callable[[int, float], dict[str, Any]] = self._build_amcl
+        # laser
+        self._scan_rel = -math.pi + (2.0 * math.pi / SCAN_RAYS) * np.arange(SCAN_RAYS)
+        self._scan_cache: tuple[tuple[float, float, float], npt.NDArray[np.float64]] | None = None
+        self._robots_scan: (
+            tuple[
+                tuple[float, float, float], tuple[tuple[float, float], ...], npt.NDArray[np.float64]
+            ]
+            | None
+        ) = None
 
-        ``stamp`` defaults to now; ticks pass their own sim time.
-        """
-        subs = self._subs.get(topic)
-        if not subs:
-            return
-        t = self._t
-        wanting = [s for s in subs if s.wants(t)]
-        if not wanting:
-            return
-        if stamp is None:
-            stamp = self.epoch()
-        msg = build(self._next_seq(topic), stamp)
-        frame = Frame(rb.op_publish(self.wire(topic), ros2.to_ros2(msg) if self.ros == 2 else msg))
-        for s in wanting:
-            s.push(frame, t)
+    def force_amcl(self) -> None:
+        """AMCL publishes its pose at the next update whatever the motion (a node's start)."""
+        self._amcl_force = True
 
-    def _relay(self, topic: str, msg: Mapping[str, Any]) -> None:
-        """A client's publish on a robot topic also reaches that topic's subscribers (ROS does)."""
-        if topic in self._subs:
-            frame = Frame(rb.op_publish(self.wire(topic), msg))
-            t = self._clock.now()
-            for s in list(self._subs[topic]):
-                if s.wants(t):
-                    s.push(frame, t)
-
-    def _offer_latched(self, sub: Sub) -> None:
-        """A new subscriber to a latched topic gets its last message at once (not from a
-        dead node)."""
-        if not self._relaying:
-            return
-        if sub.topic == "/map" and self._map_frame is not None:
-            sub.push(self._map_frame, self._t)
-        elif sub.topic == "/amcl_pose" and self._amcl_frame is not None:
-            sub.push(self._amcl_frame, self._t)
+    def relocalised(self) -> None:
+        """The robot was put elsewhere: AMCL publishes the pose it was given, the laser looks
+        again."""
+        self._scan_cache = None
+        self._amcl_force = True
 
     def _nav2_feedback(self, g: Goal, stamp: float) -> dict[str, Any]:
-        x, y, yaw = self.pose
-        f = self._follower
+        x, y, yaw = self.state.pose
+        f = self.navigator.follower
         if f is None:
             left = math.hypot(g.x - x, g.y - y)
         else:
@@ -141,33 +134,36 @@ class Sensors(RobotBase):
             y,
             yaw,
             stamp=stamp,
-            navigation_time=self._t - g.started,
+            navigation_time=self.state.t - g.started,
             distance_remaining=left,
-            speed=self._motion.speed,
+            speed=self.state.motion.speed,
         )
 
-    def _publish_due(self, k: int) -> None:
-        stamp = self._tick_stamp()
+    def publish_due(self, k: int) -> None:
+        """Publish what falls due at tick ``k``, stamped with the last physics step's time."""
+        stamp = self.state.tick_stamp()
+        publish = self.outbox.publish
+        active = self.navigator.active
         if k % _ODOM_TICKS == 0:
-            self._publish("/odom", self._build_odom, stamp)
+            publish("/odom", self._build_odom, stamp)
         if k % AMCL_TICKS == 0:
             if self.amcl == "real":
                 self._amcl_update(stamp)
             else:
-                self._publish("/amcl_pose", self._build_amcl, stamp)
-        if self.ros == 2:
-            g = self._active
+                publish("/amcl_pose", self.amcl_builder, stamp)
+        if self.state.ros == 2:
+            g = active
             if g is not None and g.owner is not None and g.owner.feedback:
                 # One action_feedback per navigator feedback, unthrottled (20 Hz here).
                 g.owner.send_feedback(self._nav2_feedback(g, stamp))
-        elif k % _FEEDBACK_TICKS == 0 and self._active is not None:
-            self._publish("/move_base/feedback", self._build_feedback, stamp)
+        elif k % _FEEDBACK_TICKS == 0 and active is not None:
+            publish("/move_base/feedback", self._build_feedback, stamp)
         if k % _SCAN_TICKS == 0:
-            self._publish("/scan", self._build_scan, stamp)
-        if k % _STATUS_TICKS == 0 and self.ros == 1:
-            self._publish("/move_base/status", self._build_status, stamp)
+            publish("/scan", self._build_scan, stamp)
+        if k % _STATUS_TICKS == 0 and self.state.ros == 1:
+            self.navigator.publish_status(stamp)
         if k % _BATTERY_TICKS == 0:
-            self._publish("/battery_state", self._build_battery, stamp)
+            publish("/battery_state", self._build_battery, stamp)
 
     def _amcl_update(self, stamp: float) -> None:
         """AMCL in "real" mode: publish (latched) only when forced or after enough motion.
@@ -178,7 +174,7 @@ class Sensors(RobotBase):
         more than 0.2 m (straight-line distance) or 30 degrees since the last published pose;
         for a ROS 2 robot Nav2's amcl defaults, 0.25 m or 0.2 rad (shared/notes/ros2.md).
         """
-        x, y, yaw = self.pose
+        x, y, yaw = self.state.pose
         at = self._amcl_at
         if (
             not self._amcl_force
@@ -189,31 +185,18 @@ class Sensors(RobotBase):
             return
         self._amcl_force = False
         self._amcl_at = (x, y, yaw)
-        msg = self._build_amcl(self._next_seq("/amcl_pose"), stamp)
-        frame = Frame(
-            rb.op_publish(self.wire("/amcl_pose"), ros2.to_ros2(msg) if self.ros == 2 else msg)
-        )
-        self._amcl_frame = frame
-        t = self._t
-        for s in self._subs.get("/amcl_pose", ()):
-            if s.wants(t):
-                s.push(frame, t)
-
-    def _publish_status(self) -> None:
-        if self.ros == 1:
-            self._publish("/move_base/status", self._build_status)
-
-    def _build_status(self, seq: int, stamp: float) -> dict[str, Any]:
-        return rb.goal_status_array(
-            [(g.id, g.status, g.text, g.stamp) for g in self._goals], stamp=stamp, seq=seq
+        out = self.outbox
+        out.publish_latched(
+            "/amcl_pose",
+            out.frame("/amcl_pose", self.amcl_builder(out.next_seq("/amcl_pose"), stamp)),
         )
 
     def _build_odom(self, seq: int, stamp: float) -> dict[str, Any]:
-        o = self._odom
+        o = self.state.odom
         return rb.odometry(o.x, o.y, o.yaw, o.vx, o.vy, o.wz, stamp=stamp, seq=seq)
 
     def _build_amcl(self, seq: int, stamp: float) -> dict[str, Any]:
-        x, y, yaw = self.pose
+        x, y, yaw = self.state.pose
         g = self._rng.gauss
         return rb.pose_with_covariance_stamped(
             x + g(0.0, AMCL_NOISE_XY),
@@ -225,25 +208,26 @@ class Sensors(RobotBase):
         )
 
     def _build_feedback(self, seq: int, stamp: float) -> dict[str, Any]:
-        g = self._active
+        g = self.navigator.active
         assert g is not None
-        x, y, yaw = self.pose
+        x, y, yaw = self.state.pose
         return rb.move_base_feedback(
             g.id, g.status, x, y, yaw, stamp=stamp, seq=seq, goal_stamp=g.stamp
         )
 
     def _build_scan(self, seq: int, stamp: float) -> dict[str, Any]:
-        pose = self.pose
+        pose = self.state.pose
         cache = self._scan_cache
         if cache is None or cache[0] != pose:
             # Ray-cast only when the robot moved: at rest the room looks the same.
             x, y, yaw = pose
             clean = np.asarray(
-                raycast(self._map, x, y, self._scan_rel + yaw, SCAN_RANGE_MAX), dtype=np.float64
+                raycast(self.state.map, x, y, self._scan_rel + yaw, SCAN_RANGE_MAX),
+                dtype=np.float64,
             )
             self._scan_cache = cache = (pose, clean)
         ranges = cache[1]
-        if self._others:
+        if self.state.others:
             ranges = np.minimum(ranges, self._robot_ranges(*pose))
         ranges = ranges + self._np_rng.normal(0.0, SCAN_NOISE, SCAN_RAYS)
         ranges[ranges < SCAN_RANGE_MIN] = SCAN_RANGE_MIN
@@ -268,12 +252,12 @@ class Sensors(RobotBase):
         does not see inside a body. Kept while neither this robot nor any other moved (a
         parked fleet's scans cost one comparison).
         """
-        where = tuple((o._motion.x, o._motion.y) for o in self._others)
+        where = tuple((o.motion.x, o.motion.y) for o in self.state.others)
         cache = self._robots_scan
         if cache is not None and cache[0] == (x, y, yaw) and cache[1] == where:
             return cache[2]
         c = np.asarray(where, dtype=np.float64).reshape(-1, 2) - (x, y)
-        r = np.fromiter((o.radius for o in self._others), np.float64, len(self._others))
+        r = np.fromiter((o.radius for o in self.state.others), np.float64, len(self.state.others))
         d2 = (c * c).sum(axis=1)
         near = (d2 > r * r) & (d2 <= (SCAN_RANGE_MAX + r) ** 2)
         out = np.full(SCAN_RAYS, np.inf)
@@ -288,9 +272,9 @@ class Sensors(RobotBase):
         return out
 
     def _build_battery(self, seq: int, stamp: float) -> dict[str, Any]:
-        m = self._motion
-        pct = self._battery
-        if self._charging:
+        m = self.state.motion
+        pct = self.state.battery
+        if self.state.charging:
             status, current = (
                 (rb.BatteryStatus.FULL, 0.0) if pct >= 1.0 else (rb.BatteryStatus.CHARGING, 5.0)
             )
@@ -303,7 +287,7 @@ class Sensors(RobotBase):
             voltage=21.0 + 4.2 * pct,
             current=current,
             status=status,
-            serial_number=self.name,
+            serial_number=self.state.name,
             # A ROS 2 driver leaves what it does not measure NaN (null on the wire).
-            temperature=math.nan if self.ros == 2 else 30.0,
+            temperature=math.nan if self.state.ros == 2 else 30.0,
         )

@@ -334,11 +334,11 @@ async def test_queue_trap_cmd_vel_waits_but_a_cancel_from_elsewhere_works(
     await feedback(c, "far")
     await c.send(rb.op_publish("/cmd_vel", rb.twist(0.3, 0.0, 0.0)))  # held behind the goal
     await ping2(other)
-    assert robot._teleop is None and len(humble._endpoints[0].clients) == 2
+    assert robot.state.teleop is None and len(humble._endpoints[0].clients) == 2
     await other.send(cancel_goal("far"))
     assert (await result(c, "far"))["status"] == ros2.CANCELED
     await ping2(c)  # queued after the twist
-    assert robot._teleop == (0.3, 0.0, 0.0)  # handled only once the goal ended: it drives
+    assert robot.state.teleop == (0.3, 0.0, 0.0)  # handled only once the goal ended: it drives
 
 
 async def test_without_the_trap_a_cancel_on_the_same_connection_is_at_once(
@@ -445,7 +445,7 @@ async def test_cmd_vel_is_ignored_while_a_goal_drives(sim: Simulation) -> None:
     for i in range(3):
         await c.send(rb.op_publish("/cmd_vel", rb.twist(-0.4, 0.0, 0.7)))
         await ping2(c, f"p{i}")  # handled
-        assert robot._active is not None and robot._teleop is None
+        assert robot.navigator.active is not None and robot.state.teleop is None
     assert (await result(c, "g"))["status"] == ros2.SUCCEEDED
     assert math.hypot(robot.pose[0] - FAR[0], robot.pose[1] - FAR[1]) <= 0.1
 
@@ -460,7 +460,7 @@ async def test_twist_stamped_switch() -> None:
         await c.send(rb.op_publish("/cmd_vel", rb.twist(-0.4, 0.0, 0.0)) | {"id": "plain"})
         err = await c.wait_for(lambda m: m["op"] == "status")
         assert err["id"] == "plain" and "does not have a field" in err["msg"]
-        assert s.robots[0]._teleop is None
+        assert s.robots[0].state.teleop is None
         await c.send(rb.op_subscribe("/odom"))
         stamped = {"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": "base_link"}}
         stamped["twist"] = rb.twist(-0.4, 0.0, 0.0)
