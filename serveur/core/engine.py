@@ -354,10 +354,6 @@ class Core:
 
     # -- what screens are told --------------------------------------------------------------
 
-    def publish_robot(self, name: str) -> None:
-        """Publish the robot's record as screens see it (live pose and battery)."""
-        self.controller(name).publish()
-
     def task_robot(self, task_id: int) -> str | None:
         """The robot doing (or that did) task ``task_id``, if this server has seen it."""
         robot = self.publisher.task_robot(task_id)

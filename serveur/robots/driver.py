@@ -14,28 +14,24 @@ the richer of the two): a driver for another stack maps its own outcomes onto it
 CANCELED is PREEMPTED, a goal that never got an answer is LOST).
 
 A lost goal also says *why* it was lost, typed (:class:`GoalLoss`): the link failed (the table
-is fine), the robot never took the goal, or it navigated and could not finish. A driver reports
-it with :func:`report_goal_lost`, which passes ``cause=`` to the listener, and leaves it out
-for an older listener whose ``goal_lost`` does not take it.
+is fine), the robot never took the goal, or it navigated and could not finish: the ``cause``
+of :meth:`LinkListener.goal_lost`.
 """
 
 from __future__ import annotations
 
-import inspect
 import logging
 from collections.abc import Mapping
 from enum import Enum
-from typing import Any, Protocol, cast
+from typing import Any, Protocol
 
 from serveur.robots import rosbridge as rb
 
 __all__ = [
     "GoalLoss",
-    "GoalLossListener",
     "LinkListener",
     "RobotDriver",
     "connect_failed",
-    "report_goal_lost",
 ]
 
 
@@ -89,38 +85,6 @@ class LinkListener(Protocol):
     def scan(self, robot: str, msg: Mapping[str, Any]) -> None: ...
 
     def map(self, robot: str, msg: Mapping[str, Any]) -> None: ...
-
-
-#: The listener of :class:`LinkListener` (the name a listener told causes had first).
-GoalLossListener = LinkListener
-
-
-_TAKES_CAUSE: dict[type, bool] = {}
-
-
-def _takes_cause(listener: object) -> bool:
-    kind = type(listener)
-    known = _TAKES_CAUSE.get(kind)
-    if known is None:
-        try:
-            params = inspect.signature(listener.goal_lost).parameters  # type: ignore[attr-defined]
-        except (TypeError, ValueError):
-            params = {}  # type: ignore[assignment]
-        known = "cause" in params or any(
-            p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()
-        )
-        _TAKES_CAUSE[kind] = known
-    return known
-
-
-def report_goal_lost(
-    listener: LinkListener, robot: str, goal_id: str, reason: str, cause: GoalLoss
-) -> None:
-    """Tell ``listener`` a goal was lost, with its cause if the listener takes one."""
-    if _takes_cause(listener):
-        listener.goal_lost(robot, goal_id, reason, cause=cause)
-    else:
-        cast(Any, listener).goal_lost(robot, goal_id, reason)
 
 
 class RobotDriver(Protocol):

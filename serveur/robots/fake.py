@@ -57,7 +57,7 @@ from serveur.clock import Clock
 from serveur.errors import LinkError
 from serveur.robots import rosbridge as rb
 from serveur.robots.deadman import DeadManSwitch
-from serveur.robots.driver import GoalLoss, LinkListener, connect_failed, report_goal_lost
+from serveur.robots.driver import GoalLoss, LinkListener, connect_failed
 
 __all__ = [
     "BLOCKED_ABORT_AFTER",
@@ -458,7 +458,7 @@ class FakeDriver:
         goal, self._goal = self._goal, None
         self.velocity = (0.0, 0.0, 0.0)
         if goal is not None and self._up:
-            report_goal_lost(self._listener, self.name, goal.handle, reason, cause)
+            self._listener.goal_lost(self.name, goal.handle, reason, cause=cause)
 
     def _end_goal(self, status: rb.GoalStatus, text: str) -> None:
         goal, self._goal = self._goal, None

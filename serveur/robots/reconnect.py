@@ -25,7 +25,7 @@ from typing import Any
 import websockets
 from websockets.asyncio.client import connect
 
-from serveur.robots.driver import LinkListener, report_goal_lost
+from serveur.robots.driver import LinkListener
 from serveur.robots.liveness import (
     GoalDone,
     GoalLost,
@@ -179,7 +179,7 @@ def announce(
         listener.goal_done(robot, act.handle, act.status, act.text)
     elif isinstance(act, GoalLost):
         log.warning("%s: goal %s lost (%s): %s", robot, act.handle, act.cause.value, act.reason)
-        report_goal_lost(listener, robot, act.handle, act.reason, act.cause)
+        listener.goal_lost(robot, act.handle, act.reason, cause=act.cause)
     else:
         return False
     return True

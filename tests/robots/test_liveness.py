@@ -13,7 +13,7 @@ from typing import Any
 import pytest
 
 from serveur.robots import rosbridge as rb
-from serveur.robots.driver import GoalLoss, report_goal_lost
+from serveur.robots.driver import GoalLoss
 from serveur.robots.liveness import (
     Cancel,
     DownCause,
@@ -358,29 +358,3 @@ def test_a_stop_forgets_the_goal_and_names_every_id_to_cancel() -> None:
     t.new_goal(0.0, 10.0, 2.0, 0.0)
     t.new_goal(1.0, 1.0, 2.0, 0.0)
     assert t.cancelled() == ("g1", "g2") and t.goal is None
-
-
-# -- the cause reaches listeners that take it --------------------------------------------
-
-
-class Old:
-    def __init__(self) -> None:
-        self.lost: list[tuple[Any, ...]] = []
-
-    def goal_lost(self, robot: str, goal_id: str, reason: str) -> None:
-        self.lost.append((robot, goal_id, reason))
-
-
-class New(Old):
-    def goal_lost(
-        self, robot: str, goal_id: str, reason: str, *, cause: GoalLoss = GoalLoss.NAVIGATION
-    ) -> None:
-        self.lost.append((robot, goal_id, reason, cause))
-
-
-def test_the_cause_is_passed_only_to_a_listener_that_takes_it() -> None:
-    old, new = Old(), New()
-    report_goal_lost(old, "r1", "g1", "why", GoalLoss.LINK)  # type: ignore[arg-type]
-    report_goal_lost(new, "r1", "g1", "why", GoalLoss.LINK)  # type: ignore[arg-type]
-    assert old.lost == [("r1", "g1", "why")]
-    assert new.lost == [("r1", "g1", "why", GoalLoss.LINK)]
