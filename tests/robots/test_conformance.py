@@ -97,6 +97,26 @@ class Recorder:
         return [(k, a) for k, a in self.events if k in ("done", "lost") and a[0] == handle]
 
 
+def driver_for(url: str, ros: int, listener: Recorder, clock: Clock) -> RobotDriver:
+    """The driver ``make_driver`` picks for ``url``, with the tests' link settings."""
+    return make_driver(
+        "r1",
+        url,
+        listener,
+        clock,
+        names=RosNames(ros=ros),
+        heartbeat=2.0,
+        ack_timeout=3.0,
+        ack_retries=2,
+        want_map=False,
+        ssl=None,
+        pose_watched=False,
+        moving_pose_ms=0,
+        status_ms=0,
+        battery_ms=0,
+    )
+
+
 class Rig:
     """One driver under test, its robot, and time: what each kind of robot provides."""
 
@@ -107,22 +127,7 @@ class Rig:
         self.rec = Recorder()
 
     def make(self, url: str, ros: int) -> RobotDriver:
-        return make_driver(
-            "r1",
-            url,
-            self.rec,
-            self.clock,
-            names=RosNames(ros=ros),
-            heartbeat=2.0,
-            ack_timeout=3.0,
-            ack_retries=2,
-            want_map=False,
-            ssl=None,
-            pose_watched=False,
-            moving_pose_ms=0,
-            status_ms=0,
-            battery_ms=0,
-        )
+        return driver_for(url, ros, self.rec, self.clock)
 
     async def until(self, cond: Callable[[], Any], seconds: float, what: str) -> None:
         """Wait until ``cond()`` holds, for at most ``seconds`` of the robot's clock."""

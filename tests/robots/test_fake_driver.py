@@ -18,13 +18,11 @@ from serveur.errors import LinkError
 from serveur.maps.navigation import load_demo
 from serveur.robots import rosbridge as rb
 from serveur.robots.driver import GoalLoss, RobotDriver
-from serveur.robots.factory import make_driver
 from serveur.robots.fake import BLOCKED_ABORT_AFTER, SPEED, FakeDriver
-from serveur.robots.names import RosNames
 from serveur.robots.ros1.link import RobotLink
 from serveur.robots.ros2.link import Nav2Link
 from tests.conftest import Restaurant, make_app
-from tests.robots.test_conformance import Recorder
+from tests.robots.test_conformance import Recorder, driver_for
 from tests.test_e2e import activate, new_orders, serve_current_stop, staff
 
 
@@ -202,22 +200,7 @@ async def test_teleop_is_ignored_while_a_goal_runs_and_steers_in_the_robot_frame
 
 
 def _driver(url: str, ros: int = 1) -> RobotDriver:
-    return make_driver(
-        "r1",
-        url,
-        Recorder(),
-        FakeClock(),
-        names=RosNames(ros=ros),
-        heartbeat=2.0,
-        ack_timeout=3.0,
-        ack_retries=2,
-        want_map=False,
-        ssl=None,
-        pose_watched=False,
-        moving_pose_ms=0,
-        status_ms=0,
-        battery_ms=0,
-    )
+    return driver_for(url, ros, Recorder(), FakeClock())
 
 
 def test_the_factory_makes_a_fake_from_its_url() -> None:
