@@ -87,6 +87,11 @@ VIRTUAL_TIME = (
     "tests/robots/test_nav2_link.py",
     "tests/robots/test_names.py",
     "tests/robots/test_link_faults.py",
+    "tests/robots/test_dropouts.py",
+    "tests/robots/test_ros2_liveness.py",
+    "tests/robots/test_link_realstack.py",
+    "tests/robots/test_conformance.py",
+    "tests/test_e2e_mariadb.py",
 )
 
 

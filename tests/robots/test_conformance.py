@@ -22,14 +22,13 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
-import time
 from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from serveur.clock import Clock, FakeClock, ScaledClock
+from serveur.clock import Clock, FakeClock
 from serveur.errors import LinkError
 from serveur.maps.navigation import demo_map_path, load_demo
 from serveur.robot_sim import Simulation, start_simulation
@@ -38,6 +37,7 @@ from serveur.robots.driver import GoalLoss, RobotDriver
 from serveur.robots.factory import make_driver
 from serveur.robots.fake import FakeDriver
 from serveur.robots.names import RosNames
+from tests.conftest import test_clock
 
 TIME_SCALE = 10.0
 #: Where every robot starts (the demo map's home1), a goal a short drive away, one far off.
@@ -168,18 +168,19 @@ class Rig:
 class SimRig(Rig):
     """A real driver against a simulated robot speaking its ROS, on a scaled clock."""
 
-    def __init__(self, sim: Simulation, clock: ScaledClock, ros: int) -> None:
+    def __init__(self, sim: Simulation, clock: Clock, ros: int) -> None:
         super().__init__()
         self.sim = sim
         self.clock = clock
         self.driver = self.make(sim.urls[0], ros)
 
     async def until(self, cond: Callable[[], Any], seconds: float, what: str) -> None:
-        # Nothing to wait on for the simulated robot's own state: polled, every 10 ms, with a
-        # wall allowance for a loaded box on top of the clock's time.
-        deadline = time.monotonic() + self.clock.wall(seconds) + 10.0
+        # Nothing to wait on for the simulated robot's own state: polled, every 10 ms of the
+        # loop's time (virtual in this module), with an allowance on top of the clock's time.
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + self.clock.wall(seconds) + 10.0
         while not cond():
-            if time.monotonic() > deadline:
+            if loop.time() > deadline:
                 raise AssertionError(f"timed out waiting for {what}: {self.rec.kinds()}")
             await asyncio.sleep(0.01)
 
@@ -265,7 +266,7 @@ async def rig(request: pytest.FixtureRequest) -> AsyncIterator[Rig]:
         made = FakeRig()
     else:
         ros = 1 if request.param == "ros1" else 2
-        clock = ScaledClock(TIME_SCALE)
+        clock = test_clock(TIME_SCALE)
         sim = await start_simulation(
             1, port=0, map_path=demo_map_path(), clock=clock, ros=ros, amcl="real"
         )

@@ -16,13 +16,13 @@ from typing import Any
 import pytest
 
 from serveur.app import App, RobotSpec
-from serveur.clock import ScaledClock
+from serveur.clock import Clock
 from serveur.core.engine import Core, CoreConfig
 from serveur.maps.mapio import demo_map_path
 from serveur.maps.navigation import load_demo
 from serveur.robot_sim import start_simulation
 from tests import invariants
-from tests.conftest import Client, Restaurant
+from tests.conftest import Client, Restaurant, test_clock
 from tests.test_e2e import activate, near, new_orders, serve_current_stop, staff
 
 # Link faults happen to ROS1 and ROS 2 robots alike (and to a mixed fleet): issue 19.
@@ -175,7 +175,7 @@ async def test_silent_robot_is_offline_within_the_heartbeat(tmp_path: Path) -> N
     """The socket stays open but the robot stops talking (ROS hung, Wi-Fi half-dead): the
     move_base status heartbeat, with the default settings, makes it Offline after two idle
     status periods (0.5 s each, robot time) plus the 2 s (wall) Wi-Fi stall allowance."""
-    clock = ScaledClock(2.0)  # a slow clock: the bound is checked, not the box's load
+    clock = test_clock(2.0)  # virtual time here; slow, not loaded, on the wall clock
     sim = await start_simulation(1, port=0, map_path=demo_map_path(), clock=clock)
     nav_map, waypoints = load_demo()
     app = App(
@@ -222,7 +222,7 @@ async def test_hand_over_limit_counts_from_the_drop_across_a_restart(tmp_path: P
     limit = 30.0
     assert limit - 12.0 > HANDOVER_GRACE  # the grace must not hide the difference
 
-    def make(db: Path | str, clock: ScaledClock, specs: list[RobotSpec], port: int) -> App:
+    def make(db: Path | str, clock: Clock, specs: list[RobotSpec], port: int) -> App:
         nav_map, waypoints = load_demo()
         cfg = CoreConfig(heartbeat=2.0, ack_timeout=3.0, handover_after=limit, auto_depart=True)
         return App(

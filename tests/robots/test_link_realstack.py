@@ -12,7 +12,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
-import time
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
@@ -22,7 +21,7 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from serveur.core.runtime import CoreConfig
 from serveur.robots import rosbridge as rb
-from tests.conftest import TIME_SCALE, Client, Restaurant, restaurant
+from tests.conftest import Client, Restaurant, restaurant
 from tests.conftest import poll_until as until
 from tests.test_e2e import activate, new_orders, serve_current_stop, staff
 
@@ -114,16 +113,17 @@ async def test_a_silent_path_is_offline_within_the_heartbeat(proxied: Restaurant
     c = await staff(proxied)
     await c.status("r1", "Ready")
     # docs/robots.md: two idle status periods (0.5 s, robot time) plus the 2 s (wall) Wi-Fi
-    # stall allowance.
-    limit = (2 * 0.5 + 2.0 * TIME_SCALE) / TIME_SCALE
+    # stall allowance; on this module's virtual time a wall second is a clock second.
+    scale = proxied.clock.time_scale
+    limit = 2 * 0.5 + 2.0 * scale  # clock seconds
     link = proxied.app.core._rt["r1"].link  # type: ignore[union-attr]
-    assert getattr(link, "heartbeat_timeout", lambda: limit * TIME_SCALE)() == limit * TIME_SCALE
-    t0 = time.monotonic()
+    assert getattr(link, "heartbeat_timeout", lambda: limit)() == limit
+    t0 = proxied.clock.now()
     proxied.proxies[0].blackhole()
     await c.status("r1", "Offline", timeout=limit + 5.0)
-    took = time.monotonic() - t0
+    took = proxied.clock.now() - t0
     # Before: "no move_base status", then ten seconds in websockets' closing handshake.
-    assert took <= limit + 0.8, f"Offline after {took:.1f}s (heartbeat {limit:.1f}s)"
+    assert took <= limit + 0.8 * scale, f"Offline after {took:.1f}s (heartbeat {limit:.1f}s)"
     proxied.proxies[0].resume()
     await c.status("r1", "Ready")
 
@@ -165,9 +165,9 @@ async def test_the_server_stops_a_robot_whose_joystick_went_quiet(any_robot: Res
     await manual(c)
     async with robot_topic(one_robot, "/cmd_vel") as twists:
         await c.ok("control", robot="r1", action="teleop", vx=-0.3, vy=0.0, wz=0.0)
-        sent = time.monotonic()
+        sent = asyncio.get_running_loop().time()
         await until(lambda: twists and twists[-1]["linear"]["x"] == 0.0, 3.0, "a zero twist")
-        took = time.monotonic() - sent
+        took = asyncio.get_running_loop().time() - sent
     assert twists[0]["linear"]["x"] == -0.3
     assert took <= 0.5 + 0.3, f"stopped {took:.2f}s after the last joystick command"
 

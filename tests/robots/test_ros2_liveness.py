@@ -25,7 +25,6 @@ from typing import Any
 
 import pytest
 
-from serveur.clock import ScaledClock
 from serveur.core.engine import CoreConfig
 from serveur.maps.navigation import demo_map_path
 from serveur.robot_sim import Simulation, start_simulation
@@ -35,7 +34,7 @@ from serveur.robots.names import RosNames
 from serveur.robots.ros1.link import RobotLink
 from serveur.robots.ros2.link import Nav2Link
 from serveur.sim.bridge import BridgeClient
-from tests.conftest import Client, Restaurant, poll_until, restaurant
+from tests.conftest import Client, Restaurant, poll_until, restaurant, test_clock
 from tests.robots.test_conformance import Recorder
 from tests.test_e2e import activate, new_orders, serve_current_stop, staff
 
@@ -162,7 +161,7 @@ async def nav2(
         original(self, msg, oid)
 
     monkeypatch.setattr(BridgeClient, "_cancel_action_goal", record)
-    clock = ScaledClock(10.0)
+    clock = test_clock(10.0)
     sim = await start_simulation(
         1, port=0, map_path=demo_map_path(), clock=clock, ros=2, release="jazzy", amcl="real"
     )
@@ -227,7 +226,7 @@ async def test_a_lost_goal_is_cancelled_on_the_robot(
 
 
 async def test_a_ros1_failure_names_move_base() -> None:
-    clock = ScaledClock(10.0)
+    clock = test_clock(10.0)
     sim = await start_simulation(1, port=0, map_path=demo_map_path(), clock=clock, amcl="real")
     rec = Recorder()
     link = RobotLink("r1", sim.urls[0], rec, clock, ack_timeout=3.0)
@@ -259,7 +258,7 @@ async def test_staff_read_nav2s_words_for_a_ros2_robot(humble: Restaurant) -> No
 async def test_a_robot_that_never_comes_up_says_why_once() -> None:
     # The bridge accepts connections but its ROS side is dead from the start: the robot stays
     # Offline, and staff read why (link_failed, once), not nothing.
-    clock = ScaledClock(10.0)
+    clock = test_clock(10.0)
     sim = await start_simulation(
         1, port=0, map_path=demo_map_path(), clock=clock, ros=2, release="jazzy", amcl="real"
     )
@@ -288,7 +287,7 @@ async def test_a_goal_left_running_by_a_dropped_link_is_cancelled_when_it_is_bac
 ) -> None:
     # Closing a connection cancels nothing: the robot drives on with nobody watching. When
     # the link is back, the goal it was given is cancelled before anything else.
-    clock = ScaledClock(10.0)
+    clock = test_clock(10.0)
     sim = await start_simulation(
         1, port=0, map_path=demo_map_path(), clock=clock, ros=ros, amcl="real"
     )

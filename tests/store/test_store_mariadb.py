@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -314,3 +315,21 @@ async def test_integrity_check_reports_problems(
 
 def test_password_stays_out_of_urls(mariadb_server: MariaDBServer) -> None:
     assert PASSWORD not in mariadb_server.url("serveur_t0")
+
+
+async def test_busy_while_a_query_waits_on_the_server(mariadb_url: str) -> None:
+    """A virtual-time loop must not jump while MariaDB (another process) answers: the store
+    says it is busy from taking a connection to giving it back, and only then."""
+    async with open_store(mariadb_url) as store:
+        started = asyncio.Event()
+
+        async def slow(tx: Any) -> Any:
+            started.set()
+            return await tx.one("SELECT SLEEP(0.2) AS s")
+
+        assert not store.busy()
+        query_task = asyncio.create_task(store.db.transact(slow, "read"))
+        await asyncio.wait_for(started.wait(), 10)
+        assert store.busy()
+        assert (await asyncio.wait_for(query_task, 10)) == {"s": 0}
+        assert not store.busy()
