@@ -27,6 +27,7 @@ from serveur.app import App, RobotSpec
 from serveur.clock import Clock, ScaledClock
 from serveur.core.engine import CoreConfig
 from serveur.replay.vtime import LoopClock, VirtualTimeLoop
+from serveur.security import auth
 
 # The private MariaDB server (once per session) and a fresh database for a test that asks.
 from tests.mariadb_server import mariadb_server, mariadb_url  # noqa: F401
@@ -43,6 +44,13 @@ os.environ.setdefault(
         / f"serveur-test-plans-{os.environ.get('PYTEST_XDIST_TESTRUNUID', os.getpid())}"
     ),
 )
+
+# Passwords hashed in this process: scrypt at N=2**10 instead of the product's 2**15 (32 MiB and
+# about 0.12 s a hash on this box, several hundred logins a run; as Django's tests swap their
+# password hasher). The hash names its N and verify_password reads it there, so the code under
+# test is the same; servers started in a child process keep the product's cost.
+PRODUCT_SCRYPT_N = auth._SCRYPT_N
+auth._SCRYPT_N = 2**10  # type: ignore[misc]
 
 
 async def poll_until(cond: Callable[[], Any], timeout: float, what: str) -> Any:
@@ -75,10 +83,12 @@ class _LinkDrops(logging.Handler):
 #: Tests that run on virtual time (serveur.replay.vtime: the loop's clock jumps to the next
 #: timer once every task waits, as trio's autojump clock): the rules of the core and whole
 #: services through the real server and simulated robots, whose waits are a matter of rules,
-#: not of the wall. Not here: tests with a browser or another process on the other end of a
-#: socket (its replies take wall time: virtual time would jump past them), tests of wall-clock
-#: rules (sessions, idle connections, rate limits, Wi-Fi stalls and heartbeats measured in wall
-#: seconds), and tests marked ``wall_clock``.
+#: not of the wall: a robot's drive, a heartbeat, a Wi-Fi stall (the links count its allowance
+#: in wall seconds, and on :class:`LoopClock` a wall second is a loop second). MariaDB is another
+#: process, but its store says it is busy while a query is out, so time holds meanwhile. Not
+#: here: tests with a browser or another process on the other end of a socket (its replies take
+#: wall time: virtual time would jump past them), tests of rules kept on ``time.monotonic``
+#: (sessions, idle connections, rate limits), and tests marked ``wall_clock``.
 VIRTUAL_TIME = (
     "tests/core/",
     "tests/test_e2e.py",

@@ -337,8 +337,10 @@ def _scrypt(password: str, salt: bytes, n: int, r: int, p: int) -> bytes:
     )
 
 
-def hash_password(password: str, *, n: int = _SCRYPT_N) -> str:
-    """``scrypt$N$r$p$salt$hash`` (base64): self-describing, so parameters can change later."""
+def hash_password(password: str, *, n: int | None = None) -> str:
+    """``scrypt$N$r$p$salt$hash`` (base64): self-describing, so parameters can change later.
+    ``n`` is the module's N unless given."""
+    n = _SCRYPT_N if n is None else n
     salt = secrets.token_bytes(16)
     dk = _scrypt(password, salt, n, _SCRYPT_R, _SCRYPT_P)
     b64 = base64.b64encode

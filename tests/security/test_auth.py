@@ -13,6 +13,7 @@ from serveur import protocol as P
 from serveur.errors import Forbidden, InvalidField, RateLimited, Unauthorized
 from serveur.security import auth
 from serveur.security.auth import Principal, Role, Scope
+from tests.conftest import PRODUCT_SCRYPT_N
 
 ROBOT = {"robot": "r1"}
 
@@ -271,6 +272,15 @@ def test_passwords_hash_and_verify() -> None:
     assert not auth.verify_password("x", "bcrypt$1$2$3$4$5")
     with pytest.raises(InvalidField):
         auth.check_password_strength("short")
+
+
+def test_the_product_hashes_at_n_2_15_and_tests_cheaper() -> None:
+    # tests/conftest.py lowers N for this process; the product's own cost stays 2**15, and a
+    # hash made at it verifies wherever N was lowered (it names its N).
+    assert PRODUCT_SCRYPT_N == 2**15
+    assert auth.hash_password("correct horse").startswith("scrypt$1024$")
+    h = auth.hash_password("correct horse", n=PRODUCT_SCRYPT_N)
+    assert h.startswith("scrypt$32768$8$1$") and auth.verify_password("correct horse", h)
 
 
 def test_tokens_are_random_and_stored_as_digests() -> None:
