@@ -131,8 +131,16 @@ def http_base(r: Restaurant) -> str:
 
 
 async def staff_client(r: Restaurant) -> Client:
+    """A staff connection subscribed to what the pages show, once every robot's link is up:
+    the server starts its links as it starts, and a command before one answers is refused
+    (not allowed while the robot is Offline)."""
     c = await r.client()
     await c.subscribe("robots", "orders", "tasks", "waypoints", "pose:r1")
+    for spec in r.specs:
+        await c.until(
+            lambda name=spec.name: c.robot(name).get("status") not in (None, "Offline"),
+            what=f"{spec.name}'s link up",
+        )
     return c
 
 
