@@ -46,10 +46,9 @@ def _binary(name: str) -> str | None:
 
 
 def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
+    from tests.subprocess_server import free_port
+
+    return free_port()
 
 
 @dataclass

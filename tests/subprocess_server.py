@@ -12,6 +12,7 @@ import asyncio
 import collections
 import contextlib
 import os
+import random
 import signal
 import socket
 import sys
@@ -26,10 +27,27 @@ from tests.conftest import Client
 STARTUP = 30.0  # wall seconds for the server to listen (imports dominate; busy CI box)
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+#: Ports handed to child processes come from below Linux's ephemeral range (32768-60999 by
+#: default), which every ``port=0`` socket of the other test workers draws from: a port taken
+#: there and released could be any worker's next client socket before the child binds it.
+_PORTS = range(10_000, 32_000)
+
+
+def free_port(count: int = 1) -> int:
+    """The first of ``count`` consecutive loopback ports free now (a demo's simulated robots
+    listen on ``--sim-port`` and the ports after it), outside the ephemeral range."""
+    rng = random.Random()
+    for _ in range(200):
+        base = rng.randrange(_PORTS.start, _PORTS.stop - count)
+        with contextlib.ExitStack() as held:
+            try:
+                for port in range(base, base + count):
+                    s = held.enter_context(socket.socket())
+                    s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+        return base
+    raise RuntimeError(f"no {count} free consecutive ports in {_PORTS}")
 
 
 class ServeurProcess:

@@ -7,19 +7,13 @@ import json
 import os
 import re
 import signal
-import socket
 import sys
 from pathlib import Path
 
 from websockets.asyncio.client import connect
 
 from serveur.cli import main
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+from tests.subprocess_server import free_port
 
 
 def test_schema_lists_every_verb(capsys) -> None:  # type: ignore[no-untyped-def]
@@ -58,7 +52,7 @@ async def read_until(proc: asyncio.subprocess.Process, marker: str, timeout: flo
 
 
 async def test_demo_runs_the_restaurant_and_stops_on_sigterm(tmp_path: Path) -> None:
-    port, sim_port = free_port(), free_port()
+    port, sim_port = free_port(), free_port(2)
     proc = await asyncio.create_subprocess_exec(
         sys.executable,
         "-m",
@@ -168,7 +162,7 @@ async def test_a_second_demo_says_what_is_taken_and_a_demo_database_can_be_reuse
     tmp_path: Path,
 ) -> None:
     db = str(tmp_path / "demo.db")
-    port, sim_port = free_port(), free_port()
+    port, sim_port = free_port(), free_port(2)
     first = await _demo("--port", str(port), "--sim-port", str(sim_port), "--db", db)
     procs = [first]
     try:

@@ -32,7 +32,8 @@ from serveur.clock import ScaledClock
 from serveur.core.engine import CoreConfig
 from serveur.security.tls import client_context, server_context
 from tests.conftest import TIME_SCALE, WAIT, Client, Restaurant
-from tests.test_cli import free_port, read_until
+from tests.subprocess_server import free_port
+from tests.test_cli import read_until
 
 # -- a private CA and certificates ------------------------------------------------------------
 
@@ -413,7 +414,7 @@ def test_missing_robot_cafile_refuses_to_start(
 
 async def test_cli_sim_and_run_over_tls(tmp_path: Path, pki: Pki) -> None:
     """`serveur sim` and `serveur run` as an operator starts them, everything over TLS."""
-    sim_port, port = free_port(), free_port()
+    sim_port, port = free_port(2), free_port()
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     tls = ["--certfile", str(pki.cert), "--keyfile", str(pki.key)]
     procs: list[asyncio.subprocess.Process] = []
