@@ -37,15 +37,17 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import hashlib
 import logging
 import math
 import signal
 import ssl as ssl_module
 import sys
 import threading
+from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TextIO
+from typing import Final, TextIO
 
 import numpy as np
 
@@ -82,6 +84,7 @@ __all__ = [
     "add_sim_arguments",
     "run_sim",
     "run_sim_from_args",
+    "shared_planner",
     "start_simulation",
 ]
 
@@ -289,6 +292,34 @@ def _start_poses(
     return poses
 
 
+#: Planners kept for the next simulation of the same map in this process (see shared_planner).
+_PLANNERS: OrderedDict[tuple[str, int], Planner] = OrderedDict()
+_PLANNERS_KEPT: Final = 2
+_PLANNERS_LOCK = threading.Lock()
+
+
+def shared_planner(grid: OccupancyMap, *, cache_size: int) -> Planner:
+    """The simulator's planner for ``grid``: the one an earlier simulation of the same map in
+    this process made, if any, with its distance fields (one per goal, 40-80 ms of CPU each on
+    a restaurant map). A planner only reads its map, and is thread-safe, so simulations can
+    share one. A process that runs one simulation (``serveur sim``, a demo, a forecast's replay)
+    gains nothing and loses nothing; the test suite and a bench start hundreds on the demo map.
+    Keyed by the map's cells, resolution and origin (not its file name); the last two maps kept.
+    """
+    digest = hashlib.sha256(np.ascontiguousarray(grid.grid).tobytes())
+    digest.update(repr((grid.resolution, grid.origin, grid.grid.shape)).encode())
+    key = (digest.hexdigest(), cache_size)
+    with _PLANNERS_LOCK:
+        planner = _PLANNERS.get(key)
+        if planner is None:
+            planner = Planner(grid, robot_radius=0.2, cache_size=cache_size)
+            _PLANNERS[key] = planner
+        _PLANNERS.move_to_end(key)
+        while len(_PLANNERS) > _PLANNERS_KEPT:
+            _PLANNERS.popitem(last=False)
+        return planner
+
+
 async def start_simulation(
     n: int,
     *,
@@ -369,7 +400,7 @@ async def start_simulation(
     # so the cache holds every waypoint (the 30-table bench room has 37; with the default 32
     # the LRU thrashed and most goals cost a 40-80 ms field, i.e. a robot standing still for
     # seconds of simulated time at a replay's time scales). Capped by bytes in the Planner.
-    planner = Planner(grid, robot_radius=0.2, cache_size=max(32, len(waypoints) + 16))
+    planner = shared_planner(grid, cache_size=max(32, len(waypoints) + 16))
     plan_lock = threading.Lock()
     homes = _start_poses(n, grid, planner, waypoints)
     # The latched /map, built once: every robot shares the one frame (namespaced robots each
