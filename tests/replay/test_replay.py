@@ -3,7 +3,7 @@
 Twenty dishes in three parties-rushes, two robots, in virtual time: every dish must be
 delivered with both policies, the report must carry its fields and plots, and a second run
 must give the very same report (virtual time: nothing depends on the host's speed). One more
-run follows the wall clock at 30x (``--time-scale``), where scheduling jitter is real, so its
+run follows the wall clock at 10x (``--time-scale``), where scheduling jitter is real, so its
 waits are compared with a tolerance.
 """
 
@@ -140,18 +140,20 @@ def test_short_replay_both_policies_and_again(tmp_path: Path) -> None:
     assert report["options"]["rank"] == "best" and report["options"]["hold_max"] == 60.0
     assert fifo["policies"]["serveur"]["summary"]["undelivered"] == 0
 
-    # On the wall clock at 30x, the first rush: every dish delivered, waits like the same rush's
-    # in virtual time (jitter moves a tick). 30x, not more: the simulator steps 20 times a
-    # simulated second, and a starved box at 60x could not keep two robots' ticks up.
+    # On the wall clock at 10x, the first three dishes: every dish delivered, waits like the
+    # same dishes' in virtual time (jitter moves a tick). 10x as the restaurant tests run: at
+    # 30x or 60x the simulator's 20 ticks a simulated second for two robots did not keep up
+    # with three test workers on two cores, and a robot never came up ("timed out waiting for
+    # r2 Ready", 2 runs in 3).
     rush = tmp_path / "rush.csv"
-    rush.write_text("".join(LOG.splitlines(keepends=True)[:8]))
+    rush.write_text("".join(LOG.splitlines(keepends=True)[:4]))
     out5, out3 = tmp_path / "rush-virtual", tmp_path / "scaled"
     rush_args = [str(rush), *ARGS, "--policy", "serveur"]
     assert main(["replay", *rush_args, "--out", str(out5)]) == 0
-    assert main(["replay", *rush_args, "--time-scale", "30", "--out", str(out3)]) == 0
+    assert main(["replay", *rush_args, "--time-scale", "10", "--out", str(out3)]) == 0
     virtual = json.loads((out5 / "report.json").read_text())["policies"]["serveur"]
     scaled = json.loads((out3 / "report.json").read_text())["policies"]["serveur"]
-    assert scaled["summary"]["orders"] == virtual["summary"]["orders"] == 7
+    assert scaled["summary"]["orders"] == virtual["summary"]["orders"] == 3
     assert scaled["summary"]["undelivered"] == 0
     assert scaled["summary"]["wait_mean"] == pytest.approx(virtual["summary"]["wait_mean"], abs=10)
 
