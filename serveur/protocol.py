@@ -144,6 +144,7 @@ __all__ = [
     "AccountRevokeToken",
     "AccountSetRole",
     "AckMsg",
+    "CameraMsg",
     "CancelMsg",
     "ClearMsg",
     "ClientMessage",
@@ -581,6 +582,16 @@ class ReleaseMsg(_ClientMsg):
     robot: Name | None = None
 
 
+class CameraMsg(_ClientMsg):
+    """Watch a robot's camera (``watch: true``) or stop (``false``). While watching, the
+    connection also receives the robot's pictures as binary messages (docs/protocol.md,
+    "Camera frames"): the newest picture whenever the connection can take one."""
+
+    clientmsg: Literal["camera"]
+    robot: Name
+    watch: bool
+
+
 class OrderMsg(_ClientMsg):
     """List orders: a table's (table screen) or those on a robot's tray (robot screen)."""
 
@@ -613,6 +624,7 @@ ClientMessage: TypeAlias = Annotated[
     | AckMsg
     | ClearMsg
     | ReleaseMsg
+    | CameraMsg
     | OrderMsg
     | AccountMessage
     | SiteMessage

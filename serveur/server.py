@@ -9,6 +9,7 @@ time per connection, so each client's requests are answered in order.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import http
 import json
 import logging
@@ -27,6 +28,7 @@ from websockets.http11 import Request, Response
 from websockets.protocol import State
 
 from serveur import protocol as P
+from serveur.core.camera import CameraRelay, CameraViewer
 from serveur.core.engine import Core
 from serveur.core.hub import Subscriber
 from serveur.errors import InvalidField, NotFound, RateLimited, ServeurError, Unauthorized
@@ -37,6 +39,7 @@ from serveur.security.sessions import CLOSE_AUTH, Sessions
 from serveur.stats.remote import StatsService, when_range
 from serveur.store.site import AuditQuery
 from serveur.web.static import default_site
+from serveur.wire.camera import camera_frame
 
 __all__ = ["CLOSE_IDLE", "MAX_FRAME", "Server"]
 
@@ -83,6 +86,7 @@ class _Conn:
         "peer",
         "principal",
         "sub",
+        "watching",
         "ws",
     )
 
@@ -96,6 +100,8 @@ class _Conn:
         #: Close with this (code, reason) once the current reply is sent.
         self.close_after: tuple[int, str] | None = None
         self.active_at = 0.0  # when it connected or last sent a request (monotonic)
+        #: Cameras it watches: robot -> (relay, its viewer slot, the task sending its frames).
+        self.watching: dict[str, tuple[CameraRelay, CameraViewer, asyncio.Task[None]]] = {}
 
 
 class Server:
@@ -252,6 +258,8 @@ class Server:
             pass
         finally:
             self._conns.discard(conn)
+            for robot in list(conn.watching):
+                await self._unwatch(conn, robot)
             if conn.deadline is not None:
                 conn.deadline.cancel()
             if conn.principal is not None:
@@ -352,6 +360,41 @@ class Server:
         self.core.hub.unsubscribe(conn.sub, list(conn.sub.topics))
         await self.sessions.logout(p)
         return {"session": None}
+
+    async def _camera(self, conn: _Conn, msg: P.CameraMsg) -> dict[str, Any]:
+        """Watch a robot's camera or stop: the frames go out as binary messages from a task
+        of this connection's own, the newest one whenever the socket can take it."""
+        ctl = self.core.controller(msg.robot)  # not_found for a robot that does not exist
+        await self._unwatch(conn, msg.robot)
+        state = "stopped"
+        if msg.watch:
+            relay = await ctl.camera()
+            if relay is None:
+                state = "none"
+            else:
+                viewer = relay.watch(conn.peer)
+                task = asyncio.get_running_loop().create_task(
+                    self._send_frames(conn, viewer), name=f"camera-{msg.robot}-{conn.peer}"
+                )
+                conn.watching[msg.robot] = (relay, viewer, task)
+                state = "watching"
+        return {"camera": {"robot": msg.robot, "state": state}}
+
+    async def _send_frames(self, conn: _Conn, viewer: CameraViewer) -> None:
+        epoch = self.core.clock.epoch
+        with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+            while (f := await viewer.next()) is not None:
+                msg = camera_frame(f.robot, f.seq, f.captured, f.received, epoch(), f.jpeg)
+                await conn.ws.send(msg)  # waits while the socket's buffer is full
+
+    async def _unwatch(self, conn: _Conn, robot: str) -> None:
+        watched = conn.watching.pop(robot, None)
+        if watched is not None:
+            relay, viewer, task = watched
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+            await relay.leave(viewer)
 
     async def _ping(self, conn: _Conn, msg: P.PingMsg) -> dict[str, Any]:
         return {"time": self.core.clock.epoch()}
@@ -501,6 +544,7 @@ _SERVER_VERBS: dict[type, Callable[[Server, _Conn, Any], Awaitable[dict[str, Any
     P.LogoutMsg: Server._logout,
     P.DataMsg: Server._data,
     P.PingMsg: Server._ping,
+    P.CameraMsg: Server._camera,
     P.SiteAudit: Server._search_audit,
     P.StatsFigures: Server._stats,
     P.StatsTrips: Server._stats,

@@ -468,6 +468,7 @@ def test_action_of_and_robot_of() -> None:
         "ack": (None, None),
         "clear": (None, None),
         "release": (None, None),  # a zone's lease: from every holder here (no robot named)
+        "camera": (None, "r1"),  # watching changes nothing: any status may watch
         # people and screen tokens (owners): no robot's status either
         **{f"account {a}": (None, None) for a in P._SUBTAGS["account"][1]},
         # the owner's site and statistics: a robot edited or removed is named (it must

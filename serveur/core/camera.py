@@ -105,6 +105,7 @@ class CameraViewer:
     #: Frames taken (sent) and frames replaced before they were taken (skipped).
     taken: int = 0
     skipped: int = 0
+    closed: bool = False
 
     def offer(self, frame: CameraFrame) -> None:
         if self._slot is not None:
@@ -112,12 +113,22 @@ class CameraViewer:
         self._slot = frame
         self._ready.set()
 
-    async def next(self) -> CameraFrame:
-        """The newest frame not taken yet, waiting for one if there is none."""
-        while self._slot is None:
+    def close(self) -> None:
+        """The camera went away (the robot was removed or its camera changed): ``next``
+        answers None from now on."""
+        self.closed = True
+        self._ready.set()
+
+    async def next(self) -> CameraFrame | None:
+        """The newest frame not taken yet, waiting for one if there is none; None once the
+        viewer is closed."""
+        while self._slot is None and not self.closed:
             self._ready.clear()
             await self._ready.wait()
+        if self.closed:
+            return None
         frame, self._slot = self._slot, None
+        assert frame is not None
         self.taken += 1
         return frame
 
@@ -174,6 +185,9 @@ class CameraRelay:
             await self.close()
 
     async def close(self) -> None:
+        """Close the upstream; every viewer still watching is told (its ``next`` is None)."""
+        for viewer in self._viewers:
+            viewer.close()
         self._viewers.clear()
         task, self._upstream = self._upstream, None
         if task is not None:

@@ -29,8 +29,10 @@ import math
 from collections.abc import Awaitable, Callable, Mapping
 from dataclasses import replace
 from typing import Any
+from urllib.parse import urlsplit
 
 from serveur import protocol as P
+from serveur.core.camera import CameraRelay
 from serveur.core.crew import Crew
 from serveur.core.events import (
     GoalEnded,
@@ -47,8 +49,9 @@ from serveur.core.runtime import Destination, Runtime
 from serveur.domain import Robot, Task
 from serveur.errors import Conflict, Forbidden, LinkError, Stale, StoreError
 from serveur.robots import rosbridge as rb
+from serveur.robots.camera import RosbridgeCamera
 from serveur.robots.driver import GoalLoss
-from serveur.robots.factory import make_driver
+from serveur.robots.factory import FAKE_SCHEME, make_driver
 from serveur.robots.names import RosNames
 from serveur.status import Event, RobotState, RobotStatus, apply
 
@@ -73,6 +76,9 @@ class RobotController:
         self.rt = rt
         crew.records[robot.name] = robot
         rt.worker = crew.reports.start_worker(rt)
+        #: The robot's camera (made at the first watch) and the options it was made from.
+        self._camera: CameraRelay | None = None
+        self._camera_from: tuple[str, str, int] | None = None
 
     @property
     def record(self) -> Robot:
@@ -190,9 +196,34 @@ class RobotController:
         rt.link.start()
         rt.link_started = crew.clock.epoch()
 
+    async def camera(self) -> CameraRelay | None:
+        """The robot's camera relay, None when its options name no camera (or it is a fake
+        robot). Made at the first watch; an edited address or camera topic makes a new one,
+        and whoever watched the old one is told it ended."""
+        robot = self.record
+        names = RosNames.from_options(robot.link)
+        if not names.camera or urlsplit(robot.url).scheme.lower() == FAKE_SCHEME:
+            await self._close_camera()
+            return None
+        made_from = (robot.url, names.camera, names.ros)
+        if self._camera is None or self._camera_from != made_from:
+            await self._close_camera()
+            source = RosbridgeCamera(
+                robot.url, names.camera, ros=names.ros, ssl=self.crew.robot_ssl
+            )
+            self._camera = CameraRelay(self.name, source, self.crew.clock.epoch)
+            self._camera_from = made_from
+        return self._camera
+
+    async def _close_camera(self) -> None:
+        cam, self._camera, self._camera_from = self._camera, None, None
+        if cam is not None:
+            await cam.close()
+
     async def stop(self) -> None:
-        """The robot is removed or the server stops: its events end, its link is closed (the
-        robot stopped)."""
+        """The robot is removed or the server stops: its events end, its link and camera are
+        closed (the robot stopped)."""
+        await self._close_camera()
         self.crew.reports.disarm_handover(self.rt)
         await self.crew.reports.stop_worker(self.rt)
         if self.rt.link is not None:

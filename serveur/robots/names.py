@@ -37,8 +37,9 @@ _DEFAULTS: dict[str, str] = {
     # (lifecycle_msgs/srv/GetState answering "active", or std_srvs/srv/Trigger's success).
     "heartbeat": "bt_navigator/get_state",
 }
-#: Every option a robot's ``link`` may carry.
-OPTION_KEYS = ("ros", "ns", *_DEFAULTS, "frame")
+#: Every option a robot's ``link`` may carry. ``camera`` has no default: a robot has a camera
+#: to watch only when its CompressedImage topic is named (``camera/image/compressed``...).
+OPTION_KEYS = ("ros", "ns", *_DEFAULTS, "frame", "camera")
 #: The ROS versions a robot may run: "1" (move_base) or "2" (Nav2).
 ROS_VERSIONS = ("1", "2")
 _NAME = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
@@ -67,6 +68,8 @@ class RosNames:
     map: str = "/map"
     heartbeat: str = "/bt_navigator/get_state"
     frame: str = "map"
+    #: The camera's sensor_msgs/CompressedImage topic; "" when the robot has none.
+    camera: str = ""
 
     @classmethod
     def from_options(cls, options: Mapping[str, str]) -> RosNames:
@@ -92,7 +95,8 @@ class RosNames:
         ns = ns.rstrip("/")
         names = {key: _resolve(ns, options.get(key, default)) for key, default in _DEFAULTS.items()}
         ros = int(options.get("ros", "1"))
-        return cls(ros=ros, ns=ns, frame=options.get("frame", "map"), **names)
+        camera = _resolve(ns, options["camera"]) if options.get("camera") else ""
+        return cls(ros=ros, ns=ns, frame=options.get("frame", "map"), camera=camera, **names)
 
     def topic(self, default: str) -> str:
         """This robot's name for one of the default topic names (``/move_base/goal``...)."""

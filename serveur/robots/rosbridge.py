@@ -47,6 +47,7 @@ __all__ = [
     "amcl_pose_from_msg",
     "battery_fraction",
     "battery_state",
+    "compressed_image",
     "decode",
     "encode",
     "encode_cbor",
@@ -139,6 +140,8 @@ TOPIC_TYPES: Final[dict[str, str]] = {
     "/cmd_vel": "geometry_msgs/Twist",
     "/initialpose": "geometry_msgs/PoseWithCovarianceStamped",
     "/battery_state": "sensor_msgs/BatteryState",
+    # image_transport's compressed plugin: the camera's JPEG as the driver encoded it.
+    "/camera/image/compressed": "sensor_msgs/CompressedImage",
 }
 
 
@@ -789,6 +792,14 @@ def occupancy_grid(m: Any, *, stamp: float, seq: int, frame_id: str = "map") -> 
         },
         "data": data,
     }
+
+
+def compressed_image(
+    jpeg: bytes, *, stamp: float, seq: int = 0, frame_id: str = "camera_link"
+) -> dict[str, Any]:
+    """sensor_msgs/CompressedImage ``{header, format, data}``: ``data`` stays bytes here (JSON
+    encodes it as base64, CBOR as a byte string, as rosbridge does for ``uint8[]``)."""
+    return {"header": header(seq, stamp, frame_id), "format": "jpeg", "data": jpeg}
 
 
 def laser_scan(

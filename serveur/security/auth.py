@@ -164,7 +164,7 @@ def required_scope(msg: Any) -> Scope:
         return Scope.ORDERS
     if verb in ("go", "skip", "ack", "clear", "release"):
         return Scope.TASKS
-    if verb in ("control", "ready"):
+    if verb in ("control", "ready", "camera"):  # watching a camera is part of manual control
         return Scope.CONTROL
     if verb in ("next", "stop", "continue", "cancel"):
         return Scope.TASKS

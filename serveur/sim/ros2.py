@@ -98,6 +98,7 @@ def topic_types(twist_stamped: bool) -> dict[str, str]:
         "/initialpose": "geometry_msgs/msg/PoseWithCovarianceStamped",
         "/goal_pose": "geometry_msgs/msg/PoseStamped",  # RViz2's "Nav2 Goal"
         "/battery_state": "sensor_msgs/msg/BatteryState",
+        "/camera/image/compressed": "sensor_msgs/msg/CompressedImage",
     }
 
 

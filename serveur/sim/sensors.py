@@ -11,6 +11,7 @@ footprints in it when the floor is shared), ``/battery_state`` 1 Hz; noise on AM
 
 from __future__ import annotations
 
+import asyncio
 import math
 import random
 from collections.abc import Callable
@@ -22,6 +23,7 @@ import numpy.typing as npt
 from serveur.maps.navigation import raycast
 from serveur.robots import rosbridge as rb
 from serveur.sim import ros2
+from serveur.sim.camera import CameraView
 from serveur.sim.kinematics import wrap_angle
 from serveur.sim.navigator import Navigator
 from serveur.sim.outbox import Outbox
@@ -44,6 +46,11 @@ _FEEDBACK_TICKS: Final = 2  # 10 Hz while a goal is active
 _SCAN_TICKS: Final = 4  # 5 Hz
 _STATUS_TICKS: Final = 4  # 5 Hz (actionlib's default status_frequency)
 _BATTERY_TICKS: Final = 20  # 1 Hz
+_CAMERA_TICKS: Final = 2  # 10 Hz of the robot's time...
+#: ...but at most this many frames a wall second: a frame costs ~10-20 ms of CPU to render and
+#: encode, and a simulation at 10x would otherwise render 100 a second for one viewer.
+CAMERA_MAX_WALL_FPS: Final = 15.0
+CAMERA_TOPIC: Final = "/camera/image/compressed"
 
 SCAN_RAYS: Final = 360
 SCAN_RANGE_MIN: Final = 0.12
@@ -107,6 +114,14 @@ class Sensors:
             | None
         ) = None
 
+        # camera: rendered only while subscribed, in a worker thread, one frame at a time
+        self._camera: CameraView | None = None
+        self._camera_busy = False
+        wall_ticks = state.clock.time_scale / (TICK * CAMERA_MAX_WALL_FPS)
+        self._camera_ticks = max(_CAMERA_TICKS, math.ceil(wall_ticks))
+        #: False: the camera stopped sending (a test's stalled camera); True again resumes.
+        self.camera_on = True
+
     def force_amcl(self) -> None:
         """AMCL publishes its pose at the next update whatever the motion (a node's start)."""
         self._amcl_force = True
@@ -164,6 +179,32 @@ class Sensors:
             self.navigator.publish_status(stamp)
         if k % _BATTERY_TICKS == 0:
             publish("/battery_state", self._build_battery, stamp)
+        if k % self._camera_ticks == 0:
+            self._camera_due(stamp)
+
+    def _camera_due(self, stamp: float) -> None:
+        """Render the view now (off the loop) if a subscriber takes a frame and none is being
+        rendered; it is published, stamped with this tick's time, when done."""
+        subs = self.outbox.subs.get(CAMERA_TOPIC)
+        if not subs or self._camera_busy or not self.camera_on:
+            return
+        if not any(s.wants(self.state.t) for s in subs):
+            return
+        if self._camera is None:
+            self._camera = CameraView(self.state.map)
+        self._camera_busy = True
+        x, y, yaw = self.state.pose
+        fut = asyncio.get_running_loop().run_in_executor(None, self._camera.jpeg, x, y, yaw)
+        fut.add_done_callback(lambda f: self._camera_done(f, stamp))
+
+    def _camera_done(self, fut: asyncio.Future[bytes], stamp: float) -> None:
+        self._camera_busy = False
+        if fut.cancelled() or fut.exception() is not None:
+            return
+        jpeg = fut.result()
+        self.outbox.publish(
+            CAMERA_TOPIC, lambda seq, st: rb.compressed_image(jpeg, stamp=st, seq=seq), stamp
+        )
 
     def _amcl_update(self, stamp: float) -> None:
         """AMCL in "real" mode: publish (latched) only when forced or after enough motion.

@@ -102,6 +102,7 @@ VERBS: Final = (
     "site",
     "stats",
     "release",
+    "camera",
 )
 
 #: Limits of the work area: far beyond any restaurant, close enough to catch unit mistakes.

@@ -33,6 +33,7 @@ from serveur.wire.fields import RequestId, Topic
 
 __all__ = [
     "SERVER_ADAPTER",
+    "CameraState",
     "Dependents",
     "ErrorCode",
     "ErrorReply",
@@ -270,10 +271,19 @@ class OkReply(_ServerModel):
     forecast: ForecastInfo | None = Field(
         default=None, description="stats forecast, forecast_cancel: the forecast"
     )
+    camera: CameraState | None = Field(default=None, description="camera: watching or not")
     stats: dict[str, Any] | None = Field(
         default=None,
         description="stats: figures ({periods, total}) or the trip history ({trips, more})",
     )
+
+
+class CameraState(_ServerModel):
+    """What a ``camera`` request left: the pictures come (``watching``), stopped, or the robot
+    has no camera (``none``)."""
+
+    robot: str
+    state: Literal["watching", "stopped", "none"]
 
 
 class UserInfo(_ServerModel):
