@@ -10,10 +10,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import fcntl
 import http
 import json
 import logging
 import ssl as ssl_module
+import sys
+import termios
 import typing
 from collections import Counter
 from collections.abc import Awaitable, Callable
@@ -381,11 +384,17 @@ class Server:
         return {"camera": {"robot": msg.robot, "state": state}}
 
     async def _send_frames(self, conn: _Conn, viewer: CameraViewer) -> None:
+        """Send the newest picture once the last one reached the viewer. The kernel's send
+        buffer on a stalled Wi-Fi link holds hundreds of kB (dozens of pictures) before a
+        ``send`` would wait, and every one of them would then be shown late; so a picture goes
+        out only when what is still unacknowledged on the socket is less than one picture
+        (:func:`_unsent`), and meanwhile the relay's slot keeps only the newest."""
         epoch = self.core.clock.epoch
         with contextlib.suppress(websockets.exceptions.ConnectionClosed):
             while (f := await viewer.next()) is not None:
                 msg = camera_frame(f.robot, f.seq, f.captured, f.received, epoch(), f.jpeg)
-                await conn.ws.send(msg)  # waits while the socket's buffer is full
+                await conn.ws.send(msg)
+                await _until_sent(conn.ws, len(msg))
 
     async def _unwatch(self, conn: _Conn, robot: str) -> None:
         watched = conn.watching.pop(robot, None)
@@ -531,6 +540,29 @@ def _writer_now(ws: ServerConnection) -> Callable[[str], bool]:
         return True
 
     return write
+
+
+#: How often a camera sender looks whether its last picture reached the viewer (seconds).
+_SENT_POLL = 0.01
+
+
+def _unsent(ws: ServerConnection) -> int:
+    """Bytes written to ``ws`` the viewer has not acknowledged yet: the transport's buffer plus
+    the kernel's send queue (Linux ``TIOCOUTQ``: queued and unacknowledged; 0 elsewhere)."""
+    transport = ws.transport
+    n = transport.get_write_buffer_size()
+    sock = transport.get_extra_info("socket")
+    if sock is not None and hasattr(termios, "TIOCOUTQ"):
+        with contextlib.suppress(OSError, ValueError):
+            buf = fcntl.ioctl(sock.fileno(), termios.TIOCOUTQ, b"\0\0\0\0")
+            n += int.from_bytes(buf, sys.byteorder, signed=True)
+    return n
+
+
+async def _until_sent(ws: ServerConnection, size: int) -> None:
+    """Wait while more than ``size`` bytes are on their way to the viewer (or it closed)."""
+    while ws.protocol.state is State.OPEN and _unsent(ws) > size:  # noqa: ASYNC110
+        await asyncio.sleep(_SENT_POLL)  # the kernel's queue has no event to wait on
 
 
 def _members(alias: Any) -> tuple[type, ...]:

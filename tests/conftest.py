@@ -395,9 +395,12 @@ async def restaurant(
     *,
     proxied: bool = False,
     config: CoreConfig | None = None,
+    link: Mapping[str, str] | None = None,
     **sim_options: Any,
 ) -> AsyncIterator[Restaurant]:
     """A running restaurant on a SQLite file in ``tmp_path``, or on ``db_url`` if given.
+
+    ``link``: more link options for every robot (``{"camera": "camera/image/compressed"}``).
 
     ``proxied``: each robot is reached through a :class:`~tests.netproxy.LinkProxy` that a
     test can blackhole or inject frames into. ``sim_options`` go to ``start_simulation``.
@@ -420,7 +423,7 @@ async def restaurant(
     proxies = [await LinkProxy.for_url(url).start() for url in sim.urls] if proxied else []
     urls = [p.url for p in proxies] if proxied else sim.urls
     specs = [
-        RobotSpec(r.name, url, f"home{i + 1}", link=sim_link(r))
+        RobotSpec(r.name, url, f"home{i + 1}", link={**sim_link(r), **(link or {})})
         for i, (r, url) in enumerate(zip(sim.robots, urls, strict=True))
     ]
     db = db_url or tmp_path / "serveur.db"

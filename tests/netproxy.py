@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import socket
 import struct
 
 __all__ = ["LinkProxy"]
@@ -50,8 +51,14 @@ class _Pair:
 class LinkProxy:
     """Listens on 127.0.0.1 and forwards every connection to ``target`` (host, port)."""
 
-    def __init__(self, target_host: str, target_port: int) -> None:
+    def __init__(self, target_host: str, target_port: int, *, window: int | None = None) -> None:
+        """``window``: the receive buffer (bytes) on the target's side, as a device's TCP
+        window. A stalled Wi-Fi path acknowledges nothing, so the sender's queue grows; here
+        the proxy's own kernel would acknowledge into its large loopback buffer (megabytes)
+        and the target could not tell a stall. With a small window it fills after a few kB,
+        as a phone's does."""
         self._target = (target_host, target_port)
+        self._window = window
         self._server: asyncio.Server | None = None
         self._pairs: set[_Pair] = set()
         self._dead = False
@@ -60,9 +67,9 @@ class LinkProxy:
         self.connections = 0
 
     @classmethod
-    def for_url(cls, url: str) -> LinkProxy:
+    def for_url(cls, url: str, *, window: int | None = None) -> LinkProxy:
         host, port = url.split("//", 1)[1].split("/", 1)[0].rsplit(":", 1)
-        return cls(host, int(port))
+        return cls(host, int(port), window=window)
 
     async def start(self) -> LinkProxy:
         self._server = await asyncio.start_server(self._accept, "127.0.0.1", 0)
@@ -114,7 +121,14 @@ class LinkProxy:
 
     async def _accept(self, down_r: asyncio.StreamReader, down_w: asyncio.StreamWriter) -> None:
         try:
-            up_r, up_w = await asyncio.open_connection(*self._target)
+            if self._window is None:
+                up_r, up_w = await asyncio.open_connection(*self._target)
+            else:
+                sock = socket.socket()
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, self._window)
+                sock.setblocking(False)
+                await asyncio.get_running_loop().sock_connect(sock, self._target)
+                up_r, up_w = await asyncio.open_connection(sock=sock, limit=self._window)
         except OSError:
             down_w.transport.abort()
             return
