@@ -17,6 +17,7 @@ import logging
 import ssl as ssl_module
 import sys
 import termios
+import time
 import typing
 from collections import Counter
 from collections.abc import Awaitable, Callable
@@ -389,7 +390,7 @@ class Server:
         ``send`` would wait, and every one of them would then be shown late; so a picture goes
         out only when what is still unacknowledged on the socket is less than one picture
         (:func:`_unsent`), and meanwhile the relay's slot keeps only the newest."""
-        epoch = self.core.clock.epoch
+        epoch = time.time  # wall time, as the relay's (a picture's age is what staff see)
         with contextlib.suppress(websockets.exceptions.ConnectionClosed):
             while (f := await viewer.next()) is not None:
                 msg = camera_frame(f.robot, f.seq, f.captured, f.received, epoch(), f.jpeg)

@@ -115,7 +115,7 @@ async def test_five_tablets_one_subscription_and_a_stalled_one_gets_the_newest(
                 await asyncio.sleep(2.0)  # the fault's length, not a wait for a result
                 took = loop.time() - t0
                 rate = [(len(t.frames) - b) / took for t, b in zip(good, before, strict=True)]
-                relay = (await r.app.core.controller("r1").camera())  # type: ignore[union-attr]
+                relay = await r.app.core.controller("r1").camera()  # type: ignore[union-attr]
                 assert relay is not None
                 source_rate = relay.counts.frames_in / max(1e-9, loop.time() - t0)
                 # The good tablets kept up with the camera (the simulator sends at most
@@ -127,11 +127,14 @@ async def test_five_tablets_one_subscription_and_a_stalled_one_gets_the_newest(
                     lambda: bad.frames and bad.frames[-1]["seq"] >= newest, WAIT, "the newest"
                 )
                 caught_up = len(bad.frames) - stalled_at
-                # What was on its way when the Wi-Fi stalled (the tablet's TCP window, a few
-                # pictures), then the newest: not the ~28 it missed.
-                assert caught_up <= 8, [f["seq"] for f in bad.frames[stalled_at:]]
                 missed = newest - bad.frames[stalled_at - 1]["seq"]
-                assert missed >= 20, missed
+                # What was on its way when the Wi-Fi stalled (the tablet's TCP window, a few
+                # pictures), then the newest: not the ~28 it missed (fewer on a loaded box,
+                # where the simulator renders fewer).
+                assert caught_up <= 8 and caught_up < missed / 2, (
+                    missed,
+                    [f["seq"] for f in bad.frames[stalled_at:]],
+                )
 
                 # Stopping: the reply says so and the robot's subscription goes with the last.
                 for t in good:

@@ -58,9 +58,11 @@ __all__ = [
 WEB_ROOT = Path(__file__).with_name("site")
 
 # The UI loads only its own scripts, styles and images, and talks only to its own server's
-# websocket: nothing else is needed offline, and nothing else can be injected.
+# websocket: nothing else is needed offline, and nothing else can be injected. ``blob:`` images
+# are the robots' camera pictures, made by the page's own script from its websocket's binary
+# messages (docs/protocol.md, "Camera frames").
 CONTENT_SECURITY_POLICY = (
-    "default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
+    "default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data: blob:; "
     "connect-src 'self' ws: wss:; object-src 'none'; base-uri 'none'; form-action 'self'; "
     "frame-ancestors 'none'"
 )

@@ -103,14 +103,16 @@ def ui_app(r_db: Path, clock: ScaledClock, specs: list[RobotSpec], port: int = 0
 
 
 @contextlib.asynccontextmanager
-async def ui_restaurant(tmp_path: Path, robots: int = 1) -> AsyncIterator[Restaurant]:
-    """conftest.restaurant() with ui_app."""
+async def ui_restaurant(
+    tmp_path: Path, robots: int = 1, link: dict[str, str] | None = None
+) -> AsyncIterator[Restaurant]:
+    """conftest.restaurant() with ui_app; ``link``: more link options for every robot."""
     clock = ScaledClock(TIME_SCALE)
     sim = await start_simulation(
         robots, port=0, map_path=demo_map_path(), time_scale=TIME_SCALE, clock=clock
     )
     specs = [
-        RobotSpec(rb.name, url, f"home{i + 1}")
+        RobotSpec(rb.name, url, f"home{i + 1}", link=dict(link or {}))
         for i, (rb, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
     ]
     db = tmp_path / "serveur.db"

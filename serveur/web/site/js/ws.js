@@ -245,6 +245,7 @@ export class Connection extends EventTarget {
       return;
     }
     this._ws = ws;
+    ws.binaryType = "arraybuffer"; // camera pictures (docs/protocol.md, "Camera frames")
     ws.onopen = () => this._authenticate(); // "online" once the server knows who we are
     ws.onmessage = (ev) => this._receive(ev.data);
     ws.onclose = (ev) => {
@@ -284,6 +285,10 @@ export class Connection extends EventTarget {
 
   _receive(text) {
     this._lastHeard = Date.now();
+    if (text instanceof ArrayBuffer) {
+      this._emit("camera", { buffer: text }); // the only binary message the server sends
+      return;
+    }
     let msg;
     try {
       msg = JSON.parse(text);

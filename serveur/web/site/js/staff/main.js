@@ -7,6 +7,7 @@ import { MapView } from "../map/view.js";
 import { RobotsPanel } from "./robots.js";
 import { MapTools } from "./maptools.js";
 import { Teleop } from "./teleop.js";
+import { CameraView } from "./camera.js";
 import { WaypointsPanel } from "./waypoints.js";
 import { IssuePanel } from "./issue.js";
 import { NewOrderPanel } from "./neworder.js";
@@ -77,7 +78,7 @@ const view = new MapView(document.getElementById("map"), live, {
 tools = new MapTools(conn, live, view, selection, goals);
 new RobotsPanel(document.getElementById("robots"), conn, live, selection);
 new RegisterRobot(document.getElementById("register"), conn, live);
-new Teleop(document.getElementById("teleop"), conn, live, selection);
+new Teleop(document.getElementById("teleop"), conn, live, selection, new CameraView(conn, live, selection));
 new WaypointsPanel(document.getElementById("waypoints"), conn, live, selection);
 new IssuePanel(document.getElementById("panel-issue"), conn, live);
 new NewOrderPanel(document.getElementById("panel-order"), conn, live);

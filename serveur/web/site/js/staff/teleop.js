@@ -20,10 +20,12 @@ const KEYS = {
 };
 
 export class Teleop {
-  constructor(root, conn, live, selection) {
+  /** ``camera``: the selected robot's camera (camera.js); a stale picture stops the robot. */
+  constructor(root, conn, live, selection, camera) {
     this.conn = conn;
     this.live = live;
     this.selection = selection;
+    this.camera = camera;
     this.stick = [0, 0]; // joystick: right, up in -1..1
     this.turn = 0; // rotation pad: right in -1..1
     this.keys = new Set();
@@ -39,7 +41,7 @@ export class Teleop {
         { class: "teleop", "aria-labelledby": "teleop-title" },
         el("h3", { id: "teleop-title", "data-i18n": "teleop.title" }),
         this.note,
-        el("div", { class: "pads" }, this.joystick.node, this.rotor.node),
+        el("div", { class: "drive" }, camera.node, el("div", { class: "pads" }, this.joystick.node, this.rotor.node)),
         el("p", { class: "hint", "data-i18n": "teleop.keys" }),
       ),
     );
@@ -56,7 +58,18 @@ export class Teleop {
       this._refresh();
     });
     onLangChange(() => this._refresh());
+    // The picture went stale while driving: stop now, not at the next command.
+    camera.addEventListener("change", () => {
+      if (!camera.fresh()) {
+        if (this.timer) this._stale();
+      } else this._refresh(); // a fresh picture again: the note says who is driven
+    });
     this._refresh();
+  }
+
+  _stale() {
+    this._releaseAll(); // one zero twist
+    this.note.textContent = t("teleop.stale");
   }
 
   _enabled() {
@@ -91,6 +104,7 @@ export class Teleop {
     const moving = cmd.vx || cmd.vy || cmd.wz;
     if (moving && !this.timer) {
       if (!this._enabled()) return this._releaseAll();
+      if (!this.camera.fresh()) return this._stale();
       this.target = this.selection.name;
       this._send(cmd);
       this.timer = setInterval(() => this._send(this._command()), PERIOD_MS);
@@ -120,6 +134,7 @@ export class Teleop {
   _send(cmd) {
     const robot = this.target;
     if (!robot) return;
+    if ((cmd.vx || cmd.vy || cmd.wz) && !this.camera.fresh()) return this._stale();
     const msg = { clientmsg: "control", robot, action: "teleop", ...cmd };
     this.conn.request(msg).catch((err) => {
       showError(err);
