@@ -231,8 +231,10 @@ async def _demo(ns: argparse.Namespace) -> int:
     # A fresh temporary database unless --db: removed again when the demo stops.
     tmpdir = None if ns.db else Path(tempfile.mkdtemp(prefix="serveur-demo-"))
     db = ns.db or str(Path(str(tmpdir)) / "serveur.db")
+    # The simulated robots' cameras (serveur.sim.camera), watched beside the joystick.
+    camera = {"camera": "camera/image/compressed"}
     specs = [
-        RobotSpec(r.name, url, homes[i].name, ns.kinematics)
+        RobotSpec(r.name, url, homes[i].name, ns.kinematics, dict(camera))
         for i, (r, url) in enumerate(zip(sim.robots, sim.urls, strict=True))
     ]
     app = App(
