@@ -83,6 +83,7 @@ PAYLOAD = {
     "site remove_zone": "zone",
     "create zone": "zone",
     "release": "broken",
+    "camera": "camera",
     "site settings": "settings",
     "site set_settings": "settings",
     "site audit": "audit",
