@@ -113,8 +113,9 @@ def pytest_asyncio_loop_factories(config: Any, item: Any) -> Mapping[str, Any]:
 
 
 #: The longest modules (wall seconds with three workers on two cores, longest first) start
-#: first: xdist's ``--dist loadscope`` hands modules out in collection order, and a long module
-#: handed out last keeps one worker busy for a minute after the others are done.
+#: first: with ``--no-loadscope-reorder`` (pyproject.toml) xdist's ``--dist loadscope`` hands
+#: modules out in collection order (by default it sorts them by their number of tests), and a
+#: long module handed out last keeps one worker busy for a minute after the others are done.
 LONGEST_FIRST = (
     "tests/replay/test_replay.py",
     "tests/web/test_ui.py",

@@ -68,6 +68,15 @@ class MariaDBServer:
     def log(self) -> Path:
         return self.base / "error.log"
 
+    @property
+    def tmpdir(self) -> Path:
+        """The server's own temporary folder: in the shared /tmp, its temporary tables' files
+        were deleted under it once (mariadb-install-db: "Error on delete of
+        '/tmp/#sql-temptable-...'", 11 tests errored)."""
+        path = self.base / "tmp"
+        path.mkdir(parents=True, exist_ok=True)
+        return path
+
     def install(self) -> None:
         tool = _binary("mariadb-install-db")
         if tool is None:  # pragma: no cover - it comes with mariadbd
@@ -84,6 +93,7 @@ class MariaDBServer:
             check=True,
             capture_output=True,
             timeout=60,
+            env={**os.environ, "TMPDIR": str(self.tmpdir)},
         )
 
     def start(self) -> None:
@@ -94,6 +104,7 @@ class MariaDBServer:
             "--no-defaults",
             f"--datadir={self.base / 'data'}",
             f"--socket={self.socket}",
+            f"--tmpdir={self.tmpdir}",
             f"--port={self.port}",
             "--bind-address=127.0.0.1",
             f"--pid-file={self.base / 'mysqld.pid'}",

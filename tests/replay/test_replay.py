@@ -10,6 +10,8 @@ waits are compared with a tolerance.
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -140,19 +142,26 @@ def test_short_replay_both_policies_and_again(tmp_path: Path) -> None:
     assert report["options"]["rank"] == "best" and report["options"]["hold_max"] == 60.0
     assert fifo["policies"]["serveur"]["summary"]["undelivered"] == 0
 
-    # On the wall clock at 10x, the first three dishes: every dish delivered, waits like the
-    # same dishes' in virtual time (jitter moves a tick). 10x as the restaurant tests run: at
-    # 30x or 60x the simulator's 20 ticks a simulated second for two robots did not keep up
-    # with three test workers on two cores, and a robot never came up ("timed out waiting for
-    # r2 Ready", 2 runs in 3).
+
+def test_a_replay_on_the_wall_clock_waits_like_one_in_virtual_time(tmp_path: Path) -> None:
+    """``--time-scale 10``: the first three dishes on the wall clock, as ``serveur replay``
+    runs from a shell (a process of its own), against the same dishes in virtual time: every
+    dish delivered, similar waits (jitter moves a tick). 10x as the restaurant tests run: at
+    30x or 60x the simulator's ticks for two robots did not keep up with three test workers on
+    two cores. Its log goes to the failure message: a robot that never came up ("timed out
+    waiting for r1 Ready", seen in-process under load and not explained yet) must say why."""
     rush = tmp_path / "rush.csv"
     rush.write_text("".join(LOG.splitlines(keepends=True)[:4]))
-    out5, out3 = tmp_path / "rush-virtual", tmp_path / "scaled"
-    rush_args = [str(rush), *ARGS, "--policy", "serveur"]
-    assert main(["replay", *rush_args, "--out", str(out5)]) == 0
-    assert main(["replay", *rush_args, "--time-scale", "10", "--out", str(out3)]) == 0
-    virtual = json.loads((out5 / "report.json").read_text())["policies"]["serveur"]
-    scaled = json.loads((out3 / "report.json").read_text())["policies"]["serveur"]
+    virtual_out, scaled_out = tmp_path / "virtual", tmp_path / "scaled"
+    args = [str(rush), "--robots", "2", "--seed", "3", "--policy", "serveur"]
+    assert main(["replay", *args, "--quiet", "--out", str(virtual_out)]) == 0
+    cmd = [sys.executable, "-m", "serveur.cli", "replay", *args, "--time-scale", "10"]
+    run = subprocess.run(
+        [*cmd, "--out", str(scaled_out)], capture_output=True, text=True, timeout=150
+    )
+    assert run.returncode == 0, run.stderr[-3000:]
+    virtual = json.loads((virtual_out / "report.json").read_text())["policies"]["serveur"]
+    scaled = json.loads((scaled_out / "report.json").read_text())["policies"]["serveur"]
     assert scaled["summary"]["orders"] == virtual["summary"]["orders"] == 3
     assert scaled["summary"]["undelivered"] == 0
     assert scaled["summary"]["wait_mean"] == pytest.approx(virtual["summary"]["wait_mean"], abs=10)
