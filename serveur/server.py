@@ -351,6 +351,11 @@ class Server:
             return await own(self, conn, msg)
         table = p.table if p is not None and p.role is Role.TABLE_SCREEN else None
         reply = await self.core.handle(msg, actor=p.actor if p else None, table=table)
+        if isinstance(msg, P.SiteSetSettings) and msg.cameras is False:
+            # The owner switched the cameras off: nobody watches from now on.
+            for other in list(self._conns):
+                for robot in list(other.watching):
+                    await self._unwatch(other, robot)
         if msg.clientmsg == "site" and reply.get("revoked"):
             # A removed robot's or table's screens: their tokens are revoked, close them now.
             self.sessions.end(reply["revoked"], "its robot or table was removed")
@@ -371,7 +376,9 @@ class Server:
         ctl = self.core.controller(msg.robot)  # not_found for a robot that does not exist
         await self._unwatch(conn, msg.robot)
         state = "stopped"
-        if msg.watch:
+        if msg.watch and not self.core.settings()["cameras"]:
+            state = "off"
+        elif msg.watch:
             relay = await ctl.camera()
             if relay is None:
                 state = "none"

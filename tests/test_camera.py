@@ -154,3 +154,29 @@ async def test_a_robot_without_a_camera_says_none(tmp_path: Path) -> None:
         missing = await t.call(clientmsg="camera", robot="r9", watch=True)
         assert missing["code"] == "not_found"
         assert camera_subs(r) == 0 and not t.frames
+
+
+async def test_the_owner_switches_the_cameras_off_and_nobody_watches(tmp_path: Path) -> None:
+    async with restaurant(tmp_path, robots=1, link=CAMERA) as r, tablet(r) as staff:
+        owner = Tablet(await connect(r.app.url))
+        try:
+            password = r.app.first_owner_password
+            login = await owner.call(clientmsg="login", username="owner", password=password)
+            assert login["servermsg"] == "ok", login
+            watching = await staff.call(clientmsg="camera", robot="r1", watch=True)
+            assert watching["camera"]["state"] == "watching"
+            await staff.frames_at_least(2)
+            off = await owner.call(clientmsg="site", action="set_settings", cameras=False)
+            assert off["settings"]["cameras"] is False
+            # Whoever watched stops at once: the robot's camera is closed...
+            await poll_until(lambda: camera_subs(r) == 0, WAIT, "the camera closed")
+            # ...and nobody may watch again until the owner switches them on.
+            again = await staff.call(clientmsg="camera", robot="r1", watch=True)
+            assert again["camera"] == {"robot": "r1", "state": "off"}
+            assert camera_subs(r) == 0
+            on = await owner.call(clientmsg="site", action="set_settings", cameras=True)
+            assert on["settings"]["cameras"] is True
+            back = await staff.call(clientmsg="camera", robot="r1", watch=True)
+            assert back["camera"]["state"] == "watching"
+        finally:
+            await owner.close()

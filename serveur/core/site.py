@@ -89,6 +89,8 @@ class Site:
         #: The pages' languages: those offered, and the one a device without a choice gets.
         self.languages = list(config.languages)
         self.language = config.language
+        #: Staff may watch the robots' cameras (the owner can switch them off for the site).
+        self.cameras = True
 
     async def site(self, msg: Any, actor: str | None) -> dict[str, Any]:
         """The ``site`` verb's actions the core carries out (the audit search is the
@@ -108,6 +110,7 @@ class Site:
             "auto_depart": self.config.auto_depart,
             "languages": list(self.languages),
             "language": self.language,
+            "cameras": self.cameras,
         }
 
     async def load_settings(self) -> None:
@@ -121,6 +124,8 @@ class Site:
             self.config.capacity = int(values["trays"])
         if "auto_depart" in values:
             self.config.auto_depart = bool(values["auto_depart"])
+        if "cameras" in values:
+            self.cameras = bool(values["cameras"])
         if "languages" in values:
             self.languages = [x for x in values["languages"] if x in P.LANGUAGES] or ["en"]
         if "language" in values and values["language"] in self.languages:

@@ -72,6 +72,9 @@ class Settings(_ServerModel):
     auto_depart: bool = Field(description="trips leave the pass at once, without Go")
     languages: list[Literal["en", "zh", "ms"]] = Field(description="the languages offered")
     language: Literal["en", "zh", "ms"] = Field(description="for a device without a choice")
+    cameras: bool = Field(
+        default=True, description="staff may watch the robots' cameras (off: guests' privacy)"
+    )
 
 
 class Dependents(_ServerModel):
@@ -279,11 +282,11 @@ class OkReply(_ServerModel):
 
 
 class CameraState(_ServerModel):
-    """What a ``camera`` request left: the pictures come (``watching``), stopped, or the robot
-    has no camera (``none``)."""
+    """What a ``camera`` request left: the pictures come (``watching``), stopped, the robot
+    has no camera (``none``), or the owner switched the cameras off (``off``)."""
 
     robot: str
-    state: Literal["watching", "stopped", "none"]
+    state: Literal["watching", "stopped", "none", "off"]
 
 
 class UserInfo(_ServerModel):

@@ -42,7 +42,7 @@ __all__ = [
 LANGUAGES = ("en", "zh", "ms")
 Language: TypeAlias = Literal["en", "zh", "ms"]
 #: The settings the owner may change, as ``set_settings`` names them.
-SETTINGS = ("table_timeout", "trays", "auto_depart", "languages", "language")
+SETTINGS = ("table_timeout", "trays", "auto_depart", "languages", "language", "cameras")
 
 _Epoch = Annotated[float, Field(ge=0, le=1e11)]
 #: A day (``2026-11-24``: the service day starting at 04:00) or a time (``2026-11-24T19:30``).
@@ -147,12 +147,15 @@ class SiteSetSettings(_SiteMsg):
     language: Language | None = Field(
         default=None, description="the pages' language where the device has no choice"
     )
+    cameras: StrictBool | None = Field(
+        default=None, description="staff may watch the robots' cameras (off: guests' privacy)"
+    )
 
     @model_validator(mode="after")
     def _something(self) -> SiteSetSettings:
         if not self.changes():
             raise PydanticCustomError("nothing_to_set", "name at least one setting")
-        for key in ("trays", "auto_depart", "languages", "language"):
+        for key in ("trays", "auto_depart", "languages", "language", "cameras"):
             if key in self.model_fields_set and getattr(self, key) is None:
                 raise PydanticCustomError("not_null", f"{key} cannot be null")
         if self.languages is not None and len(set(self.languages)) != len(self.languages):

@@ -19,7 +19,7 @@ export class CameraView extends EventTarget {
     this.live = live;
     this.selection = selection;
     this.robot = null; // the robot watched
-    this.state = "off"; // off | starting | none | live | stale
+    this.state = "off"; // off | starting | none | disabled | live | stale
     this.arrived = 0; // performance.now() of the last picture
     this.ageOnArrival = 0; // ms the picture was old when it arrived
     this.url = null; // the picture shown
@@ -37,7 +37,10 @@ export class CameraView extends EventTarget {
     this.timer = null;
     conn.addEventListener("camera", (e) => this._picture(e.detail.buffer));
     conn.addEventListener("state", (e) => e.detail.state === "online" && this._resync(true));
-    live.addEventListener("change", (e) => e.detail.topic === "robots" && this._resync());
+    live.addEventListener("change", (e) => {
+      if (e.detail.topic === "robots") this._resync();
+      else if (e.detail.topic === "settings") this._resync(true); // cameras switched on or off
+    });
     selection.onChange(() => this._resync());
     document.addEventListener("visibilitychange", () => this._resync());
     onLangChange(() => this._say());
@@ -45,7 +48,7 @@ export class CameraView extends EventTarget {
 
   /** May the robot be driven on what the page shows? (No camera: yes, on the map.) */
   fresh() {
-    if (this.state === "off" || this.state === "none") return true;
+    if (this.state === "off" || this.state === "none" || this.state === "disabled") return true;
     return this.state === "live" && this._ageMs() <= STALE_MS;
   }
 
@@ -68,7 +71,9 @@ export class CameraView extends EventTarget {
     if (!want) return;
     try {
       const reply = await this.conn.request({ clientmsg: "camera", robot: want, watch: true });
-      if (this.robot === want && reply.camera.state === "none") this._set("none");
+      if (this.robot !== want) return;
+      if (reply.camera.state === "none") this._set("none");
+      if (reply.camera.state === "off") this._set("disabled"); // the owner switched cameras off
     } catch {
       if (this.robot === want) this._set("none");
     }
@@ -119,7 +124,7 @@ export class CameraView extends EventTarget {
     const was = this.state;
     this.state = state;
     this.node.hidden = state === "off";
-    if (state === "off" || state === "none" || state === "starting") this.img.hidden = true;
+    if (!(state === "live" || state === "stale")) this.img.hidden = true;
     const ticking = state === "live" || state === "stale";
     if (ticking && !this.timer) this.timer = setInterval(() => this._tick(), TICK_MS);
     if (!ticking && this.timer) {
@@ -134,7 +139,13 @@ export class CameraView extends EventTarget {
     const robot = this.robot || "";
     const age = (this._ageMs() / 1000).toFixed(1);
     this.img.alt = t("camera.alt", { robot });
-    const key = { starting: "camera.starting", none: "camera.none", live: "camera.live", stale: "camera.stale" }[this.state];
+    const key = {
+      starting: "camera.starting",
+      none: "camera.none",
+      disabled: "camera.disabled",
+      live: "camera.live",
+      stale: "camera.stale",
+    }[this.state];
     const text = key ? t(key, { robot }) : "";
     if (this.caption.textContent !== text) this.caption.textContent = text;
     const shown = this.state === "live" || this.state === "stale" ? t("camera.age", { age }) : "";

@@ -20,6 +20,7 @@ export class SettingsSection {
     this.forever = el("input", { id: "set-forever", type: "checkbox" });
     this.trays = el("input", { id: "set-trays", type: "number", min: 1, max: MAX_TRAYS, step: 1, inputmode: "numeric", required: true });
     this.autoDepart = el("input", { id: "set-auto", type: "checkbox" });
+    this.cameras = el("input", { id: "set-cameras", type: "checkbox" });
     this.langBoxes = Object.fromEntries(LANGS.map((l) => [l, el("input", { id: `set-lang-${l}`, type: "checkbox", value: l })]));
     this.language = el("select", { id: "set-language" });
     this.saveBtn = el("button", { type: "submit", class: "primary", "data-needs-online": true, "data-i18n": "owner.settings.save" });
@@ -32,6 +33,8 @@ export class SettingsSection {
       field("set-trays", "owner.settings.trays", this.trays),
       el("label", { class: "check" }, this.autoDepart, el("span", { "data-i18n": "owner.settings.autoDepart" })),
       el("p", { class: "muted rest-hint", "data-i18n": "owner.settings.autoDepartNote" }),
+      el("label", { class: "check" }, this.cameras, el("span", { "data-i18n": "owner.settings.cameras" })),
+      el("p", { class: "muted rest-hint", "data-i18n": "owner.settings.camerasNote" }),
       el(
         "fieldset",
         { class: "rest-langs" },
@@ -77,6 +80,7 @@ export class SettingsSection {
     this.timeout.value = forever ? "" : String(Math.round(settings.table_timeout));
     this.trays.value = String(settings.trays);
     this.autoDepart.checked = Boolean(settings.auto_depart);
+    this.cameras.checked = settings.cameras !== false;
     for (const l of LANGS) this.langBoxes[l].checked = settings.languages.includes(l);
     this.fillLanguage(settings.language);
     this._sync();
@@ -108,6 +112,7 @@ export class SettingsSection {
       table_timeout: this.forever.checked ? null : Number(this.timeout.value),
       trays: Number(this.trays.value),
       auto_depart: this.autoDepart.checked,
+      cameras: this.cameras.checked,
       languages,
       language: this.language.value,
     };
