@@ -376,7 +376,7 @@ class Server:
         ctl = self.core.controller(msg.robot)  # not_found for a robot that does not exist
         await self._unwatch(conn, msg.robot)
         state = "stopped"
-        if msg.watch and not self.core.settings()["cameras"]:
+        if msg.watch and not self.core.site.cameras:
             state = "off"
         elif msg.watch:
             relay = await ctl.camera()

@@ -53,6 +53,11 @@ PRODUCT_SCRYPT_N = auth._SCRYPT_N
 auth._SCRYPT_N = 2**10  # type: ignore[misc]
 
 
+def subscribers(sim: Any, topic: str, robot: int = 0) -> int:
+    """How many clients a simulated robot's rosbridge serves ``topic`` to now."""
+    return len(sim.robots[robot].outbox.subs.get(topic, ()))
+
+
 async def poll_until(cond: Callable[[], Any], timeout: float, what: str) -> Any:
     """Wait until ``cond()`` holds, polling every 10 ms; fail after ``timeout`` wall seconds.
 

@@ -25,10 +25,11 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from serveur.sim.sensors import CAMERA_TOPIC
 from serveur.wire.camera import read_camera_frame
-from tests.conftest import Restaurant, poll_until, restaurant
+from tests.conftest import Restaurant, poll_until, restaurant, subscribers
 from tests.netproxy import LinkProxy
 
-CAMERA = {"camera": "camera/image/compressed"}
+#: The link option naming the simulator's camera topic (relative, as a robot's would be).
+CAMERA = {"camera": CAMERA_TOPIC.lstrip("/")}
 WAIT = 10.0
 
 
@@ -85,7 +86,7 @@ async def tablet(r: Restaurant, url: str | None = None) -> AsyncIterator[Tablet]
 
 
 def camera_subs(r: Restaurant) -> int:
-    return len(r.sim.robots[0].outbox.subs.get(CAMERA_TOPIC, ()))
+    return subscribers(r.sim, CAMERA_TOPIC)
 
 
 async def test_five_tablets_one_subscription_and_a_stalled_one_gets_the_newest(

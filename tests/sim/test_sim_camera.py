@@ -22,7 +22,7 @@ from serveur.robot_sim import Simulation, start_simulation
 from serveur.robots.camera import RosbridgeCamera, frame_of
 from serveur.sim.camera import CAMERA_SIZE
 from serveur.sim.sensors import CAMERA_TOPIC
-from tests.conftest import poll_until
+from tests.conftest import poll_until, subscribers
 
 WAIT = 10.0
 
@@ -36,10 +36,6 @@ async def sim(request: pytest.FixtureRequest) -> AsyncIterator[Simulation]:
         yield s
     finally:
         await s.close()
-
-
-def subscribers(sim: Simulation) -> int:
-    return len(sim.robots[0].outbox.subs.get(CAMERA_TOPIC, ()))
 
 
 async def taken(viewer: CameraViewer, n: int) -> list[int]:
@@ -57,7 +53,7 @@ async def test_five_viewers_one_subscription_and_a_stalled_one_gets_the_newest(
     got = await asyncio.gather(*(taken(v, 10) for v in fast))
     # Every fast viewer saw the same ten frames in a row, at the camera's rate (10 fps).
     assert all(g == got[0] for g in got) and got[0] == list(range(got[0][0], got[0][0] + 10))
-    assert source.connects == 1 and subscribers(sim) == 1
+    assert source.connects == 1 and subscribers(sim, CAMERA_TOPIC) == 1
     # The stalled tablet wakes: the newest frame, not the first it missed.
     frame = await stalled.next()
     assert frame.seq >= got[0][-1] and stalled.skipped >= 9
@@ -69,7 +65,7 @@ async def test_five_viewers_one_subscription_and_a_stalled_one_gets_the_newest(
         await cam.leave(v)
     assert not cam.streaming
     # The bridge drops the closed client's subscription (the simulator's own state: polled).
-    await poll_until(lambda: subscribers(sim) == 0, WAIT, "the camera unsubscribed")
+    await poll_until(lambda: subscribers(sim, CAMERA_TOPIC) == 0, WAIT, "the camera unsubscribed")
     assert cam.counts.not_jpeg == cam.counts.too_large == 0
 
 

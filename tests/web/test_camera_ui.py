@@ -18,7 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from serveur.sim.sensors import CAMERA_TOPIC
-from tests.conftest import poll_until
+from tests.conftest import poll_until, subscribers
+from tests.test_camera import CAMERA
 from tests.web.conftest import sideways
 from tests.web.test_a11y import violations
 from tests.web.test_ui import (
@@ -31,7 +32,6 @@ from tests.web.test_ui import (
     ui_restaurant,
 )
 
-CAMERA = {"camera": "camera/image/compressed"}
 PHONE = {"width": 390, "height": 844}
 
 
@@ -41,7 +41,7 @@ def speed(r: Any) -> float:
 
 
 def camera_subs(r: Any) -> int:
-    return len(r.sim.robots[0].outbox.subs.get(CAMERA_TOPIC, ()))
+    return subscribers(r.sim, CAMERA_TOPIC)
 
 
 async def test_the_camera_beside_the_joystick_and_a_stale_picture_stops_the_robot(
