@@ -146,6 +146,11 @@ class Robot(_Record):
         description="the zones it waits to be leased before it drives on (null: not waiting);"
         " not stored",
     )
+    lost: bool = Field(
+        default=False,
+        description="not sure where it is (its localisation spread out): staff set where it is"
+        " on the map; it gets no trips meanwhile; not stored",
+    )
 
     @field_validator("link", mode="before")
     @classmethod
@@ -162,6 +167,7 @@ class AlertKind(StrEnum):
     DISH_WAITING = "dish_waiting"  # subject: the table whose dishes wait at the pass
     TABLE_UNREACHABLE = "table_unreachable"  # subject: the table
     ZONE_WAIT = "zone_wait"  # subject: the robot waiting for a zone (serveur.core.leases)
+    ROBOT_LOST = "robot_lost"  # subject: the robot not sure where it is (core.localisation)
 
 
 class Alert(_Record):

@@ -81,6 +81,7 @@ from serveur.wire.fields import (
 )
 from serveur.wire.frames import (
     SERVER_ADAPTER,
+    CloudData,
     ErrorCode,
     ErrorReply,
     ForecastInfo,
@@ -148,6 +149,7 @@ __all__ = [
     "CancelMsg",
     "ClearMsg",
     "ClientMessage",
+    "CloudData",
     "ContinueMsg",
     "ControlAuto",
     "ControlGoal",

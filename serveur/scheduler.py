@@ -486,6 +486,7 @@ class Candidate:
     idle_since: float
     battery: float | None = None
     trays: int | None = None  # tables one trip of it may serve; None: any trip
+    lost: bool = False  # not sure where it is: it would serve the wrong table
 
 
 def can_carry(c: Candidate, stops: int) -> bool:
@@ -500,8 +501,11 @@ MIN_BATTERY = 0.15
 def choose_robot(
     candidates: Sequence[Candidate], *, min_battery: float = MIN_BATTERY
 ) -> str | None:
-    """The free robot that has waited longest; robots below ``min_battery`` are skipped."""
-    usable = [c for c in candidates if c.battery is None or c.battery >= min_battery]
+    """The free robot that has waited longest; robots below ``min_battery``, and robots not
+    sure where they are, are skipped."""
+    usable = [
+        c for c in candidates if (c.battery is None or c.battery >= min_battery) and not c.lost
+    ]
     if not usable:
         return None
     best = min(usable, key=lambda c: (c.idle_since, -(c.battery or 0.0), c.name))

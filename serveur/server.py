@@ -495,7 +495,7 @@ class Server:
         for t in topics:
             if t not in _STATE_TOPICS:
                 kind, _, robot = t.partition(":")
-                if kind not in ("pose", "scan") or not robot:
+                if kind not in P.ROBOT_TOPICS or not robot:
                     raise InvalidField(f"unknown topic {t!r}", topic=t)
                 if not msg.unsubscribe and robot not in dict(self.core.robot_statuses()):
                     # (Leaving a removed robot's stream is fine: nothing to leave.)

@@ -107,6 +107,7 @@ VIRTUAL_TIME = (
     "tests/robots/test_link_realstack.py",
     "tests/robots/test_conformance.py",
     "tests/test_e2e_mariadb.py",
+    "tests/test_localisation.py",
 )
 
 

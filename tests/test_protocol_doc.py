@@ -372,7 +372,7 @@ async def world(tmp_path: Path) -> AsyncIterator[World]:
             "olga", "owner", auth.hash_password("olga's pw", n=2**4), now=0.0
         )
         helper = await r.client()
-        await helper.subscribe(*ALL_TOPICS, f"scan:{ROBOT}")
+        await helper.subscribe(*ALL_TOPICS, f"scan:{ROBOT}", f"cloud:{ROBOT}")
         # The doc's restaurant has been open a while: its robot has reported its battery.
         await helper.until(lambda: helper.robot(ROBOT).get("battery") is not None, what="battery")
         owner = Client(await connect(r.app.url, max_size=2**24))

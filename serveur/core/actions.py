@@ -93,6 +93,13 @@ async def _next(ctl: RobotController, msg: Any, actor: str | None) -> None:
 
 
 async def _go(ctl: RobotController, msg: Any, actor: str | None) -> None:
+    if ctl.rt.localisation.lost:
+        # It would drive to where it believes the table is: staff set its place first.
+        raise Conflict(
+            f"{ctl.name} is not sure where it is: set where the robot is on the map first",
+            robot=ctl.name,
+            reason="lost",
+        )
     task = await ctl.crew.trips.current(ctl.name)
     await ctl.event(Event.GO)
     await ctl.drive(ctl.stop_dest(task))

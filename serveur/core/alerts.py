@@ -35,7 +35,14 @@ __all__ = [
 
 
 #: Kinds that need someone now (the console sounds them); the others are warnings.
-CRITICAL = frozenset({AlertKind.ROBOT_ERROR, AlertKind.ROBOT_OFFLINE, AlertKind.TABLE_UNREACHABLE})
+CRITICAL = frozenset(
+    {
+        AlertKind.ROBOT_ERROR,
+        AlertKind.ROBOT_OFFLINE,
+        AlertKind.TABLE_UNREACHABLE,
+        AlertKind.ROBOT_LOST,
+    }
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,6 +69,7 @@ class RobotFact:
     waiting_for: tuple[str, ...] = ()  # zones it waits to be leased
     waiting_since: float | None = None
     blockers: tuple[str, ...] = ()  # the robots it waits behind
+    lost: bool = False  # not sure where it is (serveur.core.localisation)
 
 
 @dataclass(frozen=True, slots=True)
@@ -99,6 +107,10 @@ def conditions(
         if r.status is RobotStatus.ERROR:
             out[(AlertKind.ROBOT_ERROR, r.name)] = f"{r.name} is stuck" + (
                 f": {r.error}" if r.error else ""
+            )
+        if r.lost and r.status is not RobotStatus.OFFLINE:
+            out[(AlertKind.ROBOT_LOST, r.name)] = (
+                f"{r.name} is not sure where it is: set where the robot is on the map"
             )
         if r.status is RobotStatus.OFFLINE and now - r.since >= limits.offline_after:
             out[(AlertKind.ROBOT_OFFLINE, r.name)] = f"{r.name} is not connected"

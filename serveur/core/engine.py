@@ -329,6 +329,25 @@ class Core:
     def moved(self, name: str, x: float, y: float) -> None:
         self.traffic.moved(name, x, y)
 
+    def localisation_changed(self, name: str) -> None:
+        """Lost or sure again: said once each way in the log (as Home Assistant says a
+        device's availability), the record republished (the console's "Not sure where it
+        is"), and, sure again, the dispatcher looks for trips for it. The alert follows from
+        the service watch's next look (robot_facts)."""
+        ctl = self._ctl[name]
+        loc = ctl.rt.localisation
+        if loc.lost:
+            log.warning(
+                "%s: not sure where it is (spread %.2f m, %.2f rad): no trips until it is",
+                name,
+                loc.spread,
+                loc.radians,
+            )
+        else:
+            log.info("%s: sure where it is again (spread %.2f m)", name, loc.spread)
+            self.dispatcher.kick()
+        ctl.publish()
+
     def battery_changed(self, name: str) -> None:
         """Screens see the new level; the dispatcher looks again if the robot is waiting at
         home. A robot below the dispatch threshold (``scheduler.choose_robot``) charges there
@@ -377,7 +396,7 @@ class Core:
         rt = self.controller(robot).rt
         if kind == "pose":
             return pose_dict(rt.pose, self.clock.epoch()) if rt.pose else None
-        return None  # scan: the next frame arrives as an update
+        return None  # scan, cloud: the next frame arrives as an update
 
     async def _live_orders(self) -> Any:
         # Every dish not finished: the kitchen's (ordered, cooking), the pass's (pending,
@@ -426,6 +445,7 @@ class Core:
                 ctl.rt.idle_since,
                 ctl.rt.battery,
                 ctl.record.trays or self.config.capacity,
+                lost=ctl.rt.localisation.lost,
             )
             for ctl in self._ctl.values()
             if ctl.rt.state.status is S.AWAITING
@@ -439,7 +459,7 @@ class Core:
     async def start_trip(self, task_id: int, robot: str) -> bool:
         ctl = self._ctl[robot]
         async with ctl.rt.lock:
-            if ctl.rt.state.status is not S.AWAITING:
+            if ctl.rt.state.status is not S.AWAITING or ctl.rt.localisation.lost:
                 return False
             blocked = await self.trips.drop_blocked(task_id, self.service.blocks)
             if blocked is None:
@@ -481,6 +501,7 @@ class Core:
                     waiting_for=tuple(rt.waiting_for or ()),
                     waiting_since=rt.waiting_since,
                     blockers=tuple(self.leases.blockers(name)) if rt.waiting_for else (),
+                    lost=rt.localisation.lost,
                 )
             )
         return facts

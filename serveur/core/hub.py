@@ -67,8 +67,8 @@ class View(Protocol):
 
 
 def is_stream_topic(topic: str) -> bool:
-    """Pose and scan streams are latest-only; everything else is a state topic."""
-    return topic.startswith(("pose:", "scan:"))
+    """Pose, scan and particle-cloud streams are latest-only; the rest are state topics."""
+    return topic.startswith(("pose:", "scan:", "cloud:"))
 
 
 class Pacer:

@@ -46,6 +46,7 @@ from serveur.core.runtime import CoreConfig, Runtime, pose_dict
 from serveur.errors import StoreError
 from serveur.robots import rosbridge as rb
 from serveur.robots.driver import GoalLoss
+from serveur.robots.sensing import Cloud
 from serveur.scheduler import MIN_BATTERY
 
 __all__ = ["HANDOVER_GRACE", "ODOMETER_JUMP", "ODOMETER_STEP", "LinkReports", "ReportHandler"]
@@ -74,6 +75,10 @@ class ReportHandler(Protocol):
 
     def moved(self, name: str, x: float, y: float) -> None:
         """A pose: the zones the robot has left are released (serveur.core.traffic)."""
+
+    def localisation_changed(self, name: str) -> None:
+        """The robot became lost, or sure again (``rt.localisation.lost``): publish its
+        record; sure again, the dispatcher may give it trips."""
 
     def battery_changed(self, name: str) -> None:
         """The robot's battery moved by a percent or more since last published, or crossed
@@ -250,6 +255,25 @@ class LinkReports:
         if self._hub.watched(topic):
             self._hub.publish(topic, P.dump(pose_dict(pose, stamp)))
 
+    def localisation(self, robot: str, metres: float, radians: float) -> None:
+        rt = self._rt.get(robot)
+        if rt is not None and rt.localisation.pose(metres, radians):
+            self._handler.localisation_changed(robot)
+
+    def cloud(self, robot: str, cloud: Cloud) -> None:
+        """The particle cloud (streamed only while someone shows it): its spread counts in
+        the robot's localisation, and the screens get at most :data:`CLOUD_SHOWN` particles,
+        at most as often as the laser."""
+        rt = self._rt.get(robot)
+        if rt is None:
+            return
+        if rt.localisation.cloud(cloud.spread()):
+            self._handler.localisation_changed(robot)
+        topic = f"cloud:{robot}"
+        if self._hub.watched(topic):
+            data = {"stamp": cloud.stamp, "count": len(cloud), "particles": cloud.shown()}
+            self._hub.publish(topic, P.dump(data))
+
     def battery(self, robot: str, fraction: float) -> None:
         rt = self._rt.get(robot)
         if rt is None:
@@ -295,6 +319,12 @@ class LinkReports:
             rt = self._rt.get(topic[5:])
             if rt is not None and rt.link is not None:
                 asyncio.get_running_loop().create_task(rt.link.want_scan(on))
+        elif topic.startswith("cloud:"):
+            rt = self._rt.get(topic[6:])
+            if rt is not None and not on and rt.localisation.cloud(None):
+                self._handler.localisation_changed(rt.name)
+            if rt is not None and rt.link is not None:
+                asyncio.get_running_loop().create_task(rt.link.want_cloud(on))
         elif topic.startswith("pose:"):
             if not on:
                 self._poses.forget(topic[5:])

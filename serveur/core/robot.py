@@ -99,6 +99,7 @@ class RobotController:
             "battery": rt.battery,
             "link_error": rt.link_error,
             "waiting_for": rt.waiting_for,
+            "lost": rt.localisation.lost,
         }
         if rt.pose is not None:
             upd.update(x=rt.pose[0], y=rt.pose[1], yaw=rt.pose[2])

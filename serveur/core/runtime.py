@@ -11,6 +11,7 @@ import asyncio
 from dataclasses import dataclass, field
 
 from serveur.core.events import RobotEvent
+from serveur.core.localisation import Localisation
 from serveur.robots.driver import RobotDriver
 from serveur.status import RobotState
 
@@ -105,6 +106,8 @@ class Runtime:
     resume_dest: Destination | None = None  # where it goes once back from a zone's waiting spot
     odometer_at: tuple[float, float] | None = None  # where the odometer last counted from
     odometer: float = 0.0  # metres driven since this server started (in each status event)
+    #: How sure it is of where it is (lost: no trips, an alert); from its poses' spread.
+    localisation: Localisation = field(default_factory=Localisation)
 
 
 def pose_dict(pose: tuple[float, float, float], stamp: float) -> dict[str, float]:

@@ -26,6 +26,7 @@ from enum import Enum
 from typing import Any, Protocol
 
 from serveur.robots import rosbridge as rb
+from serveur.robots.sensing import Cloud
 
 __all__ = [
     "GoalLoss",
@@ -67,6 +68,13 @@ class LinkListener(Protocol):
 
     def pose(self, robot: str, x: float, y: float, yaw: float, stamp: float) -> None: ...
 
+    def localisation(self, robot: str, metres: float, radians: float) -> None:
+        """How spread the robot's estimate of its pose is, with each pose that says it (the
+        standard deviations of its covariance: worst floor direction, heading)."""
+
+    def cloud(self, robot: str, cloud: Cloud) -> None:
+        """The localiser's particle cloud (only while :meth:`RobotDriver.want_cloud`)."""
+
     def battery(self, robot: str, fraction: float) -> None: ...
 
     def goal_done(self, robot: str, goal_id: str, status: rb.GoalStatus, text: str) -> None:
@@ -96,13 +104,20 @@ class RobotDriver(Protocol):
 
     name: str
     url: str
-    #: The last pose (map frame) and battery fraction reported, None until one came.
-    pose: tuple[float, float, float] | None
-    battery: float | None
     #: Why the last connection attempt failed ("" once connected), for the console.
     last_failure: str
     #: "ROS1 move_base" or "ROS 2 Nav2": shown to staff and in logs.
     kind: str
+
+    @property
+    def pose(self) -> tuple[float, float, float] | None:
+        """The last pose reported (map frame), None until one came."""
+        ...
+
+    @property
+    def battery(self) -> float | None:
+        """The last battery fraction reported, None until one came."""
+        ...
 
     @property
     def up(self) -> bool:
@@ -148,6 +163,10 @@ class RobotDriver(Protocol):
 
     async def want_scan(self, on: bool) -> None:
         """Stream the laser scan while someone looks at it."""
+        ...
+
+    async def want_cloud(self, on: bool) -> None:
+        """Stream the localiser's particle cloud while someone looks at it."""
         ...
 
     def heartbeat_timeout(self) -> float:

@@ -51,7 +51,7 @@ import logging
 import math
 from collections.abc import Coroutine
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Final
 
 from serveur.clock import Clock
 from serveur.errors import LinkError
@@ -61,13 +61,18 @@ from serveur.robots.driver import GoalLoss, LinkListener, connect_failed
 
 __all__ = [
     "BLOCKED_ABORT_AFTER",
+    "INITIAL_SPREAD",
     "SPEED",
+    "SURE_SPREAD",
     "TICK",
     "FakeDriver",
 ]
 
 log = logging.getLogger(__name__)
 
+#: The localisation spread (m, rad) of a converged filter, and AMCL's after an initial pose.
+SURE_SPREAD: Final = (0.02, 0.01)
+INITIAL_SPREAD: Final = (0.5, 0.26)
 #: Clock seconds between two motion steps (and pose reports) of a moving robot: the simulator's
 #: physics rate, 20 Hz.
 TICK = 0.05
@@ -177,6 +182,10 @@ class FakeDriver:
         #: Someone watches the pose live / the laser scan (want_pose, want_scan).
         self.pose_watched = False
         self.scan_wanted = False
+        self.cloud_wanted = False
+        #: The spread (m, rad) reported with each pose: a converged filter's, until
+        #: :meth:`lose_localisation`.
+        self.spread: tuple[float, float] = SURE_SPREAD
         self.pose: tuple[float, float, float] | None = None
         self.battery: float | None = None
         self.last_failure = ""
@@ -262,10 +271,12 @@ class FakeDriver:
         self.received.append(("teleop", 0.0, 0.0, 0.0))
 
     async def initial_pose(self, x: float, y: float, yaw: float) -> None:
-        """The robot is where it is told (a fake's localisation is perfect)."""
+        """The robot is where it is told, and sure of it again (as AMCL is after an initial
+        pose: its spread is the initial covariance's, 0.5 m and 0.26 rad)."""
         self._check()
         self.received.append(("initial_pose", x, y, yaw))
         self.true_pose = (x, y, _wrap(yaw))
+        self.spread = INITIAL_SPREAD
         self._report_pose()
 
     async def want_pose(self, on: bool) -> None:
@@ -277,6 +288,10 @@ class FakeDriver:
         self.scan_wanted = on
         self._scan_if_wanted()
 
+    async def want_cloud(self, on: bool) -> None:
+        """Noted only: a fake has no particle filter."""
+        self.cloud_wanted = on
+
     # -- test controls: what the robot does -------------------------------------------------
 
     def localise(self, x: float, y: float, yaw: float) -> None:
@@ -287,6 +302,12 @@ class FakeDriver:
             self._report_pose()
         else:
             self._connect_soon(CONNECT_DELAY)
+
+    def lose_localisation(self, metres: float = 3.0, radians: float = 1.5) -> None:
+        """The robot's localisation spreads out (it no longer knows where it is): the next
+        poses say so, until an initial pose. Reported at once while the link is up."""
+        self.spread = (metres, radians)
+        self._report_pose()
 
     def set_battery(self, fraction: float) -> None:
         """The battery reads ``fraction`` now (reported at once while the link is up)."""
@@ -474,6 +495,7 @@ class FakeDriver:
             return
         self.pose = pose
         self._listener.pose(self.name, *pose, self._clock.epoch())
+        self._listener.localisation(self.name, *self.spread)
 
     # -- the laser ---------------------------------------------------------------------------
 

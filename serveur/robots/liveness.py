@@ -229,10 +229,13 @@ class LinkTracker:
         self._stale = tuple(self._recent)
         return [Cancel(self._stale)] if self._stale else []
 
-    def proof(self, now: float, kind: str) -> list[Instruction]:
+    def proof(self, now: float, kind: str, *, fresh: bool = True) -> list[Instruction]:
         """The robot's own nodes sent something of ``kind`` ("status", "pose", "heartbeat",
-        "battery", "feedback"...): it is alive."""
-        self._alive_at = now
+        "battery", "feedback"...): it is alive. ``fresh`` False: a message rosbridge held in
+        a throttled queue and sent later counts for what it says, not as a sign of life now
+        (its delivery time is not when the robot sent it)."""
+        if fresh:
+            self._alive_at = now
         self._heard.add(kind)
         if kind == self._paced:
             self._paced_at = now

@@ -36,10 +36,20 @@ _DEFAULTS: dict[str, str] = {
     # ROS 2: the service whose answer proves the robot alive and able to take goals
     # (lifecycle_msgs/srv/GetState answering "active", or std_srvs/srv/Trigger's success).
     "heartbeat": "bt_navigator/get_state",
+    # AMCL's particle cloud: ROS1 amcl's ``particlecloud``; Nav2's amcl calls it
+    # ``particle_cloud`` (nav2_amcl amcl_node.cpp), the default for a ROS 2 robot.
+    "cloud": "particlecloud",
+    # tf, for a robot whose pose comes from it (``tf`` names its base frame)
+    "tf_topic": "tf",
+    "tf_static": "tf_static",
 }
+#: Defaults that differ on a ROS 2 robot.
+_ROS2_DEFAULTS: dict[str, str] = {"cloud": "particle_cloud"}
 #: Every option a robot's ``link`` may carry. ``camera`` has no default: a robot has a camera
 #: to watch only when its CompressedImage topic is named (``camera/image/compressed``...).
-OPTION_KEYS = ("ros", "ns", *_DEFAULTS, "frame", "camera")
+#: ``tf`` has none either: a robot takes its pose from tf (``map`` -> that base frame) instead of
+#: ``/amcl_pose`` only when its base frame is named (``base_link``, ``base_footprint``).
+OPTION_KEYS = ("ros", "ns", *_DEFAULTS, "frame", "camera", "tf")
 #: The ROS versions a robot may run: "1" (move_base) or "2" (Nav2).
 ROS_VERSIONS = ("1", "2")
 _NAME = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
@@ -68,8 +78,13 @@ class RosNames:
     map: str = "/map"
     heartbeat: str = "/bt_navigator/get_state"
     frame: str = "map"
+    cloud: str = "/particlecloud"
+    tf_topic: str = "/tf"
+    tf_static: str = "/tf_static"
     #: The camera's sensor_msgs/CompressedImage topic; "" when the robot has none.
     camera: str = ""
+    #: The robot's base frame when its pose comes from tf; "" when it comes from /amcl_pose.
+    tf_base: str = ""
 
     @classmethod
     def from_options(cls, options: Mapping[str, str]) -> RosNames:
@@ -86,17 +101,25 @@ class RosNames:
                 if value not in ROS_VERSIONS:
                     raise ValueError(f"robot link option ros={value!r}: the robot runs ROS 1 or 2")
                 continue
-            pattern = _FRAME if key == "frame" else _NAME
+            pattern = _FRAME if key in ("frame", "tf") else _NAME
             if not pattern.match(value) or len(value) > 128:
                 raise ValueError(f"robot link option {key}={value!r} is not a valid ROS name")
         ns = options.get("ns", "")
         if ns and not ns.startswith("/"):
             ns = "/" + ns
         ns = ns.rstrip("/")
-        names = {key: _resolve(ns, options.get(key, default)) for key, default in _DEFAULTS.items()}
         ros = int(options.get("ros", "1"))
+        defaults = {**_DEFAULTS, **_ROS2_DEFAULTS} if ros == 2 else _DEFAULTS
+        names = {key: _resolve(ns, options.get(key, default)) for key, default in defaults.items()}
         camera = _resolve(ns, options["camera"]) if options.get("camera") else ""
-        return cls(ros=ros, ns=ns, frame=options.get("frame", "map"), camera=camera, **names)
+        return cls(
+            ros=ros,
+            ns=ns,
+            frame=options.get("frame", "map"),
+            camera=camera,
+            tf_base=options.get("tf", ""),
+            **names,
+        )
 
     def topic(self, default: str) -> str:
         """This robot's name for one of the default topic names (``/move_base/goal``...)."""
@@ -122,6 +145,9 @@ class RosNames:
             "/battery_state": self.battery,
             "/scan": self.scan,
             "/map": self.map,
+            "/particlecloud": self.cloud,
+            "/tf": self.tf_topic,
+            "/tf_static": self.tf_static,
         }
 
     @cached_property

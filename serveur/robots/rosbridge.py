@@ -81,6 +81,7 @@ __all__ = [
     "quaternion_from_msg",
     "quaternion_from_yaw",
     "ros_time",
+    "transform_stamped",
     "twist",
     "twist_from_msg",
     "yaw_from_quaternion",
@@ -142,6 +143,10 @@ TOPIC_TYPES: Final[dict[str, str]] = {
     "/battery_state": "sensor_msgs/BatteryState",
     # image_transport's compressed plugin: the camera's JPEG as the driver encoded it.
     "/camera/image/compressed": "sensor_msgs/CompressedImage",
+    # amcl's particle cloud, and tf (for robots whose pose comes from it)
+    "/particlecloud": "geometry_msgs/PoseArray",
+    "/tf": "tf2_msgs/TFMessage",
+    "/tf_static": "tf2_msgs/TFMessage",
 }
 
 
@@ -739,6 +744,20 @@ def move_base_feedback(
 
 _ODOM_POSE_COVARIANCE: Final = _diag_covariance(1e-3, 1e-3, 1e6, 1e6, 1e6, 1e-3)
 _ODOM_TWIST_COVARIANCE: Final = _diag_covariance(1e-3, 1e-3, 1e6, 1e6, 1e6, 1e-3)
+
+
+def transform_stamped(
+    parent: str, child: str, x: float, y: float, yaw: float, *, stamp: float, seq: int = 0
+) -> dict[str, Any]:
+    """geometry_msgs/TransformStamped: ``child``'s pose in ``parent`` (one entry of /tf)."""
+    return {
+        "header": header(seq, stamp, parent),
+        "child_frame_id": child,
+        "transform": {
+            "translation": {"x": x, "y": y, "z": 0.0},
+            "rotation": quaternion_from_yaw(yaw),
+        },
+    }
 
 
 def odometry(

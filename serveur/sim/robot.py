@@ -385,6 +385,11 @@ class SimRobot:
         self.state.node_dead = False
         self.sensors.force_amcl()
 
+    def lose_localisation(self, metres: float = 3.0, radians: float = 1.5) -> None:
+        """Fault: AMCL loses track of the robot (its spread goes to ``metres``, ``radians``)
+        until an initial pose (see :meth:`serveur.sim.sensors.Sensors.lose_localisation`)."""
+        self.sensors.lose_localisation(metres, radians)
+
     def teleport(self, x: float, y: float, yaw: float) -> None:
         """Put the robot somewhere else (like /initialpose, for tests)."""
         self.inbox.relocalise(x, y, yaw)

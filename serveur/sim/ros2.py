@@ -99,6 +99,10 @@ def topic_types(twist_stamped: bool) -> dict[str, str]:
         "/goal_pose": "geometry_msgs/msg/PoseStamped",  # RViz2's "Nav2 Goal"
         "/battery_state": "sensor_msgs/msg/BatteryState",
         "/camera/image/compressed": "sensor_msgs/msg/CompressedImage",
+        # Nav2 amcl's particle cloud (best effort, SensorDataQoS), and tf
+        "/particle_cloud": "nav2_msgs/msg/ParticleCloud",
+        "/tf": "tf2_msgs/msg/TFMessage",
+        "/tf_static": "tf2_msgs/msg/TFMessage",
     }
 
 
@@ -122,7 +126,8 @@ def to_ros2(msg: Any) -> Any:
     """A message built by :mod:`serveur.robots.rosbridge` (ROS1 shapes) in its ROS 2 shape.
 
     Every ``{secs, nsecs}`` becomes ``{sec, nanosec}`` and every ``header`` loses ``seq``;
-    arrays (lists, numpy) are left alone: no ROS message here holds times inside an array.
+    arrays of numbers (lists, numpy) are left alone; arrays of messages (tf's ``transforms``)
+    are converted each.
     """
     if not isinstance(msg, dict):
         return msg
@@ -134,6 +139,8 @@ def to_ros2(msg: Any) -> Any:
             v = to_ros2(v)
             if k == "header":
                 v.pop("seq", None)
+        elif isinstance(v, list) and v and isinstance(v[0], dict):
+            v = [to_ros2(x) for x in v]  # tf's transforms[], each with its own header
         out[k] = v
     return out
 

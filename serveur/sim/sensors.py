@@ -7,6 +7,16 @@ at whole numbers of :data:`~serveur.sim.state.TICK`: ``/odom``
 :mod:`serveur.sim.robot`), move_base's feedback 10 Hz and status 5 Hz (a ROS 2 goal's
 feedback every tick, to its sender alone), ``/scan`` 5 Hz (ray-cast on the map, other robots'
 footprints in it when the floor is shared), ``/battery_state`` 1 Hz; noise on AMCL and scans.
+
+Localisation, as AMCL shows it: ``/amcl_pose`` carries the filter's covariance, and the
+particle cloud (ROS1 ``/particlecloud`` PoseArray, Nav2 ``/particle_cloud`` ParticleCloud,
+:data:`CLOUD_PARTICLES` particles drawn around the pose with that spread) goes out with each
+AMCL update. After an initial pose the spread is AMCL's initial covariance (0.5 m, 0.26 rad)
+and shrinks as the robot moves (the filter converging); :meth:`Sensors.lose_localisation`
+(a test's or the demo's fault) spreads it over metres, as a filter that lost track, until the
+next initial pose. tf: ``odom`` -> ``base_footprint`` with every odometry message, ``map`` ->
+``odom`` with every AMCL update (so the two compose to the AMCL pose), ``base_footprint`` ->
+``base_link`` latched on ``/tf_static``.
 """
 
 from __future__ import annotations
@@ -34,6 +44,10 @@ __all__ = [
     "AMCL_TICKS",
     "AMCL_UPDATE_MIN_A",
     "AMCL_UPDATE_MIN_D",
+    "CLOUD_PARTICLES",
+    "CLOUD_TOPICS",
+    "CONVERGED_SPREAD",
+    "INITIAL_SPREAD",
     "NAV2_UPDATE_MIN_A",
     "NAV2_UPDATE_MIN_D",
     "SCAN_RAYS",
@@ -65,9 +79,27 @@ AMCL_UPDATE_MIN_A: Final = math.pi / 6.0  # rad (30 degrees): amcl's update_min_
 NAV2_UPDATE_MIN_D: Final = 0.25  # m: Nav2 amcl's update_min_d default
 NAV2_UPDATE_MIN_A: Final = 0.2  # rad: Nav2 amcl's update_min_a default
 
-_AMCL_COVARIANCE: Final = [0.0] * 36
-_AMCL_COVARIANCE[0] = _AMCL_COVARIANCE[7] = AMCL_NOISE_XY**2
-_AMCL_COVARIANCE[35] = AMCL_NOISE_YAW**2
+#: The spread (m, rad: standard deviations) of a converged filter, and AMCL's right after an
+#: initial pose (its default initial covariance, 0.25 m² and 0.068 rad²).
+CONVERGED_SPREAD: Final = (AMCL_NOISE_XY, AMCL_NOISE_YAW)
+INITIAL_SPREAD: Final = (0.5, math.sqrt(0.06853891945200942))
+#: Each AMCL update after the robot moved shrinks the spread by this factor (down to converged).
+_CONVERGE: Final = 0.7
+#: The particle cloud's topic by ROS version (amcl.cpp's ``particlecloud``; nav2_amcl's
+#: ``particle_cloud``), and how many particles it holds (amcl's ``min_particles`` default).
+CLOUD_TOPICS: Final = {1: "/particlecloud", 2: "/particle_cloud"}
+CLOUD_PARTICLES: Final = 500
+#: The robot's frames (tf): odometry's, its footprint's and its body's.
+ODOM_FRAME: Final = "odom"
+BASE_FRAME: Final = "base_footprint"
+BODY_FRAME: Final = "base_link"
+
+
+def _covariance(metres: float, radians: float) -> list[float]:
+    cov = [0.0] * 36
+    cov[0] = cov[7] = metres**2
+    cov[35] = radians**2
+    return cov
 
 
 class Sensors:
@@ -121,16 +153,58 @@ class Sensors:
         self._camera_ticks = max(_CAMERA_TICKS, math.ceil(wall_ticks))
         #: False: the camera stopped sending (a test's stalled camera); True again resumes.
         self.camera_on = True
+        #: The localisation's spread (m, rad), and whether it converges as the robot moves
+        #: (after an initial pose) or stays (lost: until the next initial pose).
+        self.spread: tuple[float, float] = CONVERGED_SPREAD
+        self._converging = False
+        self._lost = False
+        self._spread_at: tuple[float, float] | None = None
+        self._cloud_topic = CLOUD_TOPICS[state.ros]
+        static = {
+            "transforms": [
+                rb.transform_stamped(BASE_FRAME, BODY_FRAME, 0.0, 0.0, 0.0, stamp=state.epoch())
+            ]
+        }
+        outbox.publish_latched("/tf_static", outbox.frame("/tf_static", static))
 
     def force_amcl(self) -> None:
         """AMCL publishes its pose at the next update whatever the motion (a node's start)."""
         self._amcl_force = True
 
     def relocalised(self) -> None:
-        """The robot was put elsewhere: AMCL publishes the pose it was given, the laser looks
-        again."""
+        """The robot was put elsewhere: AMCL publishes the pose it was given, with its initial
+        spread (converging as the robot moves), and the laser looks again."""
         self._scan_cache = None
         self._amcl_force = True
+        self.spread = INITIAL_SPREAD
+        self._converging = True
+        self._lost = False
+        self._spread_at = self.state.pose[:2]
+
+    def lose_localisation(self, metres: float = 3.0, radians: float = 1.5) -> None:
+        """AMCL loses track (a robot pushed by hand, a room rearranged): its particles spread
+        over metres and stay so until an initial pose. Published at once (as if the robot had
+        moved enough for an update)."""
+        self.spread = (metres, radians)
+        self._converging = False
+        self._lost = True
+        self._amcl_force = True
+
+    def _converge(self) -> None:
+        """An AMCL update: after an initial pose the filter tightens once the robot moved."""
+        if not self._converging:
+            return
+        x, y = self.state.pose[:2]
+        at = self._spread_at
+        if at is not None and math.hypot(x - at[0], y - at[1]) < 0.05:
+            return
+        self._spread_at = (x, y)
+        m, r = self.spread
+        self.spread = (
+            max(CONVERGED_SPREAD[0], m * _CONVERGE),
+            max(CONVERGED_SPREAD[1], r * _CONVERGE),
+        )
+        self._converging = self.spread != CONVERGED_SPREAD
 
     def _nav2_feedback(self, g: Goal, stamp: float) -> dict[str, Any]:
         x, y, yaw = self.state.pose
@@ -161,11 +235,15 @@ class Sensors:
         active = self.navigator.active
         if k % _ODOM_TICKS == 0:
             publish("/odom", self._build_odom, stamp)
+            publish("/tf", self._build_odom_tf, stamp)
         if k % AMCL_TICKS == 0:
             if self.amcl == "real":
                 self._amcl_update(stamp)
             else:
+                self._converge()
                 publish("/amcl_pose", self.amcl_builder, stamp)
+            publish("/tf", self._build_map_tf, stamp)
+            publish(self._cloud_topic, self._build_cloud, stamp)
         if self.state.ros == 2:
             g = active
             if g is not None and g.owner is not None and g.owner.feedback:
@@ -226,6 +304,7 @@ class Sensors:
             return
         self._amcl_force = False
         self._amcl_at = (x, y, yaw)
+        self._converge()
         out = self.outbox
         out.publish_latched(
             "/amcl_pose",
@@ -239,14 +318,52 @@ class Sensors:
     def _build_amcl(self, seq: int, stamp: float) -> dict[str, Any]:
         x, y, yaw = self.state.pose
         g = self._rng.gauss
+        # A lost filter's estimate wanders with its spread (a fifth of it: the particles'
+        # mean moves less than they do); otherwise AMCL's jitter (after an initial pose its
+        # mean is the pose given).
+        m, r = self.spread
+        sd_xy, sd_yaw = AMCL_NOISE_XY, AMCL_NOISE_YAW
+        if self._lost:
+            sd_xy, sd_yaw = max(sd_xy, m / 5.0), max(sd_yaw, r / 5.0)
         return rb.pose_with_covariance_stamped(
-            x + g(0.0, AMCL_NOISE_XY),
-            y + g(0.0, AMCL_NOISE_XY),
-            wrap_angle(yaw + g(0.0, AMCL_NOISE_YAW)),
+            x + g(0.0, sd_xy),
+            y + g(0.0, sd_xy),
+            wrap_angle(yaw + g(0.0, sd_yaw)),
             stamp=stamp,
             seq=seq,
-            covariance=_AMCL_COVARIANCE,
+            covariance=_covariance(m, r),
         )
+
+    def _build_cloud(self, seq: int, stamp: float) -> dict[str, Any]:
+        """AMCL's particles: drawn around the true pose with the filter's spread."""
+        x, y, yaw = self.state.pose
+        m, r = self.spread
+        n = CLOUD_PARTICLES
+        xs = self._np_rng.normal(x, m, n)
+        ys = self._np_rng.normal(y, m, n)
+        yaws = self._np_rng.normal(yaw, r, n)
+        poses = [
+            rb.pose_msg(float(a), float(b), float(c)) for a, b, c in zip(xs, ys, yaws, strict=True)
+        ]
+        head = rb.header(seq, stamp, "map")
+        if self.state.ros == 2:
+            return {"header": head, "particles": [{"pose": p, "weight": 1.0 / n} for p in poses]}
+        return {"header": head, "poses": poses}
+
+    def _build_odom_tf(self, seq: int, stamp: float) -> dict[str, Any]:
+        o = self.state.odom
+        tf = rb.transform_stamped(ODOM_FRAME, BASE_FRAME, o.x, o.y, o.yaw, stamp=stamp, seq=seq)
+        return {"transforms": [tf]}
+
+    def _build_map_tf(self, seq: int, stamp: float) -> dict[str, Any]:
+        """map -> odom: the transform that puts the odometry's pose on the map pose."""
+        x, y, yaw = self.state.pose
+        o = self.state.odom
+        dyaw = yaw - o.yaw
+        c, s = math.cos(dyaw), math.sin(dyaw)
+        tx, ty = x - (c * o.x - s * o.y), y - (s * o.x + c * o.y)
+        tf = rb.transform_stamped("map", ODOM_FRAME, tx, ty, wrap_angle(dyaw), stamp=stamp, seq=seq)
+        return {"transforms": [tf]}
 
     def _build_feedback(self, seq: int, stamp: float) -> dict[str, Any]:
         g = self.navigator.active

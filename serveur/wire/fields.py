@@ -77,8 +77,9 @@ STATE_TOPICS: Final = (
     "zones",
     "leases",
 )
-#: Per-robot topic prefixes: ``pose:<robot>`` and ``scan:<robot>``.
-ROBOT_TOPICS: Final = ("pose", "scan")
+#: Per-robot topic prefixes: ``pose:<robot>``, ``scan:<robot>`` and ``cloud:<robot>`` (the
+#: particle cloud of its localisation).
+ROBOT_TOPICS: Final = ("pose", "scan", "cloud")
 #: Every ``clientmsg`` verb, in the order the documentation lists them.
 VERBS: Final = (
     "login",
@@ -242,7 +243,8 @@ def _check_topic(value: str) -> str:
         return value
     raise PydanticCustomError(
         "topic",
-        "unknown topic {topic}: expected one of {known}, or pose:<robot>, scan:<robot>",
+        "unknown topic {topic}: expected one of {known}, or pose:<robot>, scan:<robot>,"
+        " cloud:<robot>",
         {"topic": repr(value[:80]), "known": ", ".join(STATE_TOPICS)},
     )
 

@@ -34,6 +34,7 @@ from serveur.wire.fields import RequestId, Topic
 __all__ = [
     "SERVER_ADAPTER",
     "CameraState",
+    "CloudData",
     "Dependents",
     "ErrorCode",
     "ErrorReply",
@@ -138,6 +139,18 @@ class ScanData(_ServerModel):
     ranges: list[float | None]
 
 
+class CloudData(_ServerModel):
+    """The robot's localisation particles (AMCL's particle cloud), as pushed on
+    ``cloud:<robot>`` while someone shows it: where the robot may be. A tight cloud is a
+    robot sure of its place; one spread over the room, a robot that is lost."""
+
+    stamp: float = Field(description="Unix time of the filter update, seconds (0: unknown)")
+    count: int = Field(ge=0, description="particles in the robot's filter")
+    particles: list[tuple[float, float, float]] = Field(
+        description="at most 300 of them, the most likely first: x, y (m), yaw (rad)"
+    )
+
+
 class MapSnapshot(_ServerModel):
     """The occupancy grid: ``data`` is base64 of ``width * height`` int8 cells, row-major.
 
@@ -173,6 +186,7 @@ Snapshot: TypeAlias = (
     | MapSnapshot
     | PoseData
     | ScanData
+    | CloudData
     | None
 )
 
@@ -194,6 +208,7 @@ UpdateData: TypeAlias = (
     | MapSnapshot
     | PoseData
     | ScanData
+    | CloudData
 )
 
 ErrorCode: TypeAlias = Literal[

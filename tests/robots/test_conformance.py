@@ -68,6 +68,12 @@ class Recorder:
     def battery(self, robot: str, fraction: float) -> None:
         self.events.append(("battery", (fraction,)))
 
+    def localisation(self, robot: str, metres: float, radians: float) -> None:
+        self.events.append(("spread", (metres, radians)))
+
+    def cloud(self, robot: str, cloud: Any) -> None:
+        self.events.append(("cloud", (cloud,)))
+
     def goal_done(self, robot: str, goal_id: str, status: rb.GoalStatus, text: str) -> None:
         self.events.append(("done", (goal_id, status, text)))
 
@@ -83,7 +89,8 @@ class Recorder:
         self.events.append(("map", ()))
 
     def kinds(self, since: int = 0) -> list[str]:
-        return [k for k, _ in self.events[since:] if k not in ("pose", "battery", "scan")]
+        streams = ("pose", "battery", "scan", "spread", "cloud")
+        return [k for k, _ in self.events[since:] if k not in streams]
 
     def count(self, kind: str, since: int = 0) -> int:
         return sum(1 for k, _ in self.events[since:] if k == kind)

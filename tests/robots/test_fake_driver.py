@@ -83,7 +83,7 @@ async def test_without_a_pose_the_link_waits_for_one() -> None:
     assert not f.robot.up and f.rec.events == []
     f.robot.localise(1.0, 2.0, 0.5)
     await f.run_until(lambda: f.robot.up)
-    assert [k for k, _ in f.rec.events] == ["pose", "battery", "up"]
+    assert [k for k, _ in f.rec.events] == ["pose", "spread", "battery", "up"]
     assert f.robot.pose == (1.0, 2.0, 0.5)
     await f.robot.close()
 
@@ -166,7 +166,7 @@ async def test_a_robot_unreachable_at_start_says_why_once() -> None:
 async def test_initial_pose_moves_the_robot_and_is_reported(fake: Fake) -> None:
     await fake.robot.initial_pose(3.0, 4.0, 7.0)
     assert fake.robot.true_pose == fake.robot.pose == (3.0, 4.0, math.remainder(7.0, math.tau))
-    assert fake.rec.events[-1][0] == "pose"
+    assert [k for k, _ in fake.rec.events[-2:]] == ["pose", "spread"]
     assert fake.robot.received[-1] == ("initial_pose", 3.0, 4.0, 7.0)
 
 

@@ -5,7 +5,7 @@ websocket client per robot, goals with acknowledgement, heartbeat, reconnect).
 
 May import: serveur.clock, serveur.robots.rosbridge, serveur.robots.names,
 serveur.robots.driver, serveur.robots.deadman, serveur.robots.reconnect,
-serveur.robots.liveness.
+serveur.robots.liveness, serveur.robots.sensor_reports.
 """
 
 __all__: list[str] = []

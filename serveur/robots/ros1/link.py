@@ -76,6 +76,7 @@ from serveur.robots.liveness import (
 )
 from serveur.robots.names import RosNames
 from serveur.robots.reconnect import Reconnecting, open_rosbridge
+from serveur.robots.sensor_reports import SensorReports, Streams
 
 __all__ = ["LinkListener", "RobotLink"]
 
@@ -176,7 +177,11 @@ class RobotLink(Reconnecting):
             ack_retries=ack_retries,
             new_id=self._new_goal_id,
         )
-        self._scan_wanted = False
+        self._sensors = SensorReports(name, listener, self._names, clock)
+        self._streams = Streams(
+            lambda topic, ms: self._sub(topic, throttle_rate=ms),
+            lambda topic: rb.op_unsubscribe(self._t(topic)),
+        )
         # Throttles (ms, robot clock) that accelerated replays raise to cut rosbridge traffic:
         # the pose of an unwatched moving robot, move_base status (heartbeat, goal acks;
         # terminal goal states come unthrottled on /move_base/result) and the battery.
@@ -192,8 +197,6 @@ class RobotLink(Reconnecting):
         self._idle_status_ms = max(status_ms, min(IDLE_STATUS_MS, int(heartbeat * 500)))
         self._status_sub_ms: int | None = None  # ... and of our /move_base/status one
         self._jobs: set[asyncio.Task[None]] = set()
-        self.pose: tuple[float, float, float] | None = None
-        self.battery: float | None = None
         self.connects = 0
         #: Why the last attempt to connect failed ("" once connected): for the console.
         self.last_failure = ""
@@ -203,6 +206,14 @@ class RobotLink(Reconnecting):
     @property
     def up(self) -> bool:
         return self._track.up
+
+    @property
+    def pose(self) -> tuple[float, float, float] | None:
+        return self._sensors.pose
+
+    @property
+    def battery(self) -> float | None:
+        return self._sensors.battery
 
     def start(self) -> None:
         if self._task is None:
@@ -252,8 +263,11 @@ class RobotLink(Reconnecting):
         await self._update_rates(ws)
         if self._want_map:
             await ws.send(rb.encode(self._sub("/map")))
-        if self._scan_wanted:
-            await self._subscribe_scan(ws, True)
+        for op in self._streams.resubscribe():
+            await ws.send(rb.encode(op))
+        if self._names.tf_base:
+            for topic in self._sensors.pose_topics():
+                await ws.send(rb.encode(self._sub(topic)))
         watchdog = asyncio.create_task(self._watchdog(ws), name=f"watchdog-{self.name}")
         try:
             async for frame in ws:
@@ -336,30 +350,31 @@ class RobotLink(Reconnecting):
             raise RosbridgeError(f"{topic}: msg is not an object")
         if topic == "/move_base/status":
             self._on_status(msg)
-        elif topic == "/amcl_pose":
-            x, y, yaw, stamp = rb.amcl_pose_from_msg(msg)
-            self.pose = (x, y, yaw)
-            self._listener.pose(self.name, x, y, yaw, stamp)
-            set_at = self._relocalising
-            if set_at is not None and (
-                math.hypot(x - set_at[0], y - set_at[1]) < RELOCALISED
-                or self._clock.now() - set_at[2] > 1.0
-            ):
-                self._relocalising = None  # AMCL took the pose set (or will not): idle rates
-                self._rates_changed()
-            self._apply(self._track.proof(self._clock.now(), "pose"))
         elif topic == "/move_base/result":
             st = msg["status"]
             self._apply(self._goal_state(st))
-        elif topic == "/battery_state":
-            fraction = rb.battery_fraction(msg)
-            if fraction is not None:
-                self.battery = fraction
-                self._listener.battery(self.name, fraction)
-        elif topic == "/scan":
-            self._listener.scan(self.name, msg)
-        elif topic == "/map":
-            self._listener.map(self.name, msg)
+        elif self._sensors.handles(topic):
+            proof = self._sensors.on_publish(topic, msg)
+            if proof == "pose":
+                self._relocalised()
+                # A throttled /amcl_pose comes through a queue (see _update_rates): late.
+                fresh = not self._pose_ms or bool(self._names.tf_base)
+                self._apply(self._track.proof(self._clock.now(), "pose", fresh=fresh))
+
+    def _relocalised(self) -> None:
+        """A pose came: if it shows the pose set by :meth:`initial_pose` (or a second has
+        passed), AMCL took it (or will not): back to the idle rates."""
+        set_at, pose = self._relocalising, self._sensors.pose
+        if (
+            set_at is not None
+            and pose is not None
+            and (
+                math.hypot(pose[0] - set_at[0], pose[1] - set_at[1]) < RELOCALISED
+                or self._clock.now() - set_at[2] > 1.0
+            )
+        ):
+            self._relocalising = None
+            self._rates_changed()
 
     def _on_status(self, msg: Mapping[str, Any]) -> None:
         todo: list[Instruction] = []
@@ -386,9 +401,14 @@ class RobotLink(Reconnecting):
     def _pub(self, default: str, msg: Mapping[str, Any]) -> dict[str, Any]:
         return rb.op_publish(self._t(default), msg)
 
-    def _sub(self, default: str, *, throttle_rate: int = 0) -> dict[str, Any]:
+    def _sub(
+        self, default: str, *, throttle_rate: int = 0, queue_length: int = 0
+    ) -> dict[str, Any]:
         return rb.op_subscribe(
-            self._t(default), rb.TOPIC_TYPES[default], throttle_rate=throttle_rate
+            self._t(default),
+            rb.TOPIC_TYPES[default],
+            throttle_rate=throttle_rate,
+            queue_length=queue_length,
         )
 
     def _goal_msg(self, goal: TrackedGoal) -> dict[str, Any]:
@@ -511,25 +531,29 @@ class RobotLink(Reconnecting):
         if ws is None:
             return
         with contextlib.suppress(websockets.exceptions.ConnectionClosed):
-            for topic, ms, attr in (
-                ("/move_base/status", self._status_throttle(), "_status_sub_ms"),
-                ("/amcl_pose", self._pose_throttle(), "_pose_ms"),
-            ):
+            rates = [("/move_base/status", self._status_throttle(), "_status_sub_ms")]
+            if not self._names.tf_base:  # a pose from tf: /tf is not throttled (see sensors)
+                rates.append(("/amcl_pose", self._pose_throttle(), "_pose_ms"))
+            for topic, ms, attr in rates:
                 if getattr(self, attr) != ms:
                     setattr(self, attr, ms)
-                    await ws.send(rb.encode(self._sub(topic, throttle_rate=ms)))
+                    # A queue of one: rosbridge then delays a pose that comes within the
+                    # throttle of the last instead of dropping it — AMCL publishes only after
+                    # motion, so a dropped pose (a robot that just lost its localisation, or
+                    # was set elsewhere) would not come again until the robot moves.
+                    queue = 1 if topic == "/amcl_pose" and ms else 0
+                    await ws.send(rb.encode(self._sub(topic, throttle_rate=ms, queue_length=queue)))
 
     async def want_scan(self, on: bool) -> None:
         """Stream /scan only while someone looks at it (it is the heaviest topic)."""
-        if on == self._scan_wanted:
-            return
-        self._scan_wanted = on
-        if self._ws is not None:
-            with contextlib.suppress(websockets.exceptions.ConnectionClosed):
-                await self._subscribe_scan(self._ws, on)
+        await self._stream("/scan", on)
 
-    async def _subscribe_scan(self, ws: ClientConnection, on: bool) -> None:
-        if on:
-            await ws.send(rb.encode(self._sub("/scan", throttle_rate=200)))
-        else:
-            await ws.send(rb.encode(rb.op_unsubscribe(self._t("/scan"))))
+    async def want_cloud(self, on: bool) -> None:
+        """Stream AMCL's particle cloud only while someone looks at it."""
+        await self._stream("/particlecloud", on)
+
+    async def _stream(self, topic: str, on: bool) -> None:
+        op = self._streams.want(topic, on)
+        if op is not None and self._ws is not None:
+            with contextlib.suppress(websockets.exceptions.ConnectionClosed):
+                await self._ws.send(rb.encode(op))

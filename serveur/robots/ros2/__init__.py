@@ -7,7 +7,7 @@ calls, reconnect).
 
 May import: serveur.clock, serveur.robots.rosbridge, serveur.robots.names,
 serveur.robots.driver, serveur.robots.deadman, serveur.robots.reconnect,
-serveur.robots.liveness.
+serveur.robots.liveness, serveur.robots.sensor_reports.
 """
 
 __all__: list[str] = []

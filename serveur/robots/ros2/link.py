@@ -71,6 +71,7 @@ from serveur.robots.liveness import (
 from serveur.robots.names import RosNames
 from serveur.robots.reconnect import Reconnecting, open_rosbridge
 from serveur.robots.ros2 import messages as m2
+from serveur.robots.sensor_reports import SensorReports, Streams
 
 __all__ = ["PING_PERIOD", "Nav2Link"]
 
@@ -87,7 +88,6 @@ BATTERY_MS = 5000
 #: queued behind them arrive together, and time alone would misjudge a goal under way.
 SILENT_PINGS = 3
 #: Robot topics that prove it alive (their names are the defaults, see RosNames).
-_PROOFS = {"/amcl_pose": "pose", "/battery_state": "battery", "/scan": "scan"}
 
 
 class Nav2Link(Reconnecting):
@@ -149,12 +149,14 @@ class Nav2Link(Reconnecting):
         self._halted = False
         self._stamped_cmd_vel = False
         self._deadman = DeadManSwitch(name, clock, teleop_timeout, self._deadman_stop)
-        self._scan_wanted = False
+        self._sensors = SensorReports(name, listener, self._names, clock)
+        self._streams = Streams(
+            lambda topic, ms: self._sub(topic, throttle_rate=ms),
+            lambda topic: rb.op_unsubscribe(self._t(topic)),
+        )
         self._pings = 0
         self._cmd_vel_type: str | None = None  # /cmd_vel's type, once rosapi said it
         self._jobs: set[asyncio.Task[None]] = set()
-        self.pose: tuple[float, float, float] | None = None
-        self.battery: float | None = None
         self.connects = 0
         self.last_failure = ""
 
@@ -163,6 +165,14 @@ class Nav2Link(Reconnecting):
     @property
     def up(self) -> bool:
         return self._track.up
+
+    @property
+    def pose(self) -> tuple[float, float, float] | None:
+        return self._sensors.pose
+
+    @property
+    def battery(self) -> float | None:
+        return self._sensors.battery
 
     @property
     def goal_id(self) -> str | None:
@@ -213,12 +223,13 @@ class Nav2Link(Reconnecting):
         self._cmd_vel_type = None
         topic = "/initialpose"
         await ctl.send(rb.encode(rb.op_advertise(self._t(topic), m2.TOPIC_TYPES[topic])))
-        await ctl.send(rb.encode(self._sub("/amcl_pose")))
+        for pose_topic in self._sensors.pose_topics():
+            await ctl.send(rb.encode(self._sub(pose_topic)))
         await ctl.send(rb.encode(self._sub("/battery_state", throttle_rate=BATTERY_MS)))
         if self._want_map:
             await ctl.send(rb.encode(self._sub("/map")))
-        if self._scan_wanted:
-            await ctl.send(rb.encode(self._sub("/scan", throttle_rate=200)))
+        for op in self._streams.resubscribe():
+            await ctl.send(rb.encode(op))
         # Twist or TwistStamped: the release decides (Jazzy's controllers, Kilted's Nav2).
         args = {"topic": self._t("/cmd_vel")}
         await ctl.send(rb.encode(rb.op_call_service("/rosapi/topic_type", args, id="cmd_vel")))
@@ -331,21 +342,10 @@ class Nav2Link(Reconnecting):
     def _on_publish(self, topic: str, msg: Any) -> None:
         if not isinstance(msg, dict):
             raise RosbridgeError(f"{topic}: msg is not an object")
-        if topic == "/amcl_pose":
-            x, y, yaw, stamp = rb.amcl_pose_from_msg(msg)
-            self.pose = (x, y, yaw)
-            self._listener.pose(self.name, x, y, yaw, stamp)
-        elif topic == "/battery_state":
-            fraction = rb.battery_fraction(msg)
-            if fraction is not None:
-                self.battery = fraction
-                self._listener.battery(self.name, fraction)
-        elif topic == "/scan":
-            self._listener.scan(self.name, msg)
-        elif topic == "/map":
-            self._listener.map(self.name, msg)
+        if not self._sensors.handles(topic):
+            return
         # After the report: the core knows where the robot is before it hears it is up.
-        proof = _PROOFS.get(topic)
+        proof = self._sensors.on_publish(topic, msg)
         if proof is not None:
             self._apply(self._track.proof(self._clock.now(), proof))
 
@@ -445,13 +445,15 @@ class Nav2Link(Reconnecting):
         """AMCL on ROS 2 publishes only after 0.25 m / 0.2 rad of motion: nothing to throttle."""
 
     async def want_scan(self, on: bool) -> None:
-        if on == self._scan_wanted:
-            return
-        self._scan_wanted = on
-        ctl = self._ctl
-        if ctl is not None:
-            op = (
-                self._sub("/scan", throttle_rate=200) if on else rb.op_unsubscribe(self._t("/scan"))
-            )
+        await self._stream("/scan", on)
+
+    async def want_cloud(self, on: bool) -> None:
+        """Nav2's particle_cloud is best effort (SensorDataQoS): rosbridge 2.x subscribes to
+        it with a matching QoS, so it streams like the laser."""
+        await self._stream("/particlecloud", on)
+
+    async def _stream(self, topic: str, on: bool) -> None:
+        op, ctl = self._streams.want(topic, on), self._ctl
+        if op is not None and ctl is not None:
             with contextlib.suppress(websockets.exceptions.ConnectionClosed):
                 await ctl.send(rb.encode(op))

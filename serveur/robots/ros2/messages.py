@@ -42,6 +42,10 @@ TOPIC_TYPES: Final[dict[str, str]] = {
     "/battery_state": "sensor_msgs/msg/BatteryState",
     "/scan": "sensor_msgs/msg/LaserScan",
     "/map": "nav_msgs/msg/OccupancyGrid",
+    # Nav2 amcl's particle_cloud (named /particlecloud in RosNames), and tf
+    "/particlecloud": "nav2_msgs/msg/ParticleCloud",
+    "/tf": "tf2_msgs/msg/TFMessage",
+    "/tf_static": "tf2_msgs/msg/TFMessage",
 }
 
 
