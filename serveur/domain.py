@@ -118,7 +118,8 @@ class Robot(_Record):
     link: dict[str, str] = Field(
         default_factory=dict,
         description="Which ROS (ros: 1 or 2) and the ROS names that differ from the defaults: "
-        "ns, move_base, navigate, cmd_vel, pose, initialpose, battery, scan, map, frame "
+        "ns, move_base, navigate, cmd_vel, pose, initialpose, battery, scan, map, frame, cloud, "
+        "tf_topic, tf_static, camera, camera_url, tf "
         "(docs/robots.md)",
     )
     mode: RobotMode = RobotMode.OFF

@@ -378,12 +378,13 @@ class CreateRobot(_ClientMsg):
     kinematics: Literal["omni", "diff"] = Field(
         default="omni", description="omni: vx, vy, wz; diff (differential drive): vx, wz only"
     )
-    link: dict[Name, Annotated[str, Field(max_length=128)]] | None = Field(
+    link: dict[Name, Annotated[str, Field(max_length=256)]] | None = Field(
         default=None,
-        max_length=16,
+        max_length=24,
         description="Which ROS (ros: 1 or 2) and the ROS names that differ from the defaults"
         " (docs/robots.md): ns, move_base, navigate, cmd_vel, pose, initialpose, battery, scan,"
-        " map, frame",
+        " map, frame, cloud, tf_topic, tf_static; camera (a CompressedImage topic) or camera_url"
+        " (web_video_server); tf (the base frame, for a pose from tf)",
     )
     trays: Annotated[int, Field(ge=1, le=12)] | None = Field(
         default=None, description="Tables one trip may serve (one tray each); null: the site's"

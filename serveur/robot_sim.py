@@ -74,7 +74,9 @@ from serveur.sim.robot import (
     TICK,
     SimRobot,
 )
+from serveur.sim.sensors import CAMERA_TOPIC
 from serveur.sim.topics import Frame
+from serveur.sim.video_server import VideoServer, rendered_camera
 
 __all__ = [
     "AMCL_MODES",
@@ -107,9 +109,12 @@ class Simulation:
         spread: bool = False,
         robots_see_each_other: bool = False,
         blocked_patience: float = ROBOT_PATIENCE,
+        video: Sequence[VideoServer] = (),
     ) -> None:
         self.robots: list[SimRobot] = list(robots)
         self._endpoints = list(endpoints)
+        #: Each robot's web_video_server, in robot order (none unless asked for).
+        self.video: list[VideoServer] = list(video)
         self.clock = clock
         #: Step robot i i/N of the AMCL period after robot 0 (see :meth:`phases`).
         self.spread = spread
@@ -144,11 +149,22 @@ class Simulation:
         """ws://host:port (wss:// with TLS) of each robot, in robot order."""
         return [e.url for e in self._endpoints]
 
+    @property
+    def video_urls(self) -> list[str]:
+        """Each robot's camera stream, as web_video_server serves it
+        (``http://host:port/stream?topic=/camera/image/compressed&type=ros_compressed``), in
+        robot order; empty when the simulation serves no video (``video_port`` None)."""
+        if not self.video:
+            return []
+        return [v.url(r.wire(CAMERA_TOPIC)) for r, v in zip(self.robots, self.video, strict=True)]
+
     async def start(self) -> None:
         """Open every endpoint and start the physics loop (idempotent)."""
         try:
             for e in self._endpoints:
                 await e.start()
+            for v in self.video:
+                await v.start()
         except OSError:
             await self.close()
             raise
@@ -162,7 +178,7 @@ class Simulation:
             task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await task
-        await asyncio.gather(*(e.stop() for e in self._endpoints))
+        await asyncio.gather(*(e.stop() for e in self._endpoints), *(v.stop() for v in self.video))
 
     async def stop_endpoint(self, i: int) -> None:
         """Fault hook: close robot i's websocket server and its connections; the robot keeps
@@ -343,6 +359,7 @@ async def start_simulation(
     rosbridge_fix: bool = False,
     robots_see_each_other: bool = False,
     blocked_patience: float = ROBOT_PATIENCE,
+    video_port: int | None = None,
 ) -> Simulation:
     """Start ``n`` robots listening on ports ``port``..``port+n-1`` (0: free ports).
 
@@ -374,6 +391,11 @@ async def start_simulation(
     deadlock, e.g. meeting head-on in an aisle one robot wide. Off by default: the server has
     no zone leases yet (issue 21), and every multi-robot test and replay so far assumes robots
     pass through each other.
+
+    ``video_port``: each robot also serves its camera over HTTP as ROS's web_video_server does
+    (:mod:`serveur.sim.video_server`), robot i on ``video_port + i`` (0: free ports), rendered
+    from its true pose; :attr:`Simulation.video_urls` are the streams' URLs. None (the
+    default): no video server, the camera is only on rosbridge.
     """
     if n < 1:
         raise ValueError("at least one robot")
@@ -437,6 +459,10 @@ async def start_simulation(
         )
         robots.append(robot)
         endpoints.append(Endpoint(robot, host, port + i if port else 0, ssl))
+    video: list[VideoServer] = []
+    if video_port is not None:
+        for i, r in enumerate(robots):
+            video.append(_video_server(r, grid, host, video_port + i if video_port else 0, ssl))
     sim = Simulation(
         robots,
         endpoints,
@@ -444,9 +470,23 @@ async def start_simulation(
         spread=spread,
         robots_see_each_other=robots_see_each_other,
         blocked_patience=blocked_patience,
+        video=video,
     )
     await sim.start()
     return sim
+
+
+def _video_server(
+    robot: SimRobot,
+    grid: OccupancyMap,
+    host: str,
+    port: int,
+    ssl: ssl_module.SSLContext | None,
+) -> VideoServer:
+    """Robot ``robot``'s web_video_server: its camera topic, rendered from its true pose and
+    stamped with its clock, stalled with its rosbridge camera (``sensors.camera_on``)."""
+    camera = rendered_camera(grid, lambda: robot.pose, robot.epoch, lambda: robot.sensors.camera_on)
+    return VideoServer({robot.wire(CAMERA_TOPIC): camera}, host=host, port=port, ssl=ssl)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -547,6 +587,15 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
         f"before its goal aborts (default {ROBOT_PATIENCE:g}, like move_base's/Nav2's defaults)",
     )
     parser.add_argument(
+        "--video-port",
+        type=int,
+        default=None,
+        metavar="PORT",
+        help="also serve each robot's camera over HTTP as ROS's web_video_server does "
+        "(/stream?topic=/camera/image/compressed&type=ros_compressed): robot i on PORT+i, 0 for "
+        "free ports (default: no video server)",
+    )
+    parser.add_argument(
         "--amcl",
         choices=AMCL_MODES,
         default="continuous",
@@ -579,8 +628,10 @@ async def run_sim(
     rosbridge_fix: bool = False,
     robots_see_each_other: bool = False,
     blocked_patience: float = ROBOT_PATIENCE,
+    video_port: int | None = None,
 ) -> int:
-    """Run a simulation until ``stop`` is set or SIGINT/SIGTERM; print the URLs first.
+    """Run a simulation until ``stop`` is set or SIGINT/SIGTERM; print the URLs first (each
+    robot's rosbridge, then, with ``video_port``, each robot's camera stream).
 
     Returns a process exit code: 0 after a clean stop, 1 when it could not start.
     """
@@ -615,12 +666,13 @@ async def run_sim(
                 rosbridge_fix=rosbridge_fix,
                 robots_see_each_other=robots_see_each_other,
                 blocked_patience=blocked_patience,
+                video_port=video_port,
             )
         except (OSError, ServeurError, ValueError) as exc:
             print(f"serveur sim: cannot start: {exc}", file=sys.stderr, flush=True)
             return 1
         try:
-            for url in sim.urls:
+            for url in [*sim.urls, *sim.video_urls]:
                 print(url, file=out)
             out.flush()
             await stop.wait()
@@ -682,4 +734,5 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
         rosbridge_fix=getattr(ns, "rosbridge_fix", False),
         robots_see_each_other=getattr(ns, "robots_see_each_other", False),
         blocked_patience=getattr(ns, "blocked_patience", ROBOT_PATIENCE),
+        video_port=getattr(ns, "video_port", None),
     )

@@ -181,3 +181,29 @@ async def test_the_owner_switches_the_cameras_off_and_nobody_watches(tmp_path: P
             assert back["camera"]["state"] == "watching"
         finally:
             await owner.close()
+
+
+async def test_a_web_video_server_camera_reaches_the_tablets_over_one_http_stream(
+    tmp_path: Path,
+) -> None:
+    """A robot whose camera is its web_video_server stream (``camera_url``): the same relay,
+    one HTTP stream for two tablets, closed when the last stops watching."""
+    from serveur.sim.sensors import CAMERA_TOPIC as TOPIC
+    from tests.subprocess_server import free_port
+
+    port = free_port(1)
+    url = f"http://127.0.0.1:{port}/stream?topic={TOPIC}&type=ros_compressed"
+    async with restaurant(tmp_path, video_port=port, link={"camera_url": url}) as r:
+        video = r.sim.video[0]
+        assert r.sim.video_urls == [url]
+        async with tablet(r) as a, tablet(r) as b:
+            for t in (a, b):
+                reply = await t.call(clientmsg="camera", robot="r1", watch=True)
+                assert reply["camera"] == {"robot": "r1", "state": "watching"}, reply
+            await asyncio.gather(a.frames_at_least(3), b.frames_at_least(3))
+            assert video.streaming == 1 and camera_subs(r) == 0  # HTTP, not rosbridge
+            with Image.open(io.BytesIO(a.frames[0]["jpeg"])) as img:
+                assert img.format == "JPEG" and img.size == (640, 480)
+            for t in (a, b):
+                await t.call(clientmsg="camera", robot="r1", watch=False)
+            await poll_until(lambda: video.streaming == 0, WAIT, "the HTTP stream closed")

@@ -33,7 +33,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from serveur import protocol as P
-from serveur.core.camera import CameraRelay
+from serveur.core.camera import CameraRelay, CameraSource
 from serveur.core.crew import Crew
 from serveur.core.events import (
     GoalEnded,
@@ -53,6 +53,7 @@ from serveur.robots import rosbridge as rb
 from serveur.robots.camera import RosbridgeCamera
 from serveur.robots.driver import GoalLoss
 from serveur.robots.factory import FAKE_SCHEME, make_driver
+from serveur.robots.mjpeg import MjpegCamera
 from serveur.robots.names import RosNames
 from serveur.status import Event, RobotState, RobotStatus, apply
 
@@ -79,7 +80,7 @@ class RobotController:
         rt.worker = crew.reports.start_worker(rt)
         #: The robot's camera (made at the first watch) and the options it was made from.
         self._camera: CameraRelay | None = None
-        self._camera_from: tuple[str, str, int] | None = None
+        self._camera_from: tuple[str, str, str, int] | None = None
 
     @property
     def record(self) -> Robot:
@@ -204,15 +205,20 @@ class RobotController:
         and whoever watched the old one is told it ended."""
         robot = self.record
         names = RosNames.from_options(robot.link)
-        if not names.camera or urlsplit(robot.url).scheme.lower() == FAKE_SCHEME:
+        fake = urlsplit(robot.url).scheme.lower() == FAKE_SCHEME
+        if not (names.camera or names.camera_url) or fake:
             await self._close_camera()
             return None
-        made_from = (robot.url, names.camera, names.ros)
+        made_from = (robot.url, names.camera, names.camera_url, names.ros)
         if self._camera is None or self._camera_from != made_from:
             await self._close_camera()
-            source = RosbridgeCamera(
-                robot.url, names.camera, ros=names.ros, ssl=self.crew.robot_ssl
-            )
+            source: CameraSource
+            if names.camera_url:  # web_video_server's MJPEG, when the robot names one
+                source = MjpegCamera(names.camera_url, ssl=self.crew.robot_ssl)
+            else:
+                source = RosbridgeCamera(
+                    robot.url, names.camera, ros=names.ros, ssl=self.crew.robot_ssl
+                )
             # Wall time, whatever the clock's scale: a picture's age is what the person
             # driving sees (half a second old on the tablet), as the Wi-Fi allowances are.
             self._camera = CameraRelay(self.name, source, time.time)

@@ -15,15 +15,14 @@ CBOR: it has no fixed-size array, which is what 0.11's encoder cannot do
 
 Each frame is handed to the relay with its capture time (the message's header stamp); checking
 it is the relay's job. A connection that fails is opened again after a pause, doubling up to
-5 s, until the relay cancels the source.
+5 s, until the relay cancels the source (:mod:`serveur.robots.camera_retry`, the loop every
+camera source shares).
 """
 
 from __future__ import annotations
 
-import asyncio
 import base64
 import binascii
-import logging
 import ssl as ssl_module
 from collections.abc import Callable, Mapping
 from typing import Any, Final
@@ -33,16 +32,13 @@ from websockets.exceptions import WebSocketException
 
 from serveur.errors import RosbridgeError
 from serveur.robots import rosbridge as rb
+from serveur.robots.camera_retry import keep_streaming
 from serveur.robots.reconnect import open_rosbridge
 
 __all__ = ["CAMERA_TYPES", "RosbridgeCamera", "frame_of"]
 
-log = logging.getLogger(__name__)
-
 #: The message type to subscribe with, by ROS version (rosbridge 2.x wants ``pkg/msg/Type``).
 CAMERA_TYPES: Final = {1: "sensor_msgs/CompressedImage", 2: "sensor_msgs/msg/CompressedImage"}
-_RETRY_FIRST: Final = 0.5
-_RETRY_MAX: Final = 5.0
 
 
 def frame_of(raw: str | bytes, topic: str) -> tuple[bytes, float] | None:
@@ -96,15 +92,11 @@ class RosbridgeCamera:
         self.connects = 0
 
     async def run(self, deliver: Callable[[bytes, float], None]) -> None:
-        pause = _RETRY_FIRST
-        while True:
-            try:
-                await self._session(deliver)
-                pause = _RETRY_FIRST
-            except (OSError, TimeoutError, WebSocketException) as exc:
-                log.info("camera %s %s: %s; again in %.1f s", self.url, self.topic, exc, pause)
-            await asyncio.sleep(pause)
-            pause = min(pause * 2, _RETRY_MAX)
+        await keep_streaming(
+            lambda: self._session(deliver),
+            (OSError, TimeoutError, WebSocketException),
+            f"{self.url} {self.topic}",
+        )
 
     async def _session(self, deliver: Callable[[bytes, float], None]) -> None:
         async with open_rosbridge(self.url, ssl=self._ssl, open_timeout=self._open_timeout) as ws:

@@ -49,11 +49,14 @@ _ROS2_DEFAULTS: dict[str, str] = {"cloud": "particle_cloud"}
 #: to watch only when its CompressedImage topic is named (``camera/image/compressed``...).
 #: ``tf`` has none either: a robot takes its pose from tf (``map`` -> that base frame) instead of
 #: ``/amcl_pose`` only when its base frame is named (``base_link``, ``base_footprint``).
-OPTION_KEYS = ("ros", "ns", *_DEFAULTS, "frame", "camera", "tf")
+#: ``camera_url`` instead names the robot's web_video_server stream (``http://robot:8080/
+#: stream?topic=/camera/image/compressed&type=ros_compressed``): the same JPEGs over HTTP.
+OPTION_KEYS = ("ros", "ns", *_DEFAULTS, "frame", "camera", "camera_url", "tf")
 #: The ROS versions a robot may run: "1" (move_base) or "2" (Nav2).
 ROS_VERSIONS = ("1", "2")
 _NAME = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
 _FRAME = re.compile(r"^[A-Za-z][A-Za-z0-9_/]*$")
+_URL = re.compile(r"^https?://[^\s/?#]+(/[^\s]*)?$", re.IGNORECASE)
 
 
 def _resolve(ns: str, name: str) -> str:
@@ -85,6 +88,8 @@ class RosNames:
     camera: str = ""
     #: The robot's base frame when its pose comes from tf; "" when it comes from /amcl_pose.
     tf_base: str = ""
+    #: The robot's web_video_server stream URL (MJPEG), "" for none: a camera without rosbridge.
+    camera_url: str = ""
 
     @classmethod
     def from_options(cls, options: Mapping[str, str]) -> RosNames:
@@ -100,6 +105,12 @@ class RosNames:
             if key == "ros":
                 if value not in ROS_VERSIONS:
                     raise ValueError(f"robot link option ros={value!r}: the robot runs ROS 1 or 2")
+                continue
+            if key == "camera_url":
+                if not _URL.match(value) or len(value) > 256:
+                    raise ValueError(
+                        f"robot link option camera_url={value[:80]!r} is not an http(s) URL"
+                    )
                 continue
             pattern = _FRAME if key in ("frame", "tf") else _NAME
             if not pattern.match(value) or len(value) > 128:
@@ -118,6 +129,7 @@ class RosNames:
             frame=options.get("frame", "map"),
             camera=camera,
             tf_base=options.get("tf", ""),
+            camera_url=options.get("camera_url", ""),
             **names,
         )
 

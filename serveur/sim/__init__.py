@@ -4,7 +4,9 @@ Owns :mod:`~serveur.sim.robot` (move_base or Nav2, AMCL, odometry, laser, batter
 robot: its construction, control cycle and physics step) and the parts the robot is made of,
 each an object it creates and hands what it needs: :mod:`~serveur.sim.state` (what they share),
 :mod:`~serveur.sim.outbox` (subscriptions and frames), :mod:`~serveur.sim.sensors` (what is
-published, at which rates), :mod:`~serveur.sim.navigator` (a goal's life and plan),
+published, at which rates; :mod:`~serveur.sim.camera` renders what the camera sees),
+:mod:`~serveur.sim.video_server` (web_video_server's MJPEG streams),
+:mod:`~serveur.sim.navigator` (a goal's life and plan),
 :mod:`~serveur.sim.inbox` (what clients send) and :mod:`~serveur.sim.floor` (other robots);
 :mod:`~serveur.sim.bridge` (its rosbridge v2 server: ops, subscriptions, queues, and
 rosbridge 2.x's action ops), :mod:`~serveur.sim.ros2` (the ROS 2 dialect's names and shapes),

@@ -113,3 +113,23 @@ def test_a_ros2_robots_heartbeat_service_is_named_like_its_topics() -> None:
     n = RosNames.from_options({"ros": "2", "heartbeat": "/robot/ready"})
     assert n.heartbeat == "/robot/ready"
     assert "heartbeat" in OPTION_KEYS
+
+
+def test_the_particle_cloud_and_tf_names_follow_each_stack() -> None:
+    assert RosNames.from_options({}).cloud == "/particlecloud"  # ROS1 amcl
+    assert RosNames.from_options({"ros": "2"}).cloud == "/particle_cloud"  # Nav2 amcl
+    ns = RosNames.from_options({"ns": "r1", "ros": "2", "tf": "base_link"})
+    assert (ns.cloud, ns.tf_topic, ns.tf_base) == ("/r1/particle_cloud", "/r1/tf", "base_link")
+    assert ns.default_of("/r1/particle_cloud") == "/particlecloud"
+    assert RosNames.from_options({}).tf_base == ""  # the pose from /amcl_pose
+
+
+def test_a_camera_url_is_an_http_url() -> None:
+    url = "http://10.0.0.21:8080/stream?topic=/camera/image/compressed&type=ros_compressed"
+    assert RosNames.from_options({"camera_url": url}).camera_url == url
+    long = "http://a/" + "x" * 300
+    for bad in ("ftp://x/y", "http://", "javascript:alert(1)", "http://a b/", long):
+        with pytest.raises(ValueError, match="camera_url"):
+            RosNames.from_options({"camera_url": bad})
+    with pytest.raises(ValueError, match="tf"):
+        RosNames.from_options({"tf": "base link"})
