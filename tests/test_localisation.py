@@ -113,8 +113,9 @@ async def test_the_particle_cloud_streams_only_while_shown(site: Restaurant) -> 
     await poll_until(lambda: subscribers(r.sim, topic) == 0, 10.0, "the cloud unsubscribed")
 
 
-async def test_a_robot_without_amcl_pose_takes_its_pose_from_tf(tmp_path: Path) -> None:
-    async with restaurant(tmp_path, link={"tf": "base_footprint"}) as r:
+@pytest.mark.parametrize("ros", [1, 2], ids=["ros1", "ros2"])
+async def test_a_robot_without_amcl_pose_takes_its_pose_from_tf(tmp_path: Path, ros: int) -> None:
+    async with restaurant(tmp_path, link={"tf": "base_footprint"}, ros=ros) as r:
         c = await staff(r)
         assert subscribers(r.sim, "/amcl_pose") == 0 and subscribers(r.sim, "/tf") == 1
         rb = c.robot("r1")

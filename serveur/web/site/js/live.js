@@ -4,8 +4,8 @@
 // snapshot), so views redraw only what they show. A robot or waypoint update with `removed: true`
 // (the owner removed or renamed it) drops that record, as does a removed zone (and its lease row).
 // Single-value topics are kept whole: `map`, `settings` (the site's settings) and `forecast` (the
-// owner's "how many robots" forecast). Only `pose:<robot>` and `scan:<robot>` are per-robot
-// streams; any other topic is not filed under a robot.
+// owner's "how many robots" forecast). Only `pose:<robot>`, `scan:<robot>` and `cloud:<robot>`
+// are per-robot streams; any other topic is not filed under a robot.
 
 const KEYS = {
   robots: "name", waypoints: "name", orders: "id", tasks: "id", events: "id",
@@ -15,7 +15,7 @@ const MAX_EVENTS = 200;
 // Topics whose one value is kept whole in this[topic] (null: none yet, or none loaded).
 const SINGLE = ["map", "settings", "forecast"];
 // Per-robot streams, `<kind>:<robot>`: kind -> the Live table holding each robot's latest value.
-const ROBOT_STREAMS = { pose: "poses", scan: "scans" };
+const ROBOT_STREAMS = { pose: "poses", scan: "scans", cloud: "clouds" };
 
 export class Live extends EventTarget {
   constructor(conn) {
@@ -36,6 +36,7 @@ export class Live extends EventTarget {
     this.forecast = null; // the owner's latest fleet forecast, if the page subscribed to it
     this.poses = new Map(); // robot -> {x, y, yaw, stamp}
     this.scans = new Map(); // robot -> scan
+    this.clouds = new Map(); // robot -> its localisation particles, while shown
     this.clock = new ServerClock();
     conn.addEventListener("snapshot", (e) => this._snapshot(e.detail.data));
     conn.addEventListener("update", (e) => this._update(e.detail.topic, e.detail.data));
@@ -68,9 +69,9 @@ export class Live extends EventTarget {
     else this[topic].set(rec[KEYS[topic]], rec);
     if (removed && topic === "zones") this.leases.delete(rec.name); // its leases ended with it
     if (removed && topic === "robots") {
-      [this.poses, this.scans].forEach((m) => m.delete(rec.name));
+      [this.poses, this.scans, this.clouds].forEach((m) => m.delete(rec.name));
       // Its streams ended with it: not asked for again on the next reconnect.
-      for (const stream of [`pose:${rec.name}`, `scan:${rec.name}`]) this.conn.topics?.delete(stream);
+      for (const kind of Object.keys(ROBOT_STREAMS)) this.conn.topics?.delete(`${kind}:${rec.name}`);
     }
     if (topic === "events" && this.events.size > MAX_EVENTS) {
       this.events.delete(this.events.keys().next().value);
@@ -86,6 +87,8 @@ export class Live extends EventTarget {
     const [kind, robot] = splitTopic(topic);
     const table = robot && Object.hasOwn(ROBOT_STREAMS, kind) ? this[ROBOT_STREAMS[kind]] : null;
     if (!table) return; // not a robot's stream (audit, a topic this page does not keep): views read the change event
+    // A frame already on its way when the page unsubscribed: the stream is not shown any more.
+    if (this.conn.topics && !this.conn.topics.has(topic)) return;
     if (data === null) table.delete(robot);
     else {
       table.set(robot, data);

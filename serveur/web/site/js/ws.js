@@ -227,9 +227,9 @@ export class Connection extends EventTarget {
         // One unknown robot's stream must not block every other topic: drop it and retry.
         const robot = e.code === "not_found" && e.details && e.details.robot;
         if (!robot) return;
-        const rest = [...topics].filter((t) => t !== `pose:${robot}` && t !== `scan:${robot}`);
-        this.topics.delete(`pose:${robot}`);
-        this.topics.delete(`scan:${robot}`);
+        const streams = ["pose", "scan", "cloud"].map((kind) => `${kind}:${robot}`);
+        const rest = [...topics].filter((t) => !streams.includes(t));
+        for (const s of streams) this.topics.delete(s);
         if (rest.length && rest.length < [...topics].length) this._sendData(rest);
       });
   }

@@ -208,6 +208,29 @@ function labelAt(ctx, text, x, y, colour) {
  * map frame (docs/protocol.md): the scan's own pose is used, so the points stay on the walls
  * however the robot turns — the report's UI forgot the yaw and drew them rotated.
  */
+/**
+ * Where the robot may be: its localisation's particles (the cloud:<robot> stream), each a short
+ * tick in its heading. A tight knot is a robot sure of its place; a spray over the room, a lost
+ * one. Drawn under the laser and the robots.
+ */
+export const CLOUD_COLOUR = "#b45309";
+export function drawCloud(ctx, view, cloud) {
+  const len = 0.15; // m: a tick a little shorter than a robot's radius
+  ctx.save();
+  ctx.strokeStyle = CLOUD_COLOUR;
+  ctx.globalAlpha = 0.55;
+  ctx.lineWidth = 1.5;
+  ctx.beginPath();
+  for (const [x, y, yaw] of cloud.particles) {
+    const [sx, sy] = view.toScreen(x, y);
+    const [tx, ty] = view.toScreen(x + len * Math.cos(yaw), y + len * Math.sin(yaw));
+    ctx.moveTo(sx, sy);
+    ctx.lineTo(tx, ty);
+  }
+  ctx.stroke();
+  ctx.restore();
+}
+
 export function drawScan(ctx, view, scan) {
   const { x, y, yaw, angle_min: a0, angle_increment: da, range_max: rmax, ranges } = scan;
   const hits = [];

@@ -41,6 +41,7 @@ import {
   drawLaterStops,
   drawRobot,
   drawScan,
+  drawCloud,
   drawWaypoints,
   drawZoneDraft,
   drawZones,
@@ -305,6 +306,9 @@ export class MapView {
     this.canvas.dataset.zones = JSON.stringify(drawZones(ctx, this, zones, live.leases, labels));
     drawWaypoints(ctx, this, [...live.waypoints.values()], labels);
     const selected = this.opts.selected();
+    const cloud = selected && live.clouds.get(selected);
+    if (cloud) drawCloud(ctx, this, cloud);
+    this.canvas.dataset.cloud = String(cloud ? cloud.particles.length : 0); // particles drawn
     const scan = selected && live.scans.get(selected);
     if (scan) drawScan(ctx, this, scan);
     const blocked = [...live.blocks.keys()].filter((table) => live.waypoints.has(table));

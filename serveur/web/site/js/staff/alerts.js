@@ -19,6 +19,7 @@ const KINDS = {
   dish_waiting: "alerts.kind.dishWaiting",
   table_unreachable: "alerts.kind.tableUnreachable",
   zone_wait: "alerts.kind.zoneWait",
+  robot_lost: "alerts.kind.robotLost",
 };
 
 function loadMuted() {
@@ -166,6 +167,7 @@ export class AlertsPanel {
     }
     if (alert.kind === "waiting_at_table") return this.live.destination(alert.subject);
     if (alert.kind === "zone_wait") return this._zoneWait(robot);
+    if (alert.kind === "robot_lost") return t("robots.lost");
     return null;
   }
 

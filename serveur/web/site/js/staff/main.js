@@ -110,7 +110,8 @@ live.addEventListener("change", (e) => {
   }
   // Only what the map shows: a new order or an alert does not redraw it.
   const [kind, robot] = topic.split(":");
-  const drawn = ["robots", "tasks", "waypoints", "map"].includes(topic) || kind === "pose" || (kind === "scan" && robot === selection.name);
+  const selectedStream = (kind === "scan" || kind === "cloud") && robot === selection.name;
+  const drawn = ["robots", "tasks", "waypoints", "map"].includes(topic) || kind === "pose" || selectedStream;
   if (drawn) view.requestDraw();
 });
 

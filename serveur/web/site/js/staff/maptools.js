@@ -63,6 +63,16 @@ export class MapTools {
         if (e.detail === 0 && this.view.tool === tool) this.view.startKeyboardTool();
       });
     }
+    // "Where it may be": the selected robot's localisation particles, streamed only while
+    // shown — pressed, or while the selected robot is not sure where it is (what staff need to
+    // see when they set where it is).
+    this.cloudButton = document.getElementById("tool-cloud");
+    this.cloudPressed = false;
+    this.cloudTopic = null;
+    this.cloudButton.addEventListener("click", () => {
+      this.cloudPressed = !this.cloudPressed;
+      this._syncCloud();
+    });
     this.follow = document.getElementById("tool-follow");
     this.follow.addEventListener("click", () => this.view.setFollow(!this.view.following));
     view.canvas.addEventListener("followchange", (e) => this.follow.setAttribute("aria-pressed", String(e.detail.on)));
@@ -275,7 +285,26 @@ export class MapTools {
     legend.addEventListener("toggle", fit);
   }
 
+  /** Subscribe to the selected robot's cloud while it is shown; unsubscribe and forget it when not. */
+  _syncCloud() {
+    const name = this.selection.name;
+    const robot = name && this.live.robots.get(name);
+    const shown = Boolean(robot && (this.cloudPressed || robot.lost));
+    const topic = shown ? `cloud:${name}` : null;
+    this.cloudButton.disabled = !name;
+    this.cloudButton.setAttribute("aria-pressed", String(shown));
+    if (topic === this.cloudTopic) return;
+    if (this.cloudTopic) {
+      this.conn.unsubscribe([this.cloudTopic]);
+      this.live.clouds.delete(this.cloudTopic.slice("cloud:".length));
+      this.view.requestDraw();
+    }
+    this.cloudTopic = topic;
+    if (topic) this.conn.subscribe([topic]);
+  }
+
   _refresh() {
+    this._syncCloud();
     this.follow.disabled = !this.selection.name;
     const robot = this.live.robots.get(this.selection.name);
     for (const [tool, { button }] of Object.entries(TOOLS)) {

@@ -40,7 +40,7 @@ export class RobotsPanel {
         const loading = robot.status === "Loading" ? traySignature(this.live, robot.current_task) : "";
         return [
           robot.status, robot.mode, battery(robot), this._trip(robot), this.selection.name === robot.name, robot.last_error,
-          loading, robot.status_since, rosVersion(robot), this._waiting(robot),
+          loading, robot.status_since, rosVersion(robot), this._waiting(robot), Boolean(robot.lost),
         ];
       },
       build: (robot) => this._row(robot),
@@ -122,6 +122,7 @@ export class RobotsPanel {
       el("span", { class: "ros" }, t("robots.ros", { version: rosVersion(robot) })),
       el("span", { class: "trip" }, trip),
       robot.last_error ? el("span", { class: "last-error" }, t("robots.lastError", { message: robot.last_error })) : null,
+      robot.lost ? el("span", { class: "lost", "data-testid": "lost", role: "status" }, t("robots.lost")) : null,
       robot.waiting_for && robot.waiting_for.length
         ? el("span", { class: "waiting-for", "data-testid": "waiting-for" }, this._waiting(robot))
         : null,
