@@ -24,7 +24,7 @@ difference (the relay's own), latency p50/p95/max, frames per viewer; and serveu
 the baseline's, in all and the relay's own, and its p95 minus the baseline's (goal: at most
 1.5x, at most 20 ms). Loopback only; every wait is bounded; the children are stopped when done.
 
-Run: ``python bench/bench_camera.py [--seconds 20] [--quota 0.5] [--json out.json]``.
+Run: ``python bench/bench_camera.py [--seconds 20] [--repeat 3] [--quota 0.5] [--json out.json]``.
 """
 
 from __future__ import annotations
@@ -264,23 +264,39 @@ async def main(args: argparse.Namespace) -> dict[str, Any]:
     jpeg = noisy_jpeg(args.kb)
     server, _sent = await source(args.fps, jpeg)
     url = f"ws://127.0.0.1:{server.sockets[0].getsockname()[1]}"
-    results = []
+    runs: dict[str, list[dict[str, Any]]] = {"baseline": [], "serveur": []}
     try:
-        for kind in ("baseline", "serveur"):
-            results.append(await measure(kind, args, url))
-            print(json.dumps(results[-1]), flush=True)
+        for _ in range(args.repeat):  # alternating, so a slow minute of the machine hits both
+            for kind in runs:
+                runs[kind].append(await measure(kind, args, url))
+                print(json.dumps(runs[kind][-1]), flush=True)
     finally:
         server.close()
-    base, ours = results
+
+    def med(kind: str, key: str) -> float:
+        return float(statistics.median(r[key] for r in runs[kind]))
+
+    base_cpu, ours_cpu = med("baseline", "cpu_pct"), med("serveur", "cpu_pct")
+    ours_idle = med("serveur", "idle_cpu_pct")
     summary = {
         "frame_kb": round(len(jpeg) / 1000, 1),
         "fps": args.fps,
         "viewers": args.viewers,
         "seconds": args.seconds,
-        "cpu_ratio": round(ours["cpu_pct"] / max(0.01, base["cpu_pct"]), 2),
-        "relay_cpu_ratio": round(ours["relay_cpu_pct"] / max(0.01, base["relay_cpu_pct"]), 2),
-        "added_p95_ms": round(ours["p95_ms"] - base["p95_ms"], 1),
-        "results": results,
+        "repeat": args.repeat,
+        "baseline_cpu_pct": base_cpu,
+        "serveur_cpu_pct": ours_cpu,
+        "serveur_idle_cpu_pct": ours_idle,
+        # The whole process against the whole baseline: serveur's includes a restaurant
+        # server's own work (its robot link, timers, the store) that goes on with nobody
+        # watching.
+        "cpu_ratio": round(ours_cpu / max(0.01, base_cpu), 2),
+        # What watching adds to serveur (its CPU watching minus its CPU with nobody watching:
+        # the relay, upstream included) against the baseline's whole CPU (it does nothing but
+        # relay).
+        "relay_vs_baseline": round(max(0.0, ours_cpu - ours_idle) / max(0.01, base_cpu), 2),
+        "added_p95_ms": round(med("serveur", "p95_ms") - med("baseline", "p95_ms"), 1),
+        "results": runs,
     }
     print(json.dumps({k: v for k, v in summary.items() if k != "results"}))
     return summary
@@ -298,6 +314,7 @@ if __name__ == "__main__":
     p.add_argument("--kb", type=int, default=40)
     p.add_argument("--quota", type=float, default=0.5)
     p.add_argument("--idle", type=float, default=10.0, help="seconds of CPU with no viewer")
+    p.add_argument("--repeat", type=int, default=1, help="runs of each relay; medians reported")
     p.add_argument("--json")
     args = p.parse_args()
     summary = asyncio.run(main(args))
