@@ -29,9 +29,6 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
-import numpy as np
-import numpy.typing as npt
-
 from serveur.errors import RosbridgeError
 from serveur.robots import rosbridge as rb
 
@@ -73,12 +70,17 @@ def pose_spread(msg: Mapping[str, Any]) -> tuple[float, float] | None:
 
 @dataclass(frozen=True, slots=True)
 class Cloud:
-    """A particle cloud in the map frame: positions, headings and normalised weights."""
+    """A particle cloud in the map frame: positions, headings and normalised weights.
 
-    xs: npt.NDArray[np.float64]
-    ys: npt.NDArray[np.float64]
-    yaws: npt.NDArray[np.float64]
-    weights: npt.NDArray[np.float64]
+    Plain lists, not numpy: the server process reads clouds (while someone shows one) and must
+    not load numpy's ~20 MB for it (tests/maps/test_distances.py checks it never does); one
+    pass over a few thousand particles costs less than decoding their JSON did.
+    """
+
+    xs: list[float]
+    ys: list[float]
+    yaws: list[float]
+    weights: list[float]
     stamp: float
 
     def __len__(self) -> int:
@@ -86,23 +88,25 @@ class Cloud:
 
     def spread(self) -> float:
         """The weighted standard deviation (m) along the cloud's worst floor direction."""
-        if len(self.xs) == 0:
+        if not self.xs:
             return math.inf
-        w = self.weights
-        mx, my = float(w @ self.xs), float(w @ self.ys)
-        dx, dy = self.xs - mx, self.ys - my
-        xx, yy, xy = float(w @ (dx * dx)), float(w @ (dy * dy)), float(w @ (dx * dy))
+        w, xs, ys = self.weights, self.xs, self.ys
+        mx = math.fsum(wi * x for wi, x in zip(w, xs, strict=True))
+        my = math.fsum(wi * y for wi, y in zip(w, ys, strict=True))
+        xx = yy = xy = 0.0
+        for wi, x, y in zip(w, xs, ys, strict=True):
+            dx, dy = x - mx, y - my
+            xx += wi * dx * dx
+            yy += wi * dy * dy
+            xy += wi * dx * dy
         return spread_of([xx, xy, 0, 0, 0, 0, 0, yy, *([0.0] * 27), 0.0])[0]
 
     def shown(self, most: int = CLOUD_SHOWN) -> list[list[float]]:
         """At most ``most`` particles as ``[x, y, yaw]`` rounded to cm and centiradians, the
         heaviest first (a thinned cloud keeps where the robot probably is)."""
-        order = np.argsort(-self.weights, kind="stable")[:most]
+        order = sorted(range(len(self.xs)), key=lambda i: -self.weights[i])[:most]
         xs, ys, yaws = self.xs, self.ys, self.yaws
-        return [
-            [round(float(xs[i]), 2), round(float(ys[i]), 2), round(float(yaws[i]), 2)]
-            for i in order
-        ]
+        return [[round(xs[i], 2), round(ys[i], 2), round(yaws[i], 2)] for i in order]
 
 
 def _yaw(q: Mapping[str, Any]) -> float:
@@ -118,7 +122,9 @@ def cloud_of(msg: Mapping[str, Any]) -> Cloud:
     if isinstance(msg.get("particles"), list):
         parts = msg["particles"]
         poses = [p.get("pose") if isinstance(p, Mapping) else None for p in parts]
-        weighted = [float(p.get("weight", 0.0)) if isinstance(p, Mapping) else 0.0 for p in parts]
+        weighted = [
+            float(p.get("weight", 0.0)) if isinstance(p, Mapping) else 0.0 for p in parts
+        ]
     elif isinstance(msg.get("poses"), list):
         poses = msg["poses"]
     else:
@@ -134,22 +140,17 @@ def cloud_of(msg: Mapping[str, Any]) -> Cloud:
         ys.append(y)
         yaws.append(_yaw(p.get("orientation") or {}))
     n = len(xs)
-    w = np.asarray(weighted if weighted is not None else [1.0] * n, dtype=np.float64)
-    if n and (not np.all(np.isfinite(w)) or np.any(w < 0.0) or float(w.sum()) <= 0.0):
-        w = np.ones(n)  # weights that cannot be weights: count the particles alike
+    w = weighted if weighted is not None else [1.0] * n
+    total = math.fsum(w) if all(math.isfinite(v) and v >= 0.0 for v in w) else 0.0
+    if n and total <= 0.0:
+        w, total = [1.0] * n, float(n)  # weights that cannot be weights: count them alike
     if n:
-        w = w / w.sum()
+        w = [v / total for v in w]
     header = msg.get("header")
     stamp = 0.0
     if isinstance(header, Mapping) and isinstance(header.get("stamp"), Mapping):
         stamp = rb.from_ros_time(header["stamp"])
-    return Cloud(
-        np.asarray(xs, dtype=np.float64),
-        np.asarray(ys, dtype=np.float64),
-        np.asarray(yaws, dtype=np.float64),
-        w,
-        stamp,
-    )
+    return Cloud(xs, ys, yaws, w, stamp)
 
 
 _Transform = tuple[float, float, float]  # x, y, yaw of a child frame in its parent
