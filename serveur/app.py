@@ -97,6 +97,7 @@ class App:
         config: CoreConfig | None = None,
         security: SecurityConfig | None = None,
         create_owner: bool = True,
+        setup: bool = False,
         ssl: ssl_module.SSLContext | None = None,
         robot_ssl: ssl_module.SSLContext | None = None,
         plan_in_child: bool = True,
@@ -113,6 +114,7 @@ class App:
         self._host, self._port = host, port
         self._security = security
         self._create_owner = create_owner
+        self._setup = setup
         self._ssl, self._robot_ssl = ssl, robot_ssl
         self._plan_in_child = plan_in_child
         self.core: Core | None = None
@@ -121,6 +123,9 @@ class App:
         #: Set on the first start of an empty database: the new owner's password, to be
         #: shown once (by the CLI) and never again.
         self.first_owner_password: str | None = None
+        #: With ``setup``, on a database with nobody in it: the code of the setup link (the
+        #: owner's first page), instead of a generated owner password.
+        self.setup_code: str | None = None
 
     async def start(self) -> App:
         """Open the store, start the core (robot links, dispatch) and listen.
@@ -156,7 +161,9 @@ class App:
         )
         await self.core.start()
         self.sessions = Sessions(self.store, self.clock, self._security, hub=self.core.hub)
-        if self._create_owner:
+        if self._setup:
+            self.setup_code = await self.sessions.prepare_setup()
+        elif self._create_owner:
             self.first_owner_password = await self.sessions.ensure_owner()
         self.sessions.start()
         self.server = Server(

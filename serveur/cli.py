@@ -155,6 +155,7 @@ async def _run(ns: argparse.Namespace) -> int:
         ssl=tls,
         robot_ssl=robot_tls,
         config=_service_config(ns),
+        setup=True,
     )
     try:
         await app.start()
@@ -171,6 +172,13 @@ async def _run(ns: argparse.Namespace) -> int:
     stop = _on_signal()
     print(f"serveur {__version__} listening on {app.url} (database {ns.db})", flush=True)
     web = app.url.replace("ws", "http", 1).removesuffix("/ws")
+    if app.setup_code is not None:
+        # Nobody has set this restaurant up: one link (and its QR code) for the owner's tablet.
+        from serveur.security.first_run import print_setup_link, setup_url
+
+        assert app.server is not None
+        url = setup_url(ns.host, app.server.port, app.setup_code, tls=tls is not None)
+        print_setup_link(url, sys.stdout)
     if app.first_owner_password is not None:
         # Shown this once, on the terminal of whoever started an empty database.
         print(

@@ -233,7 +233,11 @@ MAX_TOKEN: Final = 256
 
 class LoginMsg(_ClientMsg):
     """Authenticate this connection: ``username`` + ``password`` (a person: the reply carries a
-    new session ``token``), or a ``token`` (a saved session, a screen's or a script's)."""
+    new session ``token``), or a ``token`` (a saved session, a screen's or a script's).
+
+    On a server nobody has set up yet, ``setup`` (the code in the setup link the server printed
+    at its first start) with ``username`` + ``password`` creates the restaurant's owner with
+    that password and logs in as them; the code is then spent."""
 
     clientmsg: Literal["login"]
     username: Name | None = None
@@ -244,9 +248,14 @@ class LoginMsg(_ClientMsg):
     token: Annotated[str, Field(min_length=1, max_length=MAX_TOKEN)] | None = Field(
         default=None, repr=False
     )
+    setup: Annotated[str, Field(min_length=1, max_length=MAX_TOKEN)] | None = Field(
+        default=None, repr=False
+    )
 
     @model_validator(mode="after")
     def _one_way(self) -> LoginMsg:
+        if self.setup is not None and (self.username is None or self.password is None):
+            raise PydanticCustomError("login", "setup needs the new owner's username and password")
         has_pw = self.username is not None or self.password is not None
         if has_pw == (self.token is not None) or (
             has_pw and (self.username is None or self.password is None)

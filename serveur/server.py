@@ -422,7 +422,9 @@ class Server:
         return {"time": self.core.clock.epoch()}
 
     async def _account(self, conn: _Conn, msg: Any) -> dict[str, Any]:
-        return await handle_account(self.sessions, conn.principal, msg)
+        return await handle_account(
+            self.sessions, conn.principal, msg, public_url=self.core.site.public_url
+        )
 
     async def _stats(self, conn: _Conn, msg: Any) -> dict[str, Any]:
         return await self.stats.handle(msg)

@@ -91,6 +91,9 @@ class Site:
         self.language = config.language
         #: Staff may watch the robots' cameras (the owner can switch them off for the site).
         self.cameras = True
+        #: The restaurant's name, and its address as its tablets reach it (setup links).
+        self.name = ""
+        self.public_url: str | None = None
 
     async def site(self, msg: Any, actor: str | None) -> dict[str, Any]:
         """The ``site`` verb's actions the core carries out (the audit search is the
@@ -111,6 +114,8 @@ class Site:
             "languages": list(self.languages),
             "language": self.language,
             "cameras": self.cameras,
+            "name": self.name,
+            "public_url": self.public_url,
         }
 
     async def load_settings(self) -> None:
@@ -126,6 +131,10 @@ class Site:
             self.config.auto_depart = bool(values["auto_depart"])
         if "cameras" in values:
             self.cameras = bool(values["cameras"])
+        if "name" in values:
+            self.name = str(values["name"] or "")
+        if "public_url" in values:
+            self.public_url = values["public_url"] or None
         if "languages" in values:
             self.languages = [x for x in values["languages"] if x in P.LANGUAGES] or ["en"]
         if "language" in values and values["language"] in self.languages:

@@ -122,9 +122,7 @@ def cloud_of(msg: Mapping[str, Any]) -> Cloud:
     if isinstance(msg.get("particles"), list):
         parts = msg["particles"]
         poses = [p.get("pose") if isinstance(p, Mapping) else None for p in parts]
-        weighted = [
-            float(p.get("weight", 0.0)) if isinstance(p, Mapping) else 0.0 for p in parts
-        ]
+        weighted = [float(p.get("weight", 0.0)) if isinstance(p, Mapping) else 0.0 for p in parts]
     elif isinstance(msg.get("poses"), list):
         poses = msg["poses"]
     else:

@@ -69,8 +69,14 @@ def qr_svg(text: str) -> str:
     return buf.getvalue().decode()
 
 
-async def handle_account(sessions: Sessions, p: Principal | None, msg: Any) -> dict[str, Any]:
-    """Carry out one ``account`` request (already authorized) and return the reply fields."""
+async def handle_account(
+    sessions: Sessions, p: Principal | None, msg: Any, *, public_url: str | None = None
+) -> dict[str, Any]:
+    """Carry out one ``account`` request (already authorized) and return the reply fields.
+
+    ``public_url``: the restaurant's address as its tablets reach it (the owner's setting); a
+    screen's QR code holds it rather than the ``base`` the asking page saw (a page opened on
+    the box itself sees 127.0.0.1, which no tablet can open)."""
     store, now = sessions.store, sessions.clock.epoch()
     if isinstance(msg, P.AccountListUsers):
         return {"users": [_user(u) for u in await store.accounts.list_users()]}
@@ -102,7 +108,7 @@ async def handle_account(sessions: Sessions, p: Principal | None, msg: Any) -> d
             msg.role, robot=msg.robot, table=msg.table, label=msg.label
         )
         link = setup_link(rec, token)
-        qr = await asyncio.to_thread(qr_svg, (msg.base or "") + link)
+        qr = await asyncio.to_thread(qr_svg, (public_url or msg.base or "") + link)
         return {"device": _token(rec), "token": token, "link": link, "qr": qr}
     if isinstance(msg, P.AccountListTokens):
         recs = await store.accounts.list_tokens(include_ended=msg.all, now=now, kind="device")

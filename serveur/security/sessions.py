@@ -16,6 +16,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
+import hmac
 import logging
 import re
 import time
@@ -126,6 +127,8 @@ class Sessions:
         self.hub = hub
         self.monotonic = monotonic
         self.throttle = auth.LoginThrottle(free=self.config.free_failures)
+        #: The first start's one-time setup code (:meth:`prepare_setup`), None once used.
+        self.setup_code: str | None = None
         self._live: dict[int, set[Closer]] = {}
         self._sweeper: asyncio.Task[None] | None = None
         install_redaction()
@@ -143,6 +146,32 @@ class Sessions:
                 await task
 
     # -- first run --------------------------------------------------------------------------
+
+    async def prepare_setup(self) -> str | None:
+        """On an empty user table, a one-time setup code (in the setup link the CLI prints),
+        kept in memory only: each start of a server nobody has set up prints a new one.
+        None when users exist."""
+        if await self.store.accounts.count_users():
+            self.setup_code = None
+            return None
+        self.setup_code = auth.new_token()
+        return self.setup_code
+
+    async def _first_owner(self, code: str, username: str, password: str) -> None:
+        """``login`` with ``setup``: the owner the setup link's holder chose, created once."""
+        expected = self.setup_code
+        if expected is None or not hmac.compare_digest(code, expected):
+            raise Unauthorized("this setup link is not valid (already used? open the newest)")
+        auth.check_password_strength(password)
+        if await self.store.accounts.count_users():
+            self.setup_code = None
+            raise Unauthorized("this restaurant is set up already: log in")
+        pw_hash = await asyncio.to_thread(auth.hash_password, password)
+        try:
+            await self.store.accounts.add_user(username, "owner", pw_hash, now=self.clock.epoch())
+        except Conflict:  # two setup pages at once: the first one won
+            raise Unauthorized("this restaurant is set up already: log in") from None
+        self.setup_code = None
 
     async def ensure_owner(self, name: str = "owner") -> str | None:
         """On an empty user table, create an owner with a random password and return it.
@@ -230,6 +259,10 @@ class Sessions:
             if msg.token is not None:
                 p = await self.authenticate_token(msg.token)
                 token = None
+            elif msg.setup is not None:
+                assert msg.username is not None and msg.password is not None
+                await self._first_owner(msg.setup, msg.username, msg.password)
+                p, token = await self._password_login(msg.username, msg.password)
             else:
                 assert msg.username is not None and msg.password is not None
                 p, token = await self._password_login(msg.username, msg.password)

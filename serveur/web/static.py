@@ -87,7 +87,7 @@ CONTENT_TYPES = {
 
 # Pages whose last path segment is a robot's or table's name, read by the page's own script.
 NAMED_PAGES = {"robot": "/robot.html", "table": "/table.html"}
-ALIASES = {"/": "/staff.html", "/staff": "/staff.html"}
+ALIASES = {"/": "/staff.html", "/staff": "/staff.html", "/setup": "/setup.html"}
 MAX_NAME = 64
 
 

@@ -76,6 +76,12 @@ class Settings(_ServerModel):
     cameras: bool = Field(
         default=True, description="staff may watch the robots' cameras (off: guests' privacy)"
     )
+    name: str = Field(default="", description="the restaurant's name (empty: not set yet)")
+    public_url: str | None = Field(
+        default=None,
+        description="the server's address for the restaurant's tablets; null: not set (links"
+        " then use the address the owner's browser used)",
+    )
 
 
 class Dependents(_ServerModel):

@@ -42,7 +42,18 @@ __all__ = [
 LANGUAGES = ("en", "zh", "ms")
 Language: TypeAlias = Literal["en", "zh", "ms"]
 #: The settings the owner may change, as ``set_settings`` names them.
-SETTINGS = ("table_timeout", "trays", "auto_depart", "languages", "language", "cameras")
+SETTINGS = (
+    "table_timeout",
+    "trays",
+    "auto_depart",
+    "languages",
+    "language",
+    "cameras",
+    "name",
+    "public_url",
+)
+#: The restaurant's address as its tablets reach it: scheme, host and port, nothing after.
+PublicUrl = Annotated[str, Field(max_length=200, pattern=r"^https?://[^\s/#?@]+$")]
 
 _Epoch = Annotated[float, Field(ge=0, le=1e11)]
 #: A day (``2026-11-24``: the service day starting at 04:00) or a time (``2026-11-24T19:30``).
@@ -150,12 +161,20 @@ class SiteSetSettings(_SiteMsg):
     cameras: StrictBool | None = Field(
         default=None, description="staff may watch the robots' cameras (off: guests' privacy)"
     )
+    name: Annotated[str, Field(min_length=1, max_length=80)] | None = Field(
+        default=None, description="the restaurant's name, on every page"
+    )
+    public_url: PublicUrl | None = Field(
+        default=None,
+        description="the server's address as the restaurant's tablets reach it"
+        " (http://192.168.1.20:8765): every screen's setup link and QR code uses it",
+    )
 
     @model_validator(mode="after")
     def _something(self) -> SiteSetSettings:
         if not self.changes():
             raise PydanticCustomError("nothing_to_set", "name at least one setting")
-        for key in ("trays", "auto_depart", "languages", "language", "cameras"):
+        for key in ("trays", "auto_depart", "languages", "language", "cameras", "name"):
             if key in self.model_fields_set and getattr(self, key) is None:
                 raise PydanticCustomError("not_null", f"{key} cannot be null")
         if self.languages is not None and len(set(self.languages)) != len(self.languages):

@@ -452,13 +452,13 @@ async def test_cli_sim_and_run_over_tls(tmp_path: Path, pki: Pki) -> None:
             *tls,
         )
         url = f"wss://127.0.0.1:{port}/ws"
-        out = await read_until(run, "serveur user add")  # the first start's owner password
+        out = await read_until(run, "setup.html#setup=")  # the first start's setup link
         assert url in out
-        password = re.search(r"as user 'owner', password (\S+)", out)
-        assert password, out
+        code = re.search(r"https://\S+/setup\.html#setup=(\S+)", out)
+        assert code, out
         c = Client(await open_ws(url, pki.client(), {}))
         try:
-            await c.ok("login", username="owner", password=password[1])
+            await c.ok("login", setup=code[1], username="owner", password="a long pass")
             await c.subscribe("robots")
             await c.status("r1", "Ready")
         finally:

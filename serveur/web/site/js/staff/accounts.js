@@ -272,7 +272,10 @@ export class AccountsPanel {
     const msg = { clientmsg: "account", action: "create_token", role: kind, label, base: window.location.origin };
     msg[kind === "robot-screen" ? "robot" : "table"] = name;
     const reply = await this.conn.request(msg);
-    const entry = { name: screenName(reply.device), url: window.location.origin + reply.link, svg: reply.qr };
+    // The restaurant's public address when the owner set it (the QR code holds it too), else
+    // the one this page was opened at.
+    const origin = (this.live.settings && this.live.settings.public_url) || window.location.origin;
+    const entry = { name: screenName(reply.device), url: origin + reply.link, svg: reply.qr };
     this.sheet.push(entry);
     return entry;
   }

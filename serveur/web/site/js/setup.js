@@ -1,0 +1,149 @@
+// The first-run setup page (setup.html#setup=CODE): the owner, on a tablet, chooses their
+// password (the code in the link the server printed at its first start creates the owner once:
+// `login` with `setup`), then the restaurant's name, languages and the address its tablets
+// reach it at (`site set_settings`: every screen's setup link and QR code uses it), then goes on
+// to the console to add robots, the map and places. Each step can be left and resumed: after the
+// first the page is logged in as the owner (the session token is kept like the console's), and
+// opening it again shows the step not done yet, filled with what was saved.
+
+import { Connection, loadToken } from "./ws.js";
+import { onLangChange, t } from "./i18n.js";
+
+const STEPS = ["owner", "restaurant", "next"];
+const code = setupCode();
+const conn = new Connection();
+const problem = document.getElementById("setup-problem");
+let settings = null;
+
+function setupCode() {
+  const m = /(?:^#|&)setup=([^&]+)/.exec(window.location.hash);
+  if (!m) return null;
+  // Out of the address bar and the history: a code is used once.
+  window.history.replaceState(null, "", window.location.pathname + window.location.search);
+  return decodeURIComponent(m[1]);
+}
+
+function say(key, params) {
+  problem.hidden = !key;
+  problem.textContent = key ? t(key, params) : "";
+}
+
+function show(step) {
+  const at = STEPS.indexOf(step);
+  for (const [i, name] of STEPS.entries()) {
+    document.getElementById(`step-${name}`).hidden = name !== step;
+    const item = document.querySelector(`.steps [data-step="${name}"]`);
+    if (i === at) item.setAttribute("aria-current", "step");
+    else item.removeAttribute("aria-current");
+    item.classList.toggle("done", i < at);
+  }
+  const first = document.querySelector(`#step-${step} input, #step-${step} a`);
+  if (first) first.focus();
+}
+
+// -- step 1: the owner -------------------------------------------------------------------------
+
+document.getElementById("owner-form").addEventListener("submit", (e) => {
+  e.preventDefault();
+  const username = document.getElementById("owner-name").value.trim();
+  const password = document.getElementById("owner-password").value;
+  if (!username) return say("setup.owner.needName");
+  if (password.length < 8) return say("setup.owner.tooShort");
+  if (password !== document.getElementById("owner-repeat").value) return say("setup.owner.differ");
+  say(null);
+  conn.login({ setup: code, username, password });
+});
+
+// -- step 2: the restaurant ---------------------------------------------------------------------
+
+const form = document.getElementById("restaurant-form");
+const languageSelect = document.getElementById("restaurant-language");
+
+function chosenLanguages() {
+  return [...form.querySelectorAll('input[name="languages"]:checked')].map((b) => b.value);
+}
+
+function fillLanguages(selected) {
+  const langs = chosenLanguages();
+  languageSelect.replaceChildren(
+    ...langs.map((l) => {
+      const o = document.createElement("option");
+      o.value = l;
+      o.textContent = t(`lang.${l}`);
+      return o;
+    }),
+  );
+  languageSelect.value = langs.includes(selected) ? selected : langs[0] || "";
+}
+form.addEventListener("change", (e) => {
+  if (e.target.name === "languages") fillLanguages(languageSelect.value);
+});
+
+function fillRestaurant(s) {
+  document.getElementById("restaurant-name").value = s.name || "";
+  for (const box of form.querySelectorAll('input[name="languages"]')) box.checked = s.languages.includes(box.value);
+  fillLanguages(s.language);
+  // The address this tablet used is the best first guess (not 127.0.0.1: a tablet opened it).
+  document.getElementById("restaurant-address").value = s.public_url || window.location.origin;
+}
+
+form.addEventListener("submit", async (e) => {
+  e.preventDefault();
+  const name = document.getElementById("restaurant-name").value.trim();
+  const languages = chosenLanguages();
+  const address = document.getElementById("restaurant-address").value.trim().replace(/\/+$/, "");
+  if (!name) return say("setup.restaurant.needName");
+  if (!languages.length) return say("setup.restaurant.needLanguage");
+  if (!/^https?:\/\/[^\s/#?@]+$/.test(address)) return say("setup.restaurant.badAddress");
+  say(null);
+  try {
+    const reply = await conn.request({
+      clientmsg: "site",
+      action: "set_settings",
+      name,
+      languages,
+      language: languageSelect.value,
+      public_url: address,
+    });
+    settings = reply.settings;
+    show("next");
+  } catch (err) {
+    say("setup.failed", { message: err.message });
+  }
+});
+
+// -- the connection -------------------------------------------------------------------------------
+
+conn.addEventListener("login", (e) => {
+  // Not logged in: a setup code makes the owner; without one, this restaurant is set up
+  // already (or the link was not the newest): the console's login is the way in.
+  const err = e.detail.error;
+  if (err) say("setup.failed", { message: err.message });
+  else if (!code) say("setup.noCode");
+  show("owner");
+  document.getElementById("owner-form").hidden = !code;
+});
+
+// Online (after the session: the "state" event follows it): as the owner, the step not done.
+// Only once: a reconnect (the Wi-Fi blinked) must not refill a form being typed in.
+let resumed = false;
+conn.addEventListener("state", async (e) => {
+  if (e.detail.state !== "online" || !conn.session || resumed) return;
+  if (conn.session.role !== "owner") {
+    say("setup.notOwner");
+    return;
+  }
+  say(null);
+  const reply = await conn.request({ clientmsg: "site", action: "settings" });
+  // The site's languages are not applied here: the owner keeps the language they chose for
+  // this page, whatever default they give the screens.
+  settings = reply.settings;
+  fillRestaurant(settings);
+  resumed = true;
+  show(settings.name && settings.public_url ? "next" : "restaurant");
+});
+
+onLangChange(() => settings && fillLanguages(languageSelect.value));
+if (!code && !loadToken()) say("setup.noCode");
+show("owner");
+conn.start();

@@ -1,0 +1,101 @@
+"""The first-run setup page in Chromium (issue 29): a new owner opens the setup link on a phone,
+chooses their password (a mismatch and a short one said in words), names the restaurant, its
+languages and the address tablets use, and lands on the console logged in as the owner. Leaving
+after the first step and opening the page again resumes at the restaurant step. Nothing
+scrolls sideways at 390 px; axe finds nothing serious; a screenshot of each step is saved."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from serveur.app import App
+from serveur.maps.navigation import load_demo
+from tests.web.conftest import sideways
+from tests.web.test_a11y import violations
+from tests.web.test_ui import (
+    SHOTS,
+    expect,
+    pytestmark,  # noqa: F401
+)
+
+PHONE = {"width": 390, "height": 844}
+
+
+async def test_a_new_owner_sets_the_restaurant_up_from_a_phone(
+    tmp_path: Path, browser: Any
+) -> None:
+    nav_map, waypoints = load_demo()
+    app = await App(
+        tmp_path / "new.db", port=0, setup=True, nav_map=nav_map, waypoints=waypoints
+    ).start()
+    try:
+        base = app.url.replace("ws://", "http://").removesuffix("/ws")
+        context = await browser.new_context(viewport=PHONE, bypass_csp=True)
+        page = await context.new_page()
+        errors: list[str] = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+        await page.goto(f"{base}/setup.html#setup={app.setup_code}")
+        # The code leaves the address bar (and the history) as the page starts.
+        await page.wait_for_function("!window.location.href.includes('setup=')")
+
+        step = page.locator(".steps [aria-current=step]")
+        await expect(step).to_have_text("You")
+        await page.get_by_label("Your user name").fill("ana")
+        await page.get_by_label("Password (at least 8 characters)").fill("a long pass")
+        await page.get_by_label("The same password again").fill("a long pas")
+        await page.get_by_role("button", name="Create my account").click()
+        await expect(page.get_by_role("alert")).to_have_text("The two passwords are not the same.")
+        assert await app.store.accounts.count_users() == 0
+        await page.get_by_label("The same password again").fill("a long pass")
+        wide, inner = await sideways(page)
+        assert wide <= inner, (wide, inner)
+        assert await violations(page) == []
+        await page.screenshot(path=str(SHOTS / "setup-1-owner.png"), full_page=True)
+        await page.get_by_role("button", name="Create my account").click()
+        await expect(step).to_have_text("Restaurant")
+        assert [u.name for u in await app.store.accounts.list_users()] == ["ana"]
+
+        # Left here and opened again (the session kept on this phone): resumes at step 2.
+        await page.goto(f"{base}/setup.html")
+        await expect(step).to_have_text("Restaurant")
+        address = page.get_by_label("Address tablets use to reach this box")
+        await expect(address).to_have_value(base)  # what this phone used
+        await page.get_by_label("Restaurant name").fill("Chez Ana")
+        await expect(page.get_by_role("checkbox", name="中文")).to_be_checked()  # all offered
+        await page.get_by_role("checkbox", name="Bahasa Melayu").uncheck()
+        await page.get_by_label("Language for screens that have no choice").select_option("zh")
+        await address.fill("http://192.168.1.20:8765/")
+        assert await violations(page) == []
+        await page.screenshot(path=str(SHOTS / "setup-2-restaurant.png"), full_page=True)
+        await page.get_by_role("button", name="Save and go on").click()
+        await expect(step).to_have_text("Robots and map")
+        assert app.core is not None
+        site = app.core.site
+        assert (site.name, site.public_url) == ("Chez Ana", "http://192.168.1.20:8765")
+        assert site.languages == ["en", "zh"] and site.language == "zh"
+        await page.screenshot(path=str(SHOTS / "setup-3-next.png"), full_page=True)
+
+        # On to the console, logged in as the owner (no login form).
+        await page.get_by_role("link", name="Open the console").click()
+        await expect(page.locator("body")).to_have_attribute("data-connection", "online")
+        await expect(page.get_by_test_id("who")).to_contain_text("ana")
+        assert errors == []
+        await context.close()
+    finally:
+        await app.close()
+
+
+async def test_without_the_link_the_page_says_where_to_go(tmp_path: Path, browser: Any) -> None:
+    app = await App(tmp_path / "new.db", port=0, setup=True).start()
+    try:
+        base = app.url.replace("ws://", "http://").removesuffix("/ws")
+        context = await browser.new_context(viewport=PHONE)
+        page = await context.new_page()
+        await page.goto(f"{base}/setup.html")
+        await expect(page.get_by_role("alert")).to_contain_text("needs the setup link")
+        await expect(page.locator("#owner-form")).to_be_hidden()
+        await context.close()
+    finally:
+        await app.close()
