@@ -119,6 +119,13 @@ from serveur.wire.owner import (
     StatsMessage,
     StatsTrips,
 )
+from serveur.wire.uploads import (
+    UPLOAD_LIMITS,
+    UPLOAD_PART,
+    SiteSetMap,
+    SiteUpload,
+    SiteUploadPart,
+)
 
 __all__ = [
     "LANGUAGES",
@@ -134,6 +141,8 @@ __all__ = [
     "MAX_TOPICS",
     "ROBOT_TOPICS",
     "STATE_TOPICS",
+    "UPLOAD_LIMITS",
+    "UPLOAD_PART",
     "VERBS",
     "AccountAddUser",
     "AccountCreateToken",
@@ -193,8 +202,11 @@ __all__ = [
     "SiteRemoveWaypoint",
     "SiteRemoveZone",
     "SiteRenameWaypoint",
+    "SiteSetMap",
     "SiteSetSettings",
     "SiteSettings",
+    "SiteUpload",
+    "SiteUploadPart",
     "SkipMsg",
     "Snapshot",
     "StatsFigures",
@@ -674,6 +686,9 @@ _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
             "set_settings",
             "audit",
             "remove_zone",
+            "upload",
+            "upload_part",
+            "set_map",
         ),
     ),
     "stats": ("action", ("figures", "trips", "forecast", "forecast_cancel")),

@@ -35,6 +35,9 @@ from serveur import protocol as P
 from serveur.core.camera import CameraRelay, CameraViewer
 from serveur.core.engine import Core
 from serveur.core.hub import Subscriber
+from serveur.core.site_map import set_map_files
+from serveur.core.uploads import Upload, add_part, start_upload, take_upload
+from serveur.core.uploads import done as uploads_done
 from serveur.errors import InvalidField, NotFound, RateLimited, ServeurError, Unauthorized
 from serveur.replay.forecast import Forecaster, SiteFiles
 from serveur.security.accounts import handle_account
@@ -90,6 +93,7 @@ class _Conn:
         "peer",
         "principal",
         "sub",
+        "uploads",
         "watching",
         "ws",
     )
@@ -104,6 +108,8 @@ class _Conn:
         #: Close with this (code, reason) once the current reply is sent.
         self.close_after: tuple[int, str] | None = None
         self.active_at = 0.0  # when it connected or last sent a request (monotonic)
+        #: Files it is sending (``site upload``), by id: gone with the connection.
+        self.uploads: dict[int, Upload] = {}
         #: Cameras it watches: robot -> (relay, its viewer slot, the task sending its frames).
         self.watching: dict[str, tuple[CameraRelay, CameraViewer, asyncio.Task[None]]] = {}
 
@@ -418,6 +424,29 @@ class Server:
                 await task
             await relay.leave(viewer)
 
+    async def _upload(self, conn: _Conn, msg: P.SiteUpload) -> dict[str, Any]:
+        return {"upload": start_upload(conn.uploads, msg)}
+
+    async def _upload_part(self, conn: _Conn, msg: P.SiteUploadPart) -> dict[str, Any]:
+        return {"upload": add_part(conn.uploads, msg)}
+
+    async def _set_map(self, conn: _Conn, msg: P.SiteSetMap) -> dict[str, Any]:
+        yaml_file = take_upload(conn.uploads, msg.yaml, "map_yaml")
+        image = take_upload(conn.uploads, msg.image, "map_image")
+        actor = conn.principal.actor if conn.principal is not None else None
+        core = self.core
+        reply = await set_map_files(
+            core.store,
+            core.places,
+            core.clock,
+            bytes(yaml_file.data),
+            bytes(image.data),
+            image.name,
+            actor=actor,
+        )
+        uploads_done(conn.uploads, msg.yaml, msg.image)
+        return reply
+
     async def _ping(self, conn: _Conn, msg: P.PingMsg) -> dict[str, Any]:
         return {"time": self.core.clock.epoch()}
 
@@ -589,6 +618,9 @@ _SERVER_VERBS: dict[type, Callable[[Server, _Conn, Any], Awaitable[dict[str, Any
     P.DataMsg: Server._data,
     P.PingMsg: Server._ping,
     P.CameraMsg: Server._camera,
+    P.SiteUpload: Server._upload,
+    P.SiteUploadPart: Server._upload_part,
+    P.SiteSetMap: Server._set_map,
     P.SiteAudit: Server._search_audit,
     P.StatsFigures: Server._stats,
     P.StatsTrips: Server._stats,

@@ -52,6 +52,7 @@ from serveur.core.robot import RobotController
 from serveur.core.runtime import CoreConfig, Destination, Runtime, pose_dict
 from serveur.core.service import Service
 from serveur.core.site import Site
+from serveur.core.site_map import stored_map
 from serveur.core.traffic import Traffic
 from serveur.core.trips import Trips
 from serveur.domain import (
@@ -264,7 +265,9 @@ class Core:
         await self.site.load_settings()
         await self.traffic.load_zones()
         # Path distances between all waypoints are planned before any robot is driven.
-        await self.places.load(await self.store.waypoints.list_waypoints())
+        await self.places.load(
+            await self.store.waypoints.list_waypoints(), stored=await stored_map(self.store)
+        )
         for robot in await self.store.robots.list_robots():
             # Every robot starts Offline and resumes what it was doing once its link is up.
             resume = robot.resume if robot.status is S.OFFLINE else robot.status

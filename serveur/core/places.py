@@ -67,11 +67,16 @@ class Places:
         self._pending_all = False
         self._job: asyncio.Task[None] | None = None
 
-    async def load(self, waypoints: Iterable[WaypointRecord]) -> None:
+    async def load(
+        self, waypoints: Iterable[WaypointRecord], stored: MapData | None = None
+    ) -> None:
         """Take the stored waypoints and plan every pair before any robot is driven.
 
-        A bad map file stops the start here, with its MapError.
+        ``stored``: the map the owner set in the console (the store's ``site_map``); it wins
+        over ``--map`` and a robot's. A bad map file stops the start here, with its MapError.
         """
+        if stored is not None:
+            self.map, self._map_path = stored, None
         for wp in waypoints:
             self.waypoints[wp.name] = wp
         self.distances.set_spots(_spot(w) for w in self.waypoints.values())
@@ -104,6 +109,25 @@ class Places:
         distances are left: they are only read for waypoints that exist, and a waypoint
         saved again under this name is planned afresh (its spot changed or not)."""
         self.waypoints.pop(name, None)
+
+    def use_map(self, m: MapData) -> None:
+        """The owner gave a new map (console): screens get it now, every pair is planned
+        again in the background (straight lines meanwhile)."""
+        self._map_path = None
+        self._set_map(m)
+        self._plan_later(None)
+
+    def outside(self, m: MapData) -> list[str]:
+        """The waypoints that are not on free floor of ``m`` (a wall, unknown, off the map):
+        kept, but staff must move them before robots can go there."""
+        out = []
+        for wp in self.waypoints.values():
+            col = math.floor((wp.x - m.origin[0]) / m.resolution)
+            row = math.floor((wp.y - m.origin[1]) / m.resolution)
+            inside = 0 <= col < m.width and 0 <= row < m.height
+            if not inside or m.data[row * m.width + col] != 0:
+                out.append(wp.name)
+        return sorted(out)
 
     def adopt_map(self, robot: str, msg: Mapping[str, Any]) -> None:
         """A robot's ``/map``, used if the server was started without one."""

@@ -39,12 +39,13 @@ from serveur.store.events import Events
 from serveur.store.orders import Orders
 from serveur.store.robots import Robots
 from serveur.store.service import Service
+from serveur.store.sitemap import SiteMap, StoredMap
 from serveur.store.sql import Db
 from serveur.store.tasks import Tasks
 from serveur.store.waypoints import Waypoints
 from serveur.store.zones import Zones
 
-__all__ = ["Store", "TokenRecord", "UserRecord"]
+__all__ = ["Store", "StoredMap", "TokenRecord", "UserRecord"]
 
 
 class Store:
@@ -72,6 +73,7 @@ class Store:
         self.audit = Audit(db)
         self.service = Service(db)
         self.zones = Zones(db)
+        self.site_map = SiteMap(db)
 
     async def __aenter__(self) -> Self:
         await self.open()

@@ -296,10 +296,37 @@ class OkReply(_ServerModel):
         default=None, description="stats forecast, forecast_cancel: the forecast"
     )
     camera: CameraState | None = Field(default=None, description="camera: watching or not")
+    upload: UploadInfo | None = Field(default=None, description="site upload, upload_part")
+    map: MapInfo | None = Field(default=None, description="site set_map: the map now")
+    outside: list[str] | None = Field(
+        default=None, description="site set_map: the places no longer on free floor"
+    )
     stats: dict[str, Any] | None = Field(
         default=None,
         description="stats: figures ({periods, total}) or the trip history ({trips, more})",
     )
+
+
+class UploadInfo(_ServerModel):
+    """An upload in progress (``site upload``, ``upload_part``): send its next part at
+    ``received``, at most ``part`` bytes."""
+
+    id: int
+    kind: Literal["map_yaml", "map_image"]
+    name: str
+    size: int
+    received: int
+    part: int
+
+
+class MapInfo(_ServerModel):
+    """The restaurant's map as ``site set_map`` made it (the cells come on the ``map`` topic)."""
+
+    width: int
+    height: int
+    resolution: float
+    origin: tuple[float, float, float]
+    source: str
 
 
 class CameraState(_ServerModel):

@@ -17,6 +17,7 @@ from pydantic_core import PydanticCustomError
 
 from serveur.wire.base import ClientModel
 from serveur.wire.fields import Name, OrderId, WsUrl
+from serveur.wire.uploads import SiteSetMap, SiteUpload, SiteUploadPart
 
 __all__ = [
     "LANGUAGES",
@@ -212,7 +213,10 @@ SiteMessage: TypeAlias = Annotated[
     | SiteSettings
     | SiteSetSettings
     | SiteAudit
-    | SiteRemoveZone,
+    | SiteRemoveZone
+    | SiteUpload
+    | SiteUploadPart
+    | SiteSetMap,
     Field(discriminator="action"),
 ]
 

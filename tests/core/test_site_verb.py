@@ -158,6 +158,8 @@ async def test_settings_apply_at_once_and_survive_a_restart(tmp_path: Path) -> N
             "languages": ["zh", "en"],
             "language": "zh",
             "cameras": True,
+            "name": "",
+            "public_url": None,
         }
         assert app.core is not None and app.core.config.table_timeout == 60.0
         bad = await request(ws, _site("set_settings", languages=["en"], language="ms"))

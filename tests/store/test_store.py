@@ -1081,3 +1081,19 @@ async def test_set_role_keeps_an_owner_and_ends_the_changed_users_sessions(store
         "ana": "staff",
         "bo": "owner",
     }
+
+
+async def test_the_site_map_is_one_row_replaced_whole(store: Store) -> None:
+    from serveur.store.base import StoredMap
+
+    assert await store.site_map.get() is None
+    first = StoredMap(0.05, (-1.0, -2.0), 3, 2, bytes([0, 100, 0, 0xFF, 0, 0]), "robot files")
+    await store.site_map.put(first, now=10.0, by="user:ana")
+    assert await store.site_map.get() == first
+    second = StoredMap(0.1, (0.0, 0.0), 2, 2, bytes([0, 0, 100, 100]), "floor plan")
+    await store.site_map.put(second, now=11.0)
+    assert await store.site_map.get() == second
+    bad = StoredMap(0.1, (0.0, 0.0), 2, 2, bytes([0, 0, 100]), "short")  # 3 cells for 2x2
+    with pytest.raises(Conflict):
+        await store.site_map.put(bad, now=12.0)
+    assert await store.site_map.get() == second  # a refused map changed nothing

@@ -30,6 +30,7 @@ TABLES = (
     "table_block",
     "settings",
     "zones",
+    "site_map",
 )
 # Every foreign key, as (table, its key, column, parent table, parent key), for the check.
 FOREIGN_KEYS = (

@@ -16,6 +16,7 @@ import { PlacesSection } from "./restaurant/places.js";
 import { RobotsSection } from "./restaurant/robots.js";
 import { SettingsSection } from "./restaurant/settings.js";
 import { ZonesSection } from "./restaurant/zones.js";
+import { MapSection } from "./restaurant/map.js";
 
 export class RestaurantPanel {
   constructor(root, conn, live) {
@@ -31,7 +32,10 @@ export class RestaurantPanel {
       this.render();
     });
 
-    root.append(el("div", { class: "rest-grid" }, this.robots.section, this.places.section, this.zones.section, this.settings.section));
+    this.map = new MapSection(conn);
+    root.append(
+      el("div", { class: "rest-grid" }, this.robots.section, this.places.section, this.zones.section, this.settings.section, this.map.section),
+    );
 
     conn.subscribe(["settings"]);
     live.addEventListener("change", (e) => {

@@ -1,0 +1,63 @@
+"""The restaurant's map as the owner sets it in the console: stored, used, and what it changes.
+
+A map given in the console (a robot's map files now; a floor plan next) is checked in a child
+process (:func:`serveur.maps.mapfiles.read_map_files_in_child`), stored in the database
+(``store.site_map``: a backup holds it, and at start it wins over ``--map``), shown to every
+screen at once, and path distances are planned again in the background. Places are kept where
+they are; those that are no longer on free floor are named to the owner, who moves them.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from serveur.clock import Clock
+from serveur.core.places import Places
+from serveur.maps.distances import MapData
+from serveur.maps.mapfiles import read_map_files_in_child
+from serveur.store.base import Store, StoredMap
+
+__all__ = ["set_map_files", "stored_map"]
+
+log = logging.getLogger(__name__)
+
+
+async def stored_map(store: Store) -> MapData | None:
+    """The map the owner set, as the core keeps maps, or None."""
+    got = await store.site_map.get()
+    if got is None:
+        return None
+    log.info("using the restaurant's map set in the console (%s)", got.source)
+    return MapData(got.resolution, (*got.origin, 0.0), got.width, got.height, got.cells)
+
+
+async def set_map_files(
+    store: Store,
+    places: Places,
+    clock: Clock,
+    yaml_bytes: bytes,
+    image: bytes,
+    image_name: str,
+    *,
+    actor: str | None,
+) -> dict[str, Any]:
+    """Check, store and use a robot's map files; the reply: the map's size and the places
+    that are no longer on free floor."""
+    m = await read_map_files_in_child(yaml_bytes, image, image_name)
+    source = f"robot map files ({image_name})"
+    stored = StoredMap(m.resolution, m.origin[:2], m.width, m.height, m.data, source)
+    await store.site_map.put(stored, now=clock.epoch(), by=actor)
+    places.use_map(m)
+    outside = places.outside(m)
+    log.info("the owner set the map from %s; places off free floor: %s", image_name, outside)
+    return {
+        "map": {
+            "width": m.width,
+            "height": m.height,
+            "resolution": m.resolution,
+            "origin": list(m.origin),
+            "source": source,
+        },
+        "outside": outside,
+    }

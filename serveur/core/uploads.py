@@ -1,0 +1,104 @@
+"""Files a connection is sending in parts (``site`` ``upload`` / ``upload_part``): pure
+bookkeeping, one table per connection (serveur.server keeps it in the connection).
+
+Each upload declares its kind, name and size first; parts must come in order (``offset`` is
+what was received so far: a part resent after a reconnect is refused, not appended twice);
+a connection holds at most :data:`MAX_OPEN` uploads (the oldest is dropped for a new one), and
+never more bytes than the sizes it declared, each within its kind's limit
+(:data:`serveur.wire.uploads.UPLOAD_LIMITS`). ``take_upload`` hands over a complete one.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import itertools
+from dataclasses import dataclass, field
+from typing import Final
+
+from serveur import protocol as P
+from serveur.errors import Conflict, InvalidField, NotFound
+
+__all__ = ["MAX_OPEN", "Upload", "add_part", "done", "start_upload", "take_upload"]
+
+MAX_OPEN: Final = 4
+_ids = itertools.count(1)
+
+
+@dataclass
+class Upload:
+    id: int
+    kind: str
+    name: str
+    size: int
+    data: bytearray = field(default_factory=bytearray)
+
+    def info(self) -> dict[str, object]:
+        return {
+            "id": self.id,
+            "kind": self.kind,
+            "name": self.name,
+            "size": self.size,
+            "received": len(self.data),
+            "part": P.UPLOAD_PART,
+        }
+
+
+def start_upload(uploads: dict[int, Upload], msg: P.SiteUpload) -> dict[str, object]:
+    limit = P.UPLOAD_LIMITS[msg.kind]
+    if msg.size > limit:
+        raise InvalidField(
+            f"{msg.name} is {msg.size} bytes: a {msg.kind} is at most {limit}",
+            field="size",
+            reason="too_large",
+        )
+    while len(uploads) >= MAX_OPEN:
+        del uploads[next(iter(uploads))]
+    up = Upload(next(_ids), msg.kind, msg.name, msg.size)
+    uploads[up.id] = up
+    return up.info()
+
+
+def add_part(uploads: dict[int, Upload], msg: P.SiteUploadPart) -> dict[str, object]:
+    up = uploads.get(msg.upload)
+    if up is None:
+        raise NotFound(f"no upload {msg.upload} on this connection", upload=msg.upload)
+    if msg.offset != len(up.data):
+        raise Conflict(
+            f"upload {up.id} has {len(up.data)} bytes: send the part at that offset",
+            upload=up.id,
+            received=len(up.data),
+        )
+    try:
+        part = base64.b64decode(msg.data, validate=True)
+    except (binascii.Error, ValueError):
+        raise InvalidField("a part's data is base64", field="data") from None
+    if len(part) > P.UPLOAD_PART or len(up.data) + len(part) > up.size:
+        raise InvalidField(
+            f"the part overruns upload {up.id}'s declared size or the part size",
+            field="data",
+        )
+    up.data += part
+    return up.info()
+
+
+def take_upload(uploads: dict[int, Upload], upload_id: int, kind: str) -> Upload:
+    """The complete upload ``upload_id`` of ``kind`` (it stays in the connection's table
+    until :func:`done`: a file refused can be given again with another one)."""
+    up = uploads.get(upload_id)
+    if up is None:
+        raise NotFound(f"no upload {upload_id} on this connection", upload=upload_id)
+    if up.kind != kind:
+        raise InvalidField(f"upload {upload_id} is a {up.kind}, not a {kind}", field="upload")
+    if len(up.data) != up.size:
+        raise Conflict(
+            f"upload {upload_id} is not complete ({len(up.data)} of {up.size} bytes)",
+            upload=upload_id,
+        )
+    return up
+
+
+def done(uploads: dict[int, Upload], *done_ids: int) -> None:
+    """The uploads were used: forget them."""
+    for i in done_ids:
+        uploads.pop(i, None)
