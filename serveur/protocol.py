@@ -122,6 +122,7 @@ from serveur.wire.owner import (
 from serveur.wire.uploads import (
     UPLOAD_LIMITS,
     UPLOAD_PART,
+    SitePlanMap,
     SiteSetMap,
     SiteUpload,
     SiteUploadPart,
@@ -198,6 +199,7 @@ __all__ = [
     "SiteDependents",
     "SiteEditRobot",
     "SiteMessage",
+    "SitePlanMap",
     "SiteRemoveRobot",
     "SiteRemoveWaypoint",
     "SiteRemoveZone",
@@ -689,6 +691,7 @@ _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
             "upload",
             "upload_part",
             "set_map",
+            "plan_map",
         ),
     ),
     "stats": ("action", ("figures", "trips", "forecast", "forecast_cancel")),

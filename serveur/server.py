@@ -35,7 +35,7 @@ from serveur import protocol as P
 from serveur.core.camera import CameraRelay, CameraViewer
 from serveur.core.engine import Core
 from serveur.core.hub import Subscriber
-from serveur.core.site_map import set_map_files
+from serveur.core.site_map import plan_map, set_map_files
 from serveur.core.uploads import Upload, add_part, start_upload, take_upload
 from serveur.core.uploads import done as uploads_done
 from serveur.errors import InvalidField, NotFound, RateLimited, ServeurError, Unauthorized
@@ -447,6 +447,17 @@ class Server:
         uploads_done(conn.uploads, msg.yaml, msg.image)
         return reply
 
+    async def _plan_map(self, conn: _Conn, msg: P.SitePlanMap) -> dict[str, Any]:
+        plan = take_upload(conn.uploads, msg.upload, "plan")
+        actor = conn.principal.actor if conn.principal is not None else None
+        core = self.core
+        reply = await plan_map(
+            core.store, core.places, core.clock, bytes(plan.data), plan.name, msg, actor=actor
+        )
+        if msg.apply:
+            uploads_done(conn.uploads, msg.upload)  # a preview keeps it for the next try
+        return reply
+
     async def _ping(self, conn: _Conn, msg: P.PingMsg) -> dict[str, Any]:
         return {"time": self.core.clock.epoch()}
 
@@ -500,7 +511,10 @@ class Server:
         if conn.principal is None and verb != "login":
             return
         if not refused and (
-            verb in self.security.unaudited or (verb == "control" and msg.action == "teleop")
+            verb in self.security.unaudited
+            or (verb == "control" and msg.action == "teleop")
+            # A file's parts: its upload and what it was used for are audited, not each part.
+            or (verb == "site" and msg.action == "upload_part")
         ):
             return
         p = conn.principal
@@ -621,6 +635,7 @@ _SERVER_VERBS: dict[type, Callable[[Server, _Conn, Any], Awaitable[dict[str, Any
     P.SiteUpload: Server._upload,
     P.SiteUploadPart: Server._upload_part,
     P.SiteSetMap: Server._set_map,
+    P.SitePlanMap: Server._plan_map,
     P.SiteAudit: Server._search_audit,
     P.StatsFigures: Server._stats,
     P.StatsTrips: Server._stats,

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 from websockets.asyncio.client import connect
 
 from serveur.maps.distances import MapData
@@ -112,3 +113,54 @@ async def test_bad_map_uploads_are_refused_and_change_nothing(tmp_path: Path) ->
             "site", action="upload", kind="map_yaml", name="a.yaml", size=10
         )
         assert refused["code"] == "forbidden", json.dumps(refused)
+
+
+async def test_a_floor_plan_becomes_the_map_after_a_preview(tmp_path: Path) -> None:
+    from tests.maps.plans import ROOM, plan
+    from tests.maps.test_floorplan import free_run
+
+    p = plan(px_per_m=37.0)
+    mid_x, mid_y = (p.left + p.partition_x) / 2, (p.top + p.bottom) / 2
+    across = {"a": [p.left, mid_y + 40], "b": [p.right, mid_y + 40], "metres": ROOM[0]}
+    along = {"a": [mid_x, p.top], "b": [mid_x, p.bottom], "metres": ROOM[1]}
+    async with restaurant(tmp_path) as r:
+        c = await owner(r)
+        up = await upload(c, "plan", "plan.png", p.data)
+        preview = await c.ok(
+            "site", action="plan_map", upload=up, threshold=50, across=across, along=along
+        )
+        assert "outside" not in preview and await r.app.store.site_map.get() is None
+        (doc,) = [ex for ex in _server_examples() if ex.get("servermsg") == "ok" and "plan" in ex]
+        assert doc.keys() == preview.keys() and doc["plan"].keys() == preview["plan"].keys()
+        assert doc["map"].keys() == preview["map"].keys()
+        result = preview["plan"]
+        assert not result["stretched"] and result["disagreement"] < 0.01
+        m = MapData.from_snapshot(result["map"])
+        grid = np.frombuffer(m.data, dtype=np.int8).reshape(m.height, m.width)
+        col = int(((mid_x - 30) / 37.0) / 0.05)
+        depth = free_run(grid[:, col], m.height // 2) * 0.05
+        assert depth == pytest.approx(ROOM[1], rel=0.02)  # measured on the map: 2 %
+        applied = await c.ok(
+            "site",
+            action="plan_map",
+            upload=up,
+            threshold=50,
+            across=across,
+            along=along,
+            apply=True,
+        )
+        assert applied["map"]["source"] == "floor plan (plan.png)"
+        stored = await r.app.store.site_map.get()
+        assert stored is not None and stored.cells == m.data
+        # Bad: the upload was used; a stretched plan is said; a non-image refused.
+        await c.error("site", "not_found", action="plan_map", upload=up, across=across, along=along)
+        tall = plan(px_per_m=37.0, stretch=1.06)
+        up2 = await upload(c, "plan", "tall.png", tall.data)
+        along2 = {"a": [mid_x, tall.top], "b": [mid_x, tall.bottom], "metres": ROOM[1]}
+        got = await c.ok("site", action="plan_map", upload=up2, across=across, along=along2)
+        assert got["plan"]["stretched"] and got["plan"]["disagreement"] > 0.05
+        junk = await upload(c, "plan", "plan.png", b"not a picture at all")
+        err = await c.error(
+            "site", "map_error", action="plan_map", upload=junk, across=across, along=along
+        )
+        assert err["details"]["reason"] == "not_an_image"

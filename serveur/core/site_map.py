@@ -9,16 +9,20 @@ they are; those that are no longer on free floor are named to the owner, who mov
 
 from __future__ import annotations
 
+import base64
+import json
 import logging
 from typing import Any
 
+from serveur import protocol as P
 from serveur.clock import Clock
 from serveur.core.places import Places
+from serveur.maps.child import run_child
 from serveur.maps.distances import MapData
 from serveur.maps.mapfiles import read_map_files_in_child
 from serveur.store.base import Store, StoredMap
 
-__all__ = ["set_map_files", "stored_map"]
+__all__ = ["plan_map", "set_map_files", "stored_map"]
 
 log = logging.getLogger(__name__)
 
@@ -46,18 +50,67 @@ async def set_map_files(
     that are no longer on free floor."""
     m = await read_map_files_in_child(yaml_bytes, image, image_name)
     source = f"robot map files ({image_name})"
+    outside = await _use(store, places, clock, m, source, actor)
+    return {"map": _info(m, source), "outside": outside}
+
+
+async def _use(
+    store: Store, places: Places, clock: Clock, m: MapData, source: str, actor: str | None
+) -> list[str]:
+    """Store ``m`` as the restaurant's map and use it; the places now off free floor."""
     stored = StoredMap(m.resolution, m.origin[:2], m.width, m.height, m.data, source)
     await store.site_map.put(stored, now=clock.epoch(), by=actor)
     places.use_map(m)
     outside = places.outside(m)
-    log.info("the owner set the map from %s; places off free floor: %s", image_name, outside)
+    log.info("the owner set the map from %s; places off free floor: %s", source, outside)
+    return outside
+
+
+def _info(m: MapData, source: str) -> dict[str, Any]:
     return {
-        "map": {
-            "width": m.width,
-            "height": m.height,
-            "resolution": m.resolution,
-            "origin": list(m.origin),
-            "source": source,
-        },
-        "outside": outside,
+        "width": m.width,
+        "height": m.height,
+        "resolution": m.resolution,
+        "origin": list(m.origin),
+        "source": source,
     }
+
+
+async def plan_map(
+    store: Store,
+    places: Places,
+    clock: Clock,
+    plan: bytes,
+    plan_name: str,
+    msg: P.SitePlanMap,
+    *,
+    actor: str | None,
+) -> dict[str, Any]:
+    """A floor plan made a map in a child process (:mod:`serveur.maps.floorplan`): the
+    preview (the map's cells, the scale, whether the plan is stretched) and, with ``apply``,
+    the restaurant's map from now on."""
+    request = {
+        "plan": base64.b64encode(plan).decode(),
+        "threshold": msg.threshold,
+        "strokes": [s.model_dump() for s in msg.strokes],
+        "across": msg.across.model_dump(),
+        "along": msg.along.model_dump(),
+        "resolution": msg.resolution,
+    }
+    reply = await run_child("serveur.maps.floorplan", json.dumps(request).encode())
+    m = MapData.from_snapshot(reply["map"])
+    scale = reply["scale"]
+    source = f"floor plan ({plan_name})"
+    out: dict[str, Any] = {
+        "plan": {
+            "map": reply["map"],
+            "scale_x": scale["x"],
+            "scale_y": scale["y"],
+            "disagreement": scale["disagreement"],
+            "stretched": bool(scale["stretched"]),
+        },
+        "map": _info(m, source),
+    }
+    if msg.apply:
+        out["outside"] = await _use(store, places, clock, m, source, actor)
+    return out

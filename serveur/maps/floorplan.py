@@ -218,3 +218,69 @@ def _spans(cells: int, px_per_cell: float, limit: int) -> npt.NDArray[np.int64]:
     starts = np.clip(starts, 0, limit - 1)
     ends = np.clip(np.maximum(ends, starts + 1), 1, limit)
     return np.stack([starts, ends], axis=1)
+
+
+# -- in a child process: the server never decodes images itself --------------------------------
+
+
+def plan_to_map(
+    data: bytes,
+    threshold: int,
+    strokes: Sequence[Stroke],
+    across: Measure,
+    along: Measure,
+    resolution: float,
+) -> tuple[OccupancyMap, Scale]:
+    """The whole pipeline: read, walls, edits, scale, resample (origin at the plan's
+    bottom-left corner, as map_saver's maps start at their lower-left cell)."""
+    grey = read_plan(data)
+    mask = edit(walls(grey, threshold), strokes)
+    scale = scale_from(across, along)
+    return to_map(mask, scale, resolution=resolution), scale
+
+
+def _child() -> int:
+    import base64
+    import json
+    import sys
+
+    from serveur.maps.distances import MapData
+
+    req = json.loads(sys.stdin.buffer.read())
+    try:
+        m, scale = plan_to_map(
+            base64.b64decode(req["plan"]),
+            int(req["threshold"]),
+            [
+                Stroke(s["kind"], tuple(map(tuple, s["points"])), float(s["width"]))
+                for s in req["strokes"]
+            ],
+            Measure(
+                tuple(req["across"]["a"]), tuple(req["across"]["b"]), float(req["across"]["metres"])
+            ),
+            Measure(
+                tuple(req["along"]["a"]), tuple(req["along"]["b"]), float(req["along"]["metres"])
+            ),
+            float(req["resolution"]),
+        )
+    except (MapError, InvalidField) as exc:
+        error = {"code": exc.code, "message": exc.message, "details": exc.details}
+        print(json.dumps({"error": error}))
+        return 0
+    reply = {
+        "map": MapData.from_occupancy(m).snapshot(),
+        "scale": {
+            "x": scale.x,
+            "y": scale.y,
+            "disagreement": scale.disagreement,
+            "stretched": scale.stretched,
+        },
+    }
+    print(json.dumps(reply))
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(_child())

@@ -11,7 +11,6 @@ private temporary folder holding only those two files.
 
 from __future__ import annotations
 
-import asyncio
 import base64
 import io
 import json
@@ -21,6 +20,7 @@ from pathlib import Path
 from typing import Final
 
 from serveur.errors import MapError
+from serveur.maps.child import run_child
 from serveur.maps.distances import MapData
 from serveur.maps.mapio import OccupancyMap, load_map, save_map
 
@@ -112,9 +112,8 @@ def map_files(m: OccupancyMap, stem: str = "restaurant") -> tuple[bytes, bytes]:
 
 
 async def read_map_files_in_child(yaml_bytes: bytes, image: bytes, image_name: str) -> MapData:
-    """:func:`read_map_files` in a child process: the server never loads numpy and Pillow (its
-    heap stays small, tests/maps/test_distances.py), and a huge or hostile image costs the
-    child, not the event loop. A refusal comes back as the child's MapError, reason and all."""
+    """:func:`read_map_files` in a child process (:mod:`serveur.maps.child`): a refusal comes
+    back as the child's MapError, reason and all."""
     request = json.dumps(
         {
             "yaml": base64.b64encode(yaml_bytes).decode(),
@@ -122,28 +121,7 @@ async def read_map_files_in_child(yaml_bytes: bytes, image: bytes, image_name: s
             "name": image_name,
         }
     ).encode()
-    proc = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "serveur.maps.mapfiles",
-        stdin=asyncio.subprocess.PIPE,
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.PIPE,
-    )
-    try:
-        out, err = await proc.communicate(request)
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
-    try:
-        reply = json.loads(out.decode())
-    except ValueError:
-        tail = err.decode(errors="replace").strip().splitlines()[-1:] or ["no output"]
-        raise MapError(f"the map could not be read: {tail[0]}", reason="not_a_map") from None
-    if "error" in reply:
-        e = reply["error"]
-        raise MapError(str(e.get("message")), **dict(e.get("details") or {}))
+    reply = await run_child("serveur.maps.mapfiles", request)
     return MapData.from_snapshot(reply["map"])
 
 
@@ -154,7 +132,8 @@ def _child() -> int:
             base64.b64decode(req["yaml"]), base64.b64decode(req["image"]), str(req["name"])
         )
     except MapError as exc:
-        print(json.dumps({"error": {"message": exc.message, "details": exc.details}}))
+        error = {"code": exc.code, "message": exc.message, "details": exc.details}
+        print(json.dumps({"error": error}))
         return 0
     print(json.dumps({"map": MapData.from_occupancy(m).snapshot()}))
     return 0

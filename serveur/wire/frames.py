@@ -297,7 +297,10 @@ class OkReply(_ServerModel):
     )
     camera: CameraState | None = Field(default=None, description="camera: watching or not")
     upload: UploadInfo | None = Field(default=None, description="site upload, upload_part")
-    map: MapInfo | None = Field(default=None, description="site set_map: the map now")
+    map: MapInfo | None = Field(
+        default=None, description="site set_map, plan_map: the map now (or previewed)"
+    )
+    plan: PlanResult | None = Field(default=None, description="site plan_map: the result")
     outside: list[str] | None = Field(
         default=None, description="site set_map: the places no longer on free floor"
     )
@@ -317,6 +320,17 @@ class UploadInfo(_ServerModel):
     size: int
     received: int
     part: int
+
+
+class PlanResult(_ServerModel):
+    """A floor plan made a map (``site plan_map``): its cells (as the ``map`` topic carries
+    them) and the scale, per axis, from the owner's two measures."""
+
+    map: MapSnapshot
+    scale_x: float = Field(description="metres a plan pixel spans across")
+    scale_y: float = Field(description="metres a plan pixel spans along")
+    disagreement: float = Field(description="|x - y| / mean: 0 for an undistorted plan")
+    stretched: bool = Field(description="the two scales disagree by more than 3 %")
 
 
 class MapInfo(_ServerModel):

@@ -17,7 +17,7 @@ from pydantic_core import PydanticCustomError
 
 from serveur.wire.base import ClientModel
 from serveur.wire.fields import Name, OrderId, WsUrl
-from serveur.wire.uploads import SiteSetMap, SiteUpload, SiteUploadPart
+from serveur.wire.uploads import SitePlanMap, SiteSetMap, SiteUpload, SiteUploadPart
 
 __all__ = [
     "LANGUAGES",
@@ -216,7 +216,8 @@ SiteMessage: TypeAlias = Annotated[
     | SiteRemoveZone
     | SiteUpload
     | SiteUploadPart
-    | SiteSetMap,
+    | SiteSetMap
+    | SitePlanMap,
     Field(discriminator="action"),
 ]
 

@@ -16,13 +16,26 @@ from pydantic import Field
 
 from serveur.wire.base import ClientModel
 
-__all__ = ["UPLOAD_LIMITS", "UPLOAD_PART", "SiteSetMap", "SiteUpload", "SiteUploadPart"]
+__all__ = [
+    "UPLOAD_LIMITS",
+    "UPLOAD_PART",
+    "PlanMeasure",
+    "PlanStroke",
+    "SitePlanMap",
+    "SiteSetMap",
+    "SiteUpload",
+    "SiteUploadPart",
+]
 
 #: The largest part (bytes, before base64): 4/3 of it plus the message fits in 64 KiB.
 UPLOAD_PART: Final = 45_000
 #: The largest file of each kind (bytes).
-UPLOAD_LIMITS: Final = {"map_yaml": 16 * 1024, "map_image": 20 * 1024 * 1024}
-UploadKind = Literal["map_yaml", "map_image"]
+UPLOAD_LIMITS: Final = {
+    "map_yaml": 16 * 1024,
+    "map_image": 20 * 1024 * 1024,
+    "plan": 25 * 1024 * 1024,  # a floor-plan image (serveur.maps.floorplan.MAX_PLAN_BYTES)
+}
+UploadKind = Literal["map_yaml", "map_image", "plan"]
 FileName = Annotated[str, Field(min_length=1, max_length=128, pattern=r"^[^/\\\x00-\x1f]+$")]
 
 
@@ -56,3 +69,42 @@ class SiteSetMap(ClientModel):
     action: Literal["set_map"]
     yaml: Annotated[int, Field(ge=1)]
     image: Annotated[int, Field(ge=1)]
+
+
+#: A point on the plan image: (column, row) in pixels from its top-left corner.
+PlanPoint = Annotated[
+    list[Annotated[float, Field(ge=0, le=100_000)]], Field(min_length=2, max_length=2)
+]
+
+
+class PlanStroke(ClientModel):
+    """A line the owner drew on the plan: ``wall`` adds wall, ``erase`` makes floor."""
+
+    kind: Literal["wall", "erase"]
+    points: Annotated[list[PlanPoint], Field(min_length=1, max_length=500)]
+    width: Annotated[float, Field(ge=1, le=500)]
+
+
+class PlanMeasure(ClientModel):
+    """Two points on the plan and the distance the owner measured between them (m)."""
+
+    a: PlanPoint
+    b: PlanPoint
+    metres: Annotated[float, Field(gt=0.1, le=500)]
+
+
+class SitePlanMap(ClientModel):
+    """Turn an uploaded floor plan (``upload`` of kind ``plan``) into a map: walls darker
+    than ``threshold``, the owner's ``strokes``, the scale from a distance measured ``across``
+    the room and one ``along`` it, cells of ``resolution`` m. Without ``apply`` it is a
+    preview (the map and the scale, nothing changed); with it, the restaurant's map."""
+
+    clientmsg: Literal["site"]
+    action: Literal["plan_map"]
+    upload: Annotated[int, Field(ge=1)]
+    threshold: Annotated[int, Field(ge=0, le=255)] = 128
+    strokes: Annotated[list[PlanStroke], Field(max_length=200)] = []
+    across: PlanMeasure
+    along: PlanMeasure
+    resolution: Annotated[float, Field(ge=0.02, le=0.2)] = 0.05
+    apply: bool = False
