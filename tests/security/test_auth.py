@@ -79,6 +79,28 @@ MESSAGES: dict[str, dict[str, Any]] = {
     "site settings": {"clientmsg": "site", "action": "settings"},
     "site set_settings": {"clientmsg": "site", "action": "set_settings", "table_timeout": 60},
     "site audit": {"clientmsg": "site", "action": "audit", "verb": "site"},
+    "site upload": {
+        "clientmsg": "site",
+        "action": "upload",
+        "kind": "plan",
+        "name": "plan.png",
+        "size": 10,
+    },
+    "site upload_part": {
+        "clientmsg": "site",
+        "action": "upload_part",
+        "upload": 1,
+        "offset": 0,
+        "data": "eA==",
+    },
+    "site set_map": {"clientmsg": "site", "action": "set_map", "yaml": 1, "image": 2},
+    "site plan_map": {
+        "clientmsg": "site",
+        "action": "plan_map",
+        "upload": 1,
+        "across": {"a": [0, 0], "b": [100, 0], "metres": 5.0},
+        "along": {"a": [0, 0], "b": [0, 100], "metres": 5.0},
+    },
     "stats figures": {"clientmsg": "stats", "action": "figures", "by": "hour"},
     "stats trips": {"clientmsg": "stats", "action": "trips", "start": "2026-11-24"},
     "stats forecast": {

@@ -17,6 +17,7 @@ import { RobotsSection } from "./restaurant/robots.js";
 import { SettingsSection } from "./restaurant/settings.js";
 import { ZonesSection } from "./restaurant/zones.js";
 import { MapSection } from "./restaurant/map.js";
+import { PlanSection } from "./restaurant/plan.js";
 
 export class RestaurantPanel {
   constructor(root, conn, live) {
@@ -33,8 +34,18 @@ export class RestaurantPanel {
     });
 
     this.map = new MapSection(conn);
+    this.plan = new PlanSection(conn);
     root.append(
-      el("div", { class: "rest-grid" }, this.robots.section, this.places.section, this.zones.section, this.settings.section, this.map.section),
+      el(
+        "div",
+        { class: "rest-grid" },
+        this.robots.section,
+        this.places.section,
+        this.zones.section,
+        this.settings.section,
+        this.map.section,
+        this.plan.section,
+      ),
     );
 
     conn.subscribe(["settings"]);

@@ -1,19 +1,12 @@
 // The Restaurant tab's map: replace the restaurant's map with the two files a robot's map_saver
-// wrote (its YAML and its PGM or PNG image). The files are sent in parts (`site upload`,
-// `upload_part`: a message is at most 64 KiB), then `site set_map` checks them and makes them the
-// map; the places now in a wall are named so the owner moves them. A refused file says why in
-// the owner's words, and nothing changes.
+// wrote (its YAML and its PGM or PNG image). The files are sent in parts (upload.js), then
+// `site set_map` checks them and makes them the map; the places now in a wall are named so the
+// owner moves them. A refused file says why in the owner's words, and nothing changes.
 
 import { el } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { field } from "../forms.js";
-
-/** Bytes -> base64, in slices (String.fromCharCode takes only so many arguments). */
-function base64(bytes) {
-  let s = "";
-  for (let i = 0; i < bytes.length; i += 0x8000) s += String.fromCharCode(...bytes.subarray(i, i + 0x8000));
-  return btoa(s);
-}
+import { sendFile } from "./upload.js";
 
 const REASONS = {
   outside: "owner.map.reason.outside",
@@ -54,26 +47,14 @@ export class MapSection {
     this.progress.textContent = t(key, params);
   }
 
-  /** Send one file in parts; its upload id. */
-  async _send(file, kind, done, total) {
-    const bytes = new Uint8Array(await file.arrayBuffer());
-    const up = (await this.conn.request({ clientmsg: "site", action: "upload", kind, name: file.name, size: bytes.length })).upload;
-    for (let offset = 0; offset < bytes.length; offset += up.part) {
-      const data = base64(bytes.subarray(offset, offset + up.part));
-      await this.conn.request({ clientmsg: "site", action: "upload_part", upload: up.id, offset, data });
-      this._say("owner.map.sending", { percent: Math.floor((100 * (done + offset)) / total) });
-    }
-    return up.id;
-  }
-
   async _use() {
     const [yaml, image] = [this.yamlInput.files[0], this.imageInput.files[0]];
     if (!yaml || !image) return;
     this.useBtn.disabled = true;
     try {
-      const total = yaml.size + image.size;
-      const y = await this._send(yaml, "map_yaml", 0, total);
-      const i = await this._send(image, "map_image", yaml.size, total);
+      const sending = (percent) => this._say("owner.map.sending", { percent });
+      const y = await sendFile(this.conn, yaml, "map_yaml", sending);
+      const i = await sendFile(this.conn, image, "map_image", sending);
       this._say("owner.map.checking");
       const reply = await this.conn.request({ clientmsg: "site", action: "set_map", yaml: y, image: i });
       const m = reply.map;

@@ -1,0 +1,33 @@
+// Sending a file to the server in parts (`site upload`, then `upload_part`s: a message is at most
+// 64 KiB), for the Restaurant tab's map and floor plan. Each part waits for its answer, so a
+// refused part (a reconnect in between) stops the upload with the server's reason; a part the
+// rate limit refused is sent again after the wait the server names.
+
+/** Bytes -> base64, in slices (String.fromCharCode takes only so many arguments). */
+function base64(bytes) {
+  let s = "";
+  for (let i = 0; i < bytes.length; i += 0x8000) s += String.fromCharCode(...bytes.subarray(i, i + 0x8000));
+  return btoa(s);
+}
+
+const pause = (seconds) => new Promise((resolve) => setTimeout(resolve, Math.ceil(seconds * 1000)));
+
+/** Upload `file` as `kind`; `progress(percent)` after each part; resolves with the upload's id. */
+export async function sendFile(conn, file, kind, progress = () => {}) {
+  const bytes = new Uint8Array(await file.arrayBuffer());
+  const up = (await conn.request({ clientmsg: "site", action: "upload", kind, name: file.name, size: bytes.length })).upload;
+  for (let offset = 0; offset < bytes.length; offset += up.part) {
+    const msg = { clientmsg: "site", action: "upload_part", upload: up.id, offset, data: base64(bytes.subarray(offset, offset + up.part)) };
+    for (;;) {
+      try {
+        await conn.request(msg);
+        break;
+      } catch (err) {
+        if (err.code !== "rate_limited") throw err;
+        await pause((err.details && err.details.wait) || 1);
+      }
+    }
+    progress(Math.floor((100 * Math.min(bytes.length, offset + up.part)) / bytes.length));
+  }
+  return up.id;
+}
