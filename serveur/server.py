@@ -40,6 +40,7 @@ from serveur.core.uploads import Upload, add_part, start_upload, take_upload
 from serveur.core.uploads import done as uploads_done
 from serveur.errors import InvalidField, NotFound, RateLimited, ServeurError, Unauthorized
 from serveur.replay.forecast import Forecaster, SiteFiles
+from serveur.robots.probe import probe
 from serveur.security.accounts import handle_account
 from serveur.security.auth import Principal, RateLimiter, Role, ScreenView, authorize
 from serveur.security.sessions import CLOSE_AUTH, Sessions
@@ -458,6 +459,10 @@ class Server:
             uploads_done(conn.uploads, msg.upload)  # a preview keeps it for the next try
         return reply
 
+    async def _probe_robot(self, conn: _Conn, msg: P.SiteProbeRobot) -> dict[str, Any]:
+        found = await probe(msg.url, ssl=self.core.crew.robot_ssl)
+        return {"probe": found.as_dict()}
+
     async def _ping(self, conn: _Conn, msg: P.PingMsg) -> dict[str, Any]:
         return {"time": self.core.clock.epoch()}
 
@@ -636,6 +641,7 @@ _SERVER_VERBS: dict[type, Callable[[Server, _Conn, Any], Awaitable[dict[str, Any
     P.SiteUploadPart: Server._upload_part,
     P.SiteSetMap: Server._set_map,
     P.SitePlanMap: Server._plan_map,
+    P.SiteProbeRobot: Server._probe_robot,
     P.SiteAudit: Server._search_audit,
     P.StatsFigures: Server._stats,
     P.StatsTrips: Server._stats,

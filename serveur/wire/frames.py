@@ -301,6 +301,7 @@ class OkReply(_ServerModel):
         default=None, description="site set_map, plan_map: the map now (or previewed)"
     )
     plan: PlanResult | None = Field(default=None, description="site plan_map: the result")
+    probe: ProbeInfo | None = Field(default=None, description="site probe_robot: what was found")
     outside: list[str] | None = Field(
         default=None, description="site set_map: the places no longer on free floor"
     )
@@ -331,6 +332,18 @@ class PlanResult(_ServerModel):
     scale_y: float = Field(description="metres a plan pixel spans along")
     disagreement: float = Field(description="|x - y| / mean: 0 for an undistorted plan")
     stretched: bool = Field(description="the two scales disagree by more than 3 %")
+
+
+class ProbeInfo(_ServerModel):
+    """What ``site probe_robot`` found at an address."""
+
+    reachable: bool
+    why: str = Field(description="why it could not be reached (or what was odd), in plain words")
+    ros: Literal[1, 2] | None = Field(
+        description="the ROS it runs, as its rosapi said; null: unknown"
+    )
+    navigation: Literal["move_base", "Nav2"] | None
+    topics: int = Field(description="topics the robot publishes or subscribes")
 
 
 class MapInfo(_ServerModel):

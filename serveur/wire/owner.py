@@ -26,6 +26,7 @@ __all__ = [
     "SiteDependents",
     "SiteEditRobot",
     "SiteMessage",
+    "SiteProbeRobot",
     "SiteRemoveRobot",
     "SiteRemoveWaypoint",
     "SiteRemoveZone",
@@ -100,6 +101,14 @@ class SiteEditRobot(_SiteMsg):
         """The fields given, with their new values (``home``/``trays`` may be None)."""
         keys = ("url", "home", "kinematics", "link", "trays")
         return {k: getattr(self, k) for k in keys if k in self.model_fields_set}
+
+
+class SiteProbeRobot(_SiteMsg):
+    """Is there a robot at ``url``? Connects once (a few seconds at most) and says what it
+    found, before the robot is added: reachable or why not, its ROS, its navigator."""
+
+    action: Literal["probe_robot"]
+    url: WsUrl
 
 
 class SiteRemoveRobot(_SiteMsg):
@@ -217,7 +226,8 @@ SiteMessage: TypeAlias = Annotated[
     | SiteUpload
     | SiteUploadPart
     | SiteSetMap
-    | SitePlanMap,
+    | SitePlanMap
+    | SiteProbeRobot,
     Field(discriminator="action"),
 ]
 

@@ -94,6 +94,7 @@ MESSAGES: dict[str, dict[str, Any]] = {
         "data": "eA==",
     },
     "site set_map": {"clientmsg": "site", "action": "set_map", "yaml": 1, "image": 2},
+    "site probe_robot": {"clientmsg": "site", "action": "probe_robot", "url": "ws://10.0.0.9:9090"},
     "site plan_map": {
         "clientmsg": "site",
         "action": "plan_map",

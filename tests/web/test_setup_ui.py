@@ -10,7 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from serveur.app import App
-from serveur.maps.navigation import load_demo
+from serveur.maps.navigation import demo_map_path, load_demo
+from serveur.robot_sim import start_simulation
+from tests.subprocess_server import free_port
 from tests.web.conftest import sideways
 from tests.web.test_a11y import violations
 from tests.web.test_ui import (
@@ -26,6 +28,7 @@ async def test_a_new_owner_sets_the_restaurant_up_from_a_phone(
     tmp_path: Path, browser: Any
 ) -> None:
     nav_map, waypoints = load_demo()
+    sim = await start_simulation(1, port=0, map_path=demo_map_path(), ros=2)
     app = await App(
         tmp_path / "new.db", port=0, setup=True, nav_map=nav_map, waypoints=waypoints
     ).start()
@@ -70,12 +73,31 @@ async def test_a_new_owner_sets_the_restaurant_up_from_a_phone(
         assert await violations(page) == []
         await page.screenshot(path=str(SHOTS / "setup-2-restaurant.png"), full_page=True)
         await page.get_by_role("button", name="Save and go on").click()
-        await expect(step).to_have_text("Robots and map")
+        await expect(step).to_have_text("Robots")
+
+        # A robot: its address tested live (a wrong one said in words), then added.
+        found = page.locator("#robot-found")
+        await page.get_by_label("Robot address").fill(f"ws://127.0.0.1:{free_port()}")
+        await page.get_by_role("button", name="Test the address").click()
+        await expect(found).to_contain_text("Cannot reach the robot: nothing listens there")
+        await expect(page.get_by_role("button", name="Add this robot")).to_be_disabled()
+        await page.get_by_label("Robot address").fill(sim.urls[0])
+        await page.get_by_role("button", name="Test the address").click()
+        await expect(found).to_have_text("Found: a ROS 2 robot (Nav2).")
+        assert await violations(page) == []
+        await page.screenshot(path=str(SHOTS / "setup-3-robots.png"), full_page=True)
+        await page.get_by_role("button", name="Add this robot").click()
+        await expect(page.get_by_role("list", name="Robots added")).to_have_text("r1 added")
+        robots = await app.store.robots.list_robots()
+        assert [(x.name, x.url, x.link) for x in robots] == [("r1", sim.urls[0], {"ros": "2"})]
+        await expect(page.get_by_label("Robot name")).to_have_value("r2")
+        await page.get_by_role("button", name="Done with robots").click()
+        await expect(step).to_have_text("Map and places")
         assert app.core is not None
         site = app.core.site
         assert (site.name, site.public_url) == ("Chez Ana", "http://192.168.1.20:8765")
         assert site.languages == ["en", "zh"] and site.language == "zh"
-        await page.screenshot(path=str(SHOTS / "setup-3-next.png"), full_page=True)
+        await page.screenshot(path=str(SHOTS / "setup-4-next.png"), full_page=True)
 
         # On to the console, logged in as the owner (no login form).
         await page.get_by_role("link", name="Open the console").click()
@@ -85,6 +107,7 @@ async def test_a_new_owner_sets_the_restaurant_up_from_a_phone(
         await context.close()
     finally:
         await app.close()
+        await sim.close()
 
 
 async def test_without_the_link_the_page_says_where_to_go(tmp_path: Path, browser: Any) -> None:

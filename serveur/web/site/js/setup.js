@@ -9,7 +9,7 @@
 import { Connection, loadToken } from "./ws.js";
 import { onLangChange, t } from "./i18n.js";
 
-const STEPS = ["owner", "restaurant", "next"];
+const STEPS = ["owner", "restaurant", "robots", "next"];
 const code = setupCode();
 const conn = new Connection();
 const problem = document.getElementById("setup-problem");
@@ -106,11 +106,74 @@ form.addEventListener("submit", async (e) => {
       public_url: address,
     });
     settings = reply.settings;
-    show("next");
+    show("robots");
   } catch (err) {
     say("setup.failed", { message: err.message });
   }
 });
+
+// -- step 3: the robots ---------------------------------------------------------------------------
+
+const robotForm = document.getElementById("robot-form");
+const found = document.getElementById("robot-found");
+const addBtn = document.getElementById("robot-add");
+let tested = null; // {url, ros} of the last address found reachable
+
+function robotAddress() {
+  return document.getElementById("robot-address").value.trim();
+}
+
+document.getElementById("robot-address").addEventListener("input", () => {
+  tested = null;
+  addBtn.disabled = true;
+});
+
+document.getElementById("robot-test").addEventListener("click", async () => {
+  const url = robotAddress();
+  if (!/^wss?:\/\/[^\s/#?]+/.test(url)) return say("setup.robots.badAddress");
+  say(null);
+  found.textContent = t("setup.robots.testing");
+  try {
+    const p = (await conn.request({ clientmsg: "site", action: "probe_robot", url })).probe;
+    if (!p.reachable) {
+      found.textContent = t("setup.robots.notFound", { why: p.why });
+      return;
+    }
+    tested = { url, ros: p.ros };
+    addBtn.disabled = false;
+    found.textContent = p.ros
+      ? t("setup.robots.found", { ros: p.ros === 2 ? "ROS 2" : "ROS 1", nav: p.navigation || t("setup.robots.noNav") })
+      : t("setup.robots.foundUnknown");
+  } catch (err) {
+    found.textContent = t("setup.failed", { message: err.message });
+  }
+});
+
+robotForm.addEventListener("submit", async (e) => {
+  e.preventDefault();
+  const name = document.getElementById("robot-name").value.trim();
+  if (!tested || tested.url !== robotAddress()) return say("setup.robots.needTest");
+  if (!name) return say("setup.robots.needName");
+  say(null);
+  const msg = { clientmsg: "create", type: "robot", name, url: tested.url };
+  if (tested.ros === 2) msg.link = { ros: "2" };
+  try {
+    await conn.request(msg);
+    const item = document.createElement("li");
+    item.textContent = t("setup.robots.added", { name });
+    document.getElementById("robots-added").append(item);
+    found.textContent = "";
+    tested = null;
+    addBtn.disabled = true;
+    document.getElementById("robot-address").value = "";
+    const next = name.match(/^(.*?)(\d+)$/);
+    document.getElementById("robot-name").value = next ? `${next[1]}${Number(next[2]) + 1}` : "";
+  } catch (err) {
+    say("setup.failed", { message: err.message });
+  }
+});
+
+document.getElementById("robots-done").addEventListener("click", () => show("next"));
 
 // -- the connection -------------------------------------------------------------------------------
 
@@ -140,7 +203,7 @@ conn.addEventListener("state", async (e) => {
   settings = reply.settings;
   fillRestaurant(settings);
   resumed = true;
-  show(settings.name && settings.public_url ? "next" : "restaurant");
+  show(settings.name && settings.public_url ? "robots" : "restaurant");
 });
 
 onLangChange(() => settings && fillLanguages(languageSelect.value));
