@@ -3,9 +3,10 @@ bookkeeping, one table per connection (serveur.server keeps it in the connection
 
 Each upload declares its kind, name and size first; parts must come in order (``offset`` is
 what was received so far: a part resent after a reconnect is refused, not appended twice);
-a connection holds at most :data:`MAX_OPEN` uploads (the oldest is dropped for a new one), and
-never more bytes than the sizes it declared, each within its kind's limit
-(:data:`serveur.wire.uploads.UPLOAD_LIMITS`). ``take_upload`` hands over a complete one.
+a connection holds at most :data:`MAX_OPEN` uploads and :data:`MAX_HELD` bytes (the oldest
+are dropped for a new one), never more bytes than the sizes it declared, each within its
+kind's limit (:data:`serveur.wire.uploads.UPLOAD_LIMITS`). ``take_upload`` hands over a
+complete one.
 """
 
 from __future__ import annotations
@@ -19,9 +20,12 @@ from typing import Final
 from serveur import protocol as P
 from serveur.errors import Conflict, InvalidField, NotFound
 
-__all__ = ["MAX_OPEN", "Upload", "add_part", "done", "start_upload", "take_upload"]
+__all__ = ["MAX_HELD", "MAX_OPEN", "Upload", "add_part", "done", "start_upload", "take_upload"]
 
 MAX_OPEN: Final = 4
+#: The most bytes one connection's uploads may declare together: a floor plan, or a map's image
+#: and YAML, with room to spare — never hundreds of MB held for one tablet.
+MAX_HELD: Final = 32 * 1024 * 1024
 _ids = itertools.count(1)
 
 
@@ -52,7 +56,10 @@ def start_upload(uploads: dict[int, Upload], msg: P.SiteUpload) -> dict[str, obj
             field="size",
             reason="too_large",
         )
-    while len(uploads) >= MAX_OPEN:
+    # The oldest uploads make room for a new one (a file abandoned halfway is not kept).
+    while uploads and (
+        len(uploads) >= MAX_OPEN or sum(u.size for u in uploads.values()) + msg.size > MAX_HELD
+    ):
         del uploads[next(iter(uploads))]
     up = Upload(next(_ids), msg.kind, msg.name, msg.size)
     uploads[up.id] = up

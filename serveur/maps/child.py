@@ -18,10 +18,19 @@ from serveur.errors import InvalidField, MapError, ServeurError
 __all__ = ["run_child"]
 
 _ERRORS: dict[str, type[ServeurError]] = {MapError.code: MapError, InvalidField.code: InvalidField}
+#: One map computation at a time: each decodes an image of up to 40 million pixels, and a Pi
+#: has 1-8 GB for everything; a second request waits for the first.
+_ONE_AT_A_TIME: dict[asyncio.AbstractEventLoop, asyncio.Lock] = {}
 
 
 async def run_child(module: str, payload: bytes) -> dict[str, Any]:
     """The child's JSON answer; a refusal raised as its error, a crash as a MapError."""
+    lock = _ONE_AT_A_TIME.setdefault(asyncio.get_running_loop(), asyncio.Lock())
+    async with lock:
+        return await _run(module, payload)
+
+
+async def _run(module: str, payload: bytes) -> dict[str, Any]:
     proc = await asyncio.create_subprocess_exec(
         sys.executable,
         "-m",

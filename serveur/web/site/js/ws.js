@@ -187,8 +187,20 @@ export class Connection extends EventTarget {
   }
 
   _send(entry) {
+    const ws = this._ws;
+    if (!ws || ws.readyState !== WebSocket.OPEN) {
+      // The socket is going (the server closing it for a restart, the Wi-Fi gone) and its
+      // "close" has not come yet: nothing is sent on it. A request safe to resend waits for the
+      // next connection; any other is not confirmed, and the person must know it did not happen.
+      if (!entry.resend) {
+        clearTimeout(entry.timer);
+        this._pending.delete(entry.msg.id);
+        entry.reject(new ServerError("connection_lost", t("error.connectionLost")));
+      }
+      return;
+    }
     entry.sent = true;
-    this._ws.send(JSON.stringify(entry.msg));
+    ws.send(JSON.stringify(entry.msg));
   }
 
   _heartbeat() {
