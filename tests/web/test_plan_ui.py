@@ -63,8 +63,16 @@ async def test_the_owner_draws_the_map_from_the_floor_plan(tmp_path: Path, brows
         # The walls only: the tables, labels and dimension line are lighter than them.
         slider = section.get_by_label("Darkness of the walls")
         await slider.evaluate("(s) => { s.value = 50; s.dispatchEvent(new Event('input')); }")
-        # Rub out the first table (already gone at this darkness: the stroke is kept anyway).
+        # No tool yet: a touch on the plan changes nothing.
+        await tap(owner, canvas, p.left + 2.0 * 37, p.top + 3.0 * 37, size)
+        await expect(canvas).to_have_attribute("data-strokes", "0")
+        # Rub out the first table (already gone at this darkness: the stroke is kept anyway),
+        # take it back, and rub it out again.
         await section.get_by_role("button", name="Erase").click()
+        await tap(owner, canvas, p.left + 2.0 * 37, p.top + 3.0 * 37, size)
+        await expect(canvas).to_have_attribute("data-strokes", "1")
+        await section.get_by_role("button", name="Undo").click()
+        await expect(canvas).to_have_attribute("data-strokes", "0")
         await tap(owner, canvas, p.left + 2.0 * 37, p.top + 3.0 * 37, size)
         await expect(canvas).to_have_attribute("data-strokes", "1")
 

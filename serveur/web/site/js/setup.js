@@ -130,8 +130,11 @@ document.getElementById("robot-address").addEventListener("input", () => {
 
 document.getElementById("robot-test").addEventListener("click", async () => {
   const url = robotAddress();
-  if (!/^wss?:\/\/[^\s/#?]+/.test(url)) return say("setup.robots.badAddress");
   say(null);
+  if (!/^wss?:\/\/[^\s/#?]+/.test(url)) {
+    found.textContent = t("setup.robots.badAddress"); // beside the button just pressed
+    return;
+  }
   found.textContent = t("setup.robots.testing");
   try {
     const p = (await conn.request({ clientmsg: "site", action: "probe_robot", url })).probe;

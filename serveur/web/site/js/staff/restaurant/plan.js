@@ -66,7 +66,7 @@ export class PlanSection {
     this.strokes = [];
     this.measures = { across: null, along: null };
     this.pending = null; // the first end of a measure being tapped
-    this.tool = "erase";
+    this.tool = null; // none at first: a first touch on the plan changes nothing
     this.preview = null; // the last plan_map preview's reply
     this.fileInput = el("input", { id: "plan-file", type: "file", accept: "image/png,image/jpeg", required: true });
     this.threshold = el("input", { id: "plan-threshold", type: "range", min: 0, max: 255, value: 128 });
@@ -78,6 +78,7 @@ export class PlanSection {
       across: el("input", { id: "plan-across", type: "number", min: 0.2, max: 500, step: 0.01, inputmode: "decimal" }),
       along: el("input", { id: "plan-along", type: "number", min: 0.2, max: 500, step: 0.01, inputmode: "decimal" }),
     };
+    this.undoBtn = el("button", { type: "button", "data-i18n": "owner.plan.undo", onclick: () => this._undo() });
     this.checkBtn = el("button", { type: "button", "data-needs-online": true, "data-i18n": "owner.plan.check", onclick: () => this._check(false) });
     this.useBtn = el("button", { type: "button", class: "primary", "data-needs-online": true, disabled: true, "data-i18n": "owner.plan.use", onclick: () => this._check(true) });
     this.downloadBtn = el("button", { type: "button", disabled: true, "data-i18n": "owner.plan.download", onclick: () => this._download() });
@@ -86,7 +87,7 @@ export class PlanSection {
       "div",
       { class: "plan-work", hidden: true },
       field("plan-threshold", "owner.plan.threshold", this.threshold),
-      el("div", { class: "plan-tools", role: "group", "data-i18n-aria-label": "owner.plan.tools" }, ...TOOLS.map((tool) => this.toolButtons[tool])),
+      el("div", { class: "plan-tools", role: "group", "data-i18n-aria-label": "owner.plan.tools" }, ...TOOLS.map((tool) => this.toolButtons[tool]), this.undoBtn),
       this.canvas,
       field("plan-across", "owner.plan.acrossMetres", this.metres.across),
       field("plan-along", "owner.plan.alongMetres", this.metres.along),
@@ -115,6 +116,14 @@ export class PlanSection {
     this.pending = null;
     for (const [name, b] of Object.entries(this.toolButtons)) b.setAttribute("aria-pressed", String(name === tool));
     this._say(tool === "across" || tool === "along" ? "owner.plan.tapEnds" : null);
+  }
+
+  /** Take back the last stroke (or, with none left, the last measure). */
+  _undo() {
+    if (this.strokes.length) this.strokes.pop();
+    else if (this.measures.along) this.measures.along = null;
+    else this.measures.across = null;
+    this._draw();
   }
 
   async _load() {
@@ -200,7 +209,7 @@ export class PlanSection {
   _pointer() {
     let drawing = null;
     this.canvas.addEventListener("pointerdown", (e) => {
-      if (!this.image) return;
+      if (!this.image || !this.tool) return;
       const p = this._at(e);
       if (this.tool === "across" || this.tool === "along") {
         if (!this.pending) {
