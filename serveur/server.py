@@ -114,6 +114,11 @@ class _Conn:
         #: Cameras it watches: robot -> (relay, its viewer slot, the task sending its frames).
         self.watching: dict[str, tuple[CameraRelay, CameraViewer, asyncio.Task[None]]] = {}
 
+    @property
+    def actor(self) -> str | None:
+        """Who is asking, as the store and the audit name them (None before a login)."""
+        return self.principal.actor if self.principal is not None else None
+
 
 class Server:
     """Serves ``/ws`` for clients and HTTP for everything else, on one port.
@@ -357,7 +362,7 @@ class Server:
         if own is not None:
             return await own(self, conn, msg)
         table = p.table if p is not None and p.role is Role.TABLE_SCREEN else None
-        reply = await self.core.handle(msg, actor=p.actor if p else None, table=table)
+        reply = await self.core.handle(msg, actor=conn.actor, table=table)
         if isinstance(msg, P.SiteSetSettings) and msg.cameras is False:
             # The owner switched the cameras off: nobody watches from now on.
             for other in list(self._conns):
@@ -434,7 +439,6 @@ class Server:
     async def _set_map(self, conn: _Conn, msg: P.SiteSetMap) -> dict[str, Any]:
         yaml_file = take_upload(conn.uploads, msg.yaml, "map_yaml")
         image = take_upload(conn.uploads, msg.image, "map_image")
-        actor = conn.principal.actor if conn.principal is not None else None
         core = self.core
         reply = await set_map_files(
             core.store,
@@ -443,17 +447,16 @@ class Server:
             bytes(yaml_file.data),
             bytes(image.data),
             image.name,
-            actor=actor,
+            actor=conn.actor,
         )
         uploads_done(conn.uploads, msg.yaml, msg.image)
         return reply
 
     async def _plan_map(self, conn: _Conn, msg: P.SitePlanMap) -> dict[str, Any]:
         plan = take_upload(conn.uploads, msg.upload, "plan")
-        actor = conn.principal.actor if conn.principal is not None else None
         core = self.core
         reply = await plan_map(
-            core.store, core.places, core.clock, bytes(plan.data), plan.name, msg, actor=actor
+            core.store, core.places, core.clock, bytes(plan.data), plan.name, msg, actor=conn.actor
         )
         if msg.apply:
             uploads_done(conn.uploads, msg.upload)  # a preview keeps it for the next try

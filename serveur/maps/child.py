@@ -11,11 +11,12 @@ from __future__ import annotations
 import asyncio
 import json
 import sys
+from collections.abc import Callable
 from typing import Any
 
 from serveur.errors import InvalidField, MapError, ServeurError
 
-__all__ = ["run_child"]
+__all__ = ["run_child", "serve_child"]
 
 _ERRORS: dict[str, type[ServeurError]] = {MapError.code: MapError, InvalidField.code: InvalidField}
 #: One map computation at a time: each decodes an image of up to 40 million pixels, and a Pi
@@ -57,3 +58,16 @@ async def _run(module: str, payload: bytes) -> dict[str, Any]:
         cls = _ERRORS.get(str(e.get("code")), MapError)
         raise cls(str(e.get("message")), **dict(e.get("details") or {}))
     return reply
+
+
+def serve_child(work: Callable[[dict[str, Any]], dict[str, Any]]) -> int:
+    """The child's side: the request from stdin, ``work``'s answer (or the refusal it raised,
+    as :func:`run_child` reads it) on stdout. Anything else it raises kills the child, which
+    :func:`run_child` reports as a failure."""
+    request = json.loads(sys.stdin.buffer.read())
+    try:
+        reply = work(request)
+    except tuple(_ERRORS.values()) as exc:
+        reply = {"error": {"code": exc.code, "message": exc.message, "details": exc.details}}
+    print(json.dumps(reply))
+    return 0

@@ -24,16 +24,19 @@ The result is an :class:`~serveur.maps.mapio.OccupancyMap`, saved as map_server'
 
 from __future__ import annotations
 
+import base64
 import io
 import math
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Final
+from typing import Any, Final
 
 import numpy as np
 import numpy.typing as npt
 
 from serveur.errors import InvalidField, MapError
+from serveur.maps.child import serve_child
 from serveur.maps.mapio import OccupancyMap
 
 __all__ = [
@@ -239,35 +242,25 @@ def plan_to_map(
     return to_map(mask, scale, resolution=resolution), scale
 
 
-def _child() -> int:
-    import base64
-    import json
-    import sys
-
+def _answer(req: dict[str, Any]) -> dict[str, Any]:
+    """The child's work (``site plan_map``, serveur.core.site_map): the map and the scale."""
     from serveur.maps.distances import MapData
 
-    req = json.loads(sys.stdin.buffer.read())
-    try:
-        m, scale = plan_to_map(
-            base64.b64decode(req["plan"]),
-            int(req["threshold"]),
-            [
-                Stroke(s["kind"], tuple(map(tuple, s["points"])), float(s["width"]))
-                for s in req["strokes"]
-            ],
-            Measure(
-                tuple(req["across"]["a"]), tuple(req["across"]["b"]), float(req["across"]["metres"])
-            ),
-            Measure(
-                tuple(req["along"]["a"]), tuple(req["along"]["b"]), float(req["along"]["metres"])
-            ),
-            float(req["resolution"]),
-        )
-    except (MapError, InvalidField) as exc:
-        error = {"code": exc.code, "message": exc.message, "details": exc.details}
-        print(json.dumps({"error": error}))
-        return 0
-    reply = {
+    def measure(m: dict[str, Any]) -> Measure:
+        return Measure(tuple(m["a"]), tuple(m["b"]), float(m["metres"]))
+
+    m, scale = plan_to_map(
+        base64.b64decode(req["plan"]),
+        int(req["threshold"]),
+        [
+            Stroke(s["kind"], tuple(map(tuple, s["points"])), float(s["width"]))
+            for s in req["strokes"]
+        ],
+        measure(req["across"]),
+        measure(req["along"]),
+        float(req["resolution"]),
+    )
+    return {
         "map": MapData.from_occupancy(m).snapshot(),
         "scale": {
             "x": scale.x,
@@ -276,11 +269,7 @@ def _child() -> int:
             "stretched": scale.stretched,
         },
     }
-    print(json.dumps(reply))
-    return 0
 
 
 if __name__ == "__main__":
-    import sys
-
-    sys.exit(_child())
+    sys.exit(serve_child(_answer))

@@ -17,10 +17,10 @@ import json
 import sys
 import tempfile
 from pathlib import Path
-from typing import Final
+from typing import Any, Final
 
 from serveur.errors import MapError
-from serveur.maps.child import run_child
+from serveur.maps.child import run_child, serve_child
 from serveur.maps.distances import MapData
 from serveur.maps.mapio import OccupancyMap, load_map, save_map
 
@@ -125,19 +125,13 @@ async def read_map_files_in_child(yaml_bytes: bytes, image: bytes, image_name: s
     return MapData.from_snapshot(reply["map"])
 
 
-def _child() -> int:
-    req = json.loads(sys.stdin.buffer.read())
-    try:
-        m = read_map_files(
-            base64.b64decode(req["yaml"]), base64.b64decode(req["image"]), str(req["name"])
-        )
-    except MapError as exc:
-        error = {"code": exc.code, "message": exc.message, "details": exc.details}
-        print(json.dumps({"error": error}))
-        return 0
-    print(json.dumps({"map": MapData.from_occupancy(m).snapshot()}))
-    return 0
+def _answer(req: dict[str, Any]) -> dict[str, Any]:
+    """The child's work (:func:`read_map_files_in_child`)."""
+    m = read_map_files(
+        base64.b64decode(req["yaml"]), base64.b64decode(req["image"]), str(req["name"])
+    )
+    return {"map": MapData.from_occupancy(m).snapshot()}
 
 
 if __name__ == "__main__":
-    sys.exit(_child())
+    sys.exit(serve_child(_answer))

@@ -39,6 +39,17 @@ __all__ = ["CLOUD_SHOWN", "Cloud", "TfTree", "cloud_of", "pose_spread", "spread_
 CLOUD_SHOWN: Final = 300
 
 
+def _worst(xx: float, xy: float, yy: float) -> float:
+    """The standard deviation along the worst floor direction of the x-y covariance
+    ``[[xx, xy], [xy, yy]]`` (the square root of its larger eigenvalue); infinite when an
+    entry is not a number."""
+    if not all(math.isfinite(v) for v in (xx, xy, yy)):
+        return math.inf
+    half = (xx + yy) / 2.0
+    largest = half + math.sqrt(((xx - yy) / 2.0) ** 2 + xy * xy)
+    return math.sqrt(max(0.0, largest))
+
+
 def spread_of(cov: Sequence[float]) -> tuple[float, float]:
     """(metres, radians): a 6x6 row-major pose covariance's standard deviation along the worst
     floor direction, and of the heading. NaN or negative entries count as unknown (infinite)."""
@@ -47,10 +58,7 @@ def spread_of(cov: Sequence[float]) -> tuple[float, float]:
     xx, xy, yy, aa = (float(cov[i]) for i in (0, 1, 7, 35))
     if not all(math.isfinite(v) for v in (xx, xy, yy, aa)) or min(xx, yy, aa) < 0.0:
         return (math.inf, math.inf)
-    # The larger eigenvalue of [[xx, xy], [xy, yy]].
-    half = (xx + yy) / 2.0
-    largest = half + math.sqrt(((xx - yy) / 2.0) ** 2 + xy * xy)
-    return (math.sqrt(max(0.0, largest)), math.sqrt(aa))
+    return (_worst(xx, xy, yy), math.sqrt(aa))
 
 
 def pose_spread(msg: Mapping[str, Any]) -> tuple[float, float] | None:
@@ -99,7 +107,7 @@ class Cloud:
             xx += wi * dx * dx
             yy += wi * dy * dy
             xy += wi * dx * dy
-        return spread_of([xx, xy, 0, 0, 0, 0, 0, yy, *([0.0] * 27), 0.0])[0]
+        return _worst(xx, xy, yy)
 
     def shown(self, most: int = CLOUD_SHOWN) -> list[list[float]]:
         """At most ``most`` particles as ``[x, y, yaw]`` rounded to cm and centiradians, the
