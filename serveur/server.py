@@ -36,8 +36,7 @@ from serveur.core.camera import CameraRelay, CameraViewer
 from serveur.core.engine import Core
 from serveur.core.hub import Subscriber
 from serveur.core.site_map import plan_map, set_map_files
-from serveur.core.uploads import Upload, add_part, start_upload, take_upload
-from serveur.core.uploads import done as uploads_done
+from serveur.core.uploads import Uploads
 from serveur.errors import InvalidField, NotFound, RateLimited, ServeurError, Unauthorized
 from serveur.replay.forecast import Forecaster, SiteFiles
 from serveur.robots.probe import probe
@@ -110,7 +109,7 @@ class _Conn:
         self.close_after: tuple[int, str] | None = None
         self.active_at = 0.0  # when it connected or last sent a request (monotonic)
         #: Files it is sending (``site upload``), by id: gone with the connection.
-        self.uploads: dict[int, Upload] = {}
+        self.uploads = Uploads()
         #: Cameras it watches: robot -> (relay, its viewer slot, the task sending its frames).
         self.watching: dict[str, tuple[CameraRelay, CameraViewer, asyncio.Task[None]]] = {}
 
@@ -431,14 +430,14 @@ class Server:
             await relay.leave(viewer)
 
     async def _upload(self, conn: _Conn, msg: P.SiteUpload) -> dict[str, Any]:
-        return {"upload": start_upload(conn.uploads, msg)}
+        return {"upload": conn.uploads.start(msg)}
 
     async def _upload_part(self, conn: _Conn, msg: P.SiteUploadPart) -> dict[str, Any]:
-        return {"upload": add_part(conn.uploads, msg)}
+        return {"upload": conn.uploads.add_part(msg)}
 
     async def _set_map(self, conn: _Conn, msg: P.SiteSetMap) -> dict[str, Any]:
-        yaml_file = take_upload(conn.uploads, msg.yaml, "map_yaml")
-        image = take_upload(conn.uploads, msg.image, "map_image")
+        yaml_file = conn.uploads.take(msg.yaml, "map_yaml")
+        image = conn.uploads.take(msg.image, "map_image")
         core = self.core
         reply = await set_map_files(
             core.store,
@@ -449,17 +448,17 @@ class Server:
             image.name,
             actor=conn.actor,
         )
-        uploads_done(conn.uploads, msg.yaml, msg.image)
+        conn.uploads.done(msg.yaml, msg.image)
         return reply
 
     async def _plan_map(self, conn: _Conn, msg: P.SitePlanMap) -> dict[str, Any]:
-        plan = take_upload(conn.uploads, msg.upload, "plan")
+        plan = conn.uploads.take(msg.upload, "plan")
         core = self.core
         reply = await plan_map(
             core.store, core.places, core.clock, bytes(plan.data), plan.name, msg, actor=conn.actor
         )
         if msg.apply:
-            uploads_done(conn.uploads, msg.upload)  # a preview keeps it for the next try
+            conn.uploads.done(msg.upload)  # a preview keeps it for the next try
         return reply
 
     async def _probe_robot(self, conn: _Conn, msg: P.SiteProbeRobot) -> dict[str, Any]:
