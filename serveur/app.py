@@ -6,8 +6,10 @@ one way to wire it and the tests exercise the same path that production uses.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import logging
+import shutil
 import ssl as ssl_module
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -15,7 +17,10 @@ from pathlib import Path
 from typing import Any
 
 from serveur.clock import Clock, ScaledClock
+from serveur.core.backup_desk import BackupDesk
+from serveur.core.backups import BackupKind
 from serveur.core.engine import Core, CoreConfig
+from serveur.core.shelf import BackupShelf
 from serveur.domain import WaypointKind, WaypointRecord, ZoneRecord
 from serveur.errors import Conflict
 from serveur.robots.names import OPTION_KEYS, RosNames
@@ -24,6 +29,8 @@ from serveur.server import Server
 from serveur.stats.remote import StatsService
 from serveur.store.base import Store
 from serveur.store.factory import open_store
+from serveur.store.restore import replace_sqlite_file
+from serveur.store.sqlite.db import SQLiteDb
 
 __all__ = ["App", "RobotSpec", "parse_robot_spec"]
 
@@ -101,6 +108,7 @@ class App:
         ssl: ssl_module.SSLContext | None = None,
         robot_ssl: ssl_module.SSLContext | None = None,
         plan_in_child: bool = True,
+        backups: str | Path | None = None,
     ) -> None:
         self.clock = clock or ScaledClock(1.0)
         self.store: Store = open_store(str(db))
@@ -117,6 +125,10 @@ class App:
         self._setup = setup
         self._ssl, self._robot_ssl = ssl, robot_ssl
         self._plan_in_child = plan_in_child
+        #: The backups folder (None: none kept, nothing to restore from the console).
+        self._backups = None if backups is None else Path(backups)
+        self.shelf: BackupShelf | None = None
+        self._restart_lock = asyncio.Lock()
         self.core: Core | None = None
         self.sessions: Sessions | None = None
         self.server: Server | None = None
@@ -166,6 +178,16 @@ class App:
         elif self._create_owner:
             self.first_owner_password = await self.sessions.ensure_owner()
         self.sessions.start()
+        desk = None
+        if self._backups is not None:
+            self.shelf = BackupShelf(self._backups, self.store, self.clock)
+            self.shelf.start()
+            file = self._sqlite_file()
+            desk = BackupDesk(
+                self.shelf,
+                staging=None if file is None else file.with_name(file.name + ".restoring"),
+                restart=None if file is None else self.restart_on,
+            )
         self.server = Server(
             self.core,
             self.sessions,
@@ -173,9 +195,49 @@ class App:
             port=self._port,
             ssl=self._ssl,
             stats=StatsService(self.store, self._db),
+            backups=desk,
         )
         await self.server.start()
+        self._port = self.server.port  # a restart listens where the screens knew it
         return self
+
+    def _sqlite_file(self) -> Path | None:
+        """The database's file, when it is one SQLite file the app can swap."""
+        db = self.store.db
+        if isinstance(db, SQLiteDb) and db.path != ":memory:":
+            return Path(db.path)
+        return None
+
+    async def restart_on(self, staged: Path) -> None:
+        """Stop, put the checked backup ``staged`` in place of the database, start again.
+
+        Robots are halted and every client closed first, as at any shutdown; robots and trips
+        are reconciled at the start as after any restart. If the restored database does not
+        start, the copy made just before (``before_restore``) is put back and started instead:
+        the restaurant is never left without a server.
+        """
+        async with self._restart_lock:
+            file = self._sqlite_file()
+            assert file is not None and self.shelf is not None
+            shelf = self.shelf
+            before = next(
+                (e for e in await shelf.entries() if e.kind is BackupKind.BEFORE_RESTORE), None
+            )
+            log.warning("restoring a backup: the server restarts on it")
+            await self.close()
+            await asyncio.to_thread(replace_sqlite_file, file, staged)
+            self.store = open_store(self._db)
+            try:
+                await self.start()
+            except Exception:
+                log.exception("the restored database does not start: putting back %s", before)
+                if before is None:
+                    raise
+                await asyncio.to_thread(shutil.copyfile, shelf.path(before.name), staged)
+                await asyncio.to_thread(replace_sqlite_file, file, staged)
+                self.store = open_store(self._db)
+                await self.start()
+            log.warning("restored: serving %s", self.url)
 
     async def issue_token(
         self,
@@ -224,6 +286,8 @@ class App:
             await self.server.close()
         if self.sessions is not None:
             await self.sessions.close()
+        if self.shelf is not None:
+            await self.shelf.close()
         if self.core is not None:
             await self.core.close()
         await self.store.close()

@@ -116,6 +116,19 @@ def _tls(ns: argparse.Namespace) -> tuple[ssl.SSLContext | None, ssl.SSLContext 
     return server, robots
 
 
+def _backups_folder(given: str | None, db: str) -> Path | None:
+    """``--backups``, or the ``backups`` folder beside a SQLite file (a MariaDB server's
+    backups need a folder named: its database is on another box)."""
+    if given == "off":
+        return None
+    if given:
+        return Path(given)
+    if "://" in db and not db.startswith("sqlite:"):
+        return None
+    file = db.removeprefix("sqlite:").removeprefix("//")
+    return None if file == ":memory:" else Path(file).resolve().parent / "backups"
+
+
 async def _run(ns: argparse.Namespace) -> int:
     from serveur.app import App, parse_robot_spec
     from serveur.clock import ScaledClock
@@ -156,6 +169,7 @@ async def _run(ns: argparse.Namespace) -> int:
         robot_ssl=robot_tls,
         config=_service_config(ns),
         setup=True,
+        backups=_backups_folder(ns.backups, ns.db),
     )
     try:
         await app.start()
@@ -369,6 +383,12 @@ def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
         default=[],
         metavar="NAME=URL[,home=WP]",
         help="register a robot (repeatable)",
+    )
+    run.add_argument(
+        "--backups",
+        default=os.environ.get("SERVEUR_BACKUPS"),
+        help="folder of the nightly backups and the console's (default: $SERVEUR_BACKUPS,"
+        " else 'backups' beside a SQLite database; 'off': none)",
     )
     run.add_argument("--map", help="ROS map YAML (default: adopt the map a robot publishes)")
     run.add_argument("--waypoints", help="waypoints JSON to import (tables, homes)")

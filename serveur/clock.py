@@ -71,6 +71,7 @@ class FakeClock:
         self._epoch0 = start_epoch - start
         self._sleepers: list[tuple[float, int, asyncio.Future[None]]] = []
         self._counter = itertools.count()
+        self._asleep = asyncio.Event()  # set while someone sleeps: see :meth:`someone_sleeps`
 
     @property
     def time_scale(self) -> float:
@@ -85,7 +86,15 @@ class FakeClock:
     async def sleep(self, seconds: float) -> None:
         fut: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         heapq.heappush(self._sleepers, (self._now + max(0.0, seconds), next(self._counter), fut))
+        self._asleep.set()
         await fut
+
+    async def someone_sleeps(self) -> None:
+        """Wait until a task sleeps on this clock: a test advances time once the task it
+        drives is waiting for it, not before (that time would pass unseen)."""
+        if not any(not f.done() for *_, f in self._sleepers):
+            self._asleep.clear()
+            await self._asleep.wait()
 
     def wall(self, seconds: float) -> float:
         return max(0.0, seconds)

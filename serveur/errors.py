@@ -12,6 +12,7 @@ import math
 from typing import Any
 
 __all__ = [
+    "BackupError",
     "BadJson",
     "Conflict",
     "Forbidden",
@@ -100,6 +101,14 @@ class MapError(ServeurError):
     """A map file is missing or malformed."""
 
     code = "map_error"
+
+
+class BackupError(ServeurError):
+    """A backup cannot be used or made: ``details.reason`` says why (``not_a_backup``,
+    ``newer``, ``damaged``, ``off``: the server keeps no backups, ``backend``: the database
+    is restored with its own tools)."""
+
+    code = "backup_error"
 
 
 class NavigationError(ServeurError):

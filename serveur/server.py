@@ -32,12 +32,20 @@ from websockets.http11 import Request, Response
 from websockets.protocol import State
 
 from serveur import protocol as P
+from serveur.core.backup_desk import DOWNLOAD_PATH, BackupDesk
 from serveur.core.camera import CameraRelay, CameraViewer
 from serveur.core.engine import Core
 from serveur.core.hub import Subscriber
 from serveur.core.site_map import plan_map, set_map_files
 from serveur.core.uploads import Uploads
-from serveur.errors import InvalidField, NotFound, RateLimited, ServeurError, Unauthorized
+from serveur.errors import (
+    BackupError,
+    InvalidField,
+    NotFound,
+    RateLimited,
+    ServeurError,
+    Unauthorized,
+)
 from serveur.replay.forecast import Forecaster, SiteFiles
 from serveur.robots.probe import probe
 from serveur.security.accounts import handle_account
@@ -48,23 +56,28 @@ from serveur.store.site import AuditQuery
 from serveur.web.static import default_site
 from serveur.wire.camera import camera_frame
 
-__all__ = ["CLOSE_IDLE", "MAX_FRAME", "Server"]
+__all__ = ["CLOSE_IDLE", "CLOSE_RESTART", "MAX_FRAME", "Server"]
 
 log = logging.getLogger(__name__)
 
 MAX_FRAME = 64 * 1024
 #: Close code for a connection idle past ``SecurityConfig.idle_timeout``.
 CLOSE_IDLE = 4003
+#: The websocket standard's "service restart": the server comes back (a restored backup).
+CLOSE_RESTART = 1012
 _STATE_TOPICS = frozenset(P.STATE_TOPICS)
 
 
-def _http(status: http.HTTPStatus, body: bytes, content_type: str) -> Response:
+def _http(
+    status: http.HTTPStatus, body: bytes, content_type: str, *extra: tuple[str, str]
+) -> Response:
     headers = Headers(
         [
             ("Content-Type", content_type),
             ("Content-Length", str(len(body))),
             ("X-Content-Type-Options", "nosniff"),
             ("Cache-Control", "no-store"),
+            *extra,
         ]
     )
     return Response(status.value, status.phrase, headers, body)
@@ -143,6 +156,7 @@ class Server:
         port: int = 8765,
         ssl: ssl_module.SSLContext | None = None,
         stats: StatsService | None = None,
+        backups: BackupDesk | None = None,
     ) -> None:
         self.core = core
         self.sessions = sessions
@@ -154,6 +168,8 @@ class Server:
             lambda folder: SiteFiles(*core.write_site(folder)),
             lambda rec: core.publisher.pub("forecast", _forecast_info(rec)),
         )
+        #: The owner's backups (None: this server keeps none, e.g. a database in memory).
+        self.backups = backups
         self.security = sessions.config
         self.host = host
         self.port = port
@@ -212,6 +228,17 @@ class Server:
                 {"status": "ok", "robots": {n: st.value for n, st in self.core.robot_statuses()}}
             ).encode()
             return _http(http.HTTPStatus.OK, body, "application/json")
+        if path.startswith(DOWNLOAD_PATH) and self.backups is not None:
+            status, body = await self.backups.fetch(request.path)
+            if status is not http.HTTPStatus.OK:
+                return _http(status, body, "text/plain; charset=utf-8")
+            name = path.removeprefix(DOWNLOAD_PATH)
+            return _http(
+                status,
+                body,
+                "application/vnd.sqlite3",
+                ("Content-Disposition", f'attachment; filename="{name}"'),
+            )
         return self._site.respond(request)  # the web UI (GET/HEAD), 404 for anything else
 
     async def _ws_handshake(self, ws: ServerConnection, request: Request) -> Response | None:
@@ -465,6 +492,30 @@ class Server:
         found = await probe(msg.url, ssl=self.core.crew.robot_ssl)
         return {"probe": found.as_dict()}
 
+    def _desk(self) -> BackupDesk:
+        if self.backups is None:
+            raise BackupError("this server keeps no backups", reason="off")
+        return self.backups
+
+    async def _list_backups(self, conn: _Conn, msg: P.SiteBackups) -> dict[str, Any]:
+        return await self._desk().backups()
+
+    async def _backup_now(self, conn: _Conn, msg: P.SiteBackupNow) -> dict[str, Any]:
+        return await self._desk().backup_now()
+
+    async def _download_backup(self, conn: _Conn, msg: P.SiteDownloadBackup) -> dict[str, Any]:
+        return await self._desk().download(msg)
+
+    async def _restore(self, conn: _Conn, msg: P.SiteRestore) -> dict[str, Any]:
+        desk = self._desk()
+        reply, staged = await desk.restore(msg, conn.uploads)
+        if staged is not None:
+            # This connection closes once its reply is out; then the app restarts on the
+            # backup, closing every other (1012: pages reconnect when it is back).
+            conn.close_after = (CLOSE_RESTART, "the server restarts on a backup")
+            desk.restart_after(conn.ws.wait_closed(), staged)
+        return reply
+
     async def _ping(self, conn: _Conn, msg: P.PingMsg) -> dict[str, Any]:
         return {"time": self.core.clock.epoch()}
 
@@ -645,6 +696,10 @@ _SERVER_VERBS: dict[type, Callable[[Server, _Conn, Any], Awaitable[dict[str, Any
     P.SitePlanMap: Server._plan_map,
     P.SiteProbeRobot: Server._probe_robot,
     P.SiteAudit: Server._search_audit,
+    P.SiteBackups: Server._list_backups,
+    P.SiteBackupNow: Server._backup_now,
+    P.SiteDownloadBackup: Server._download_backup,
+    P.SiteRestore: Server._restore,
     P.StatsFigures: Server._stats,
     P.StatsTrips: Server._stats,
     P.StatsForecast: Server._forecast,

@@ -374,13 +374,21 @@ def make_app(
     port: int = 0,
     *,
     config: CoreConfig | None = None,
+    backups: Path | None = None,
 ) -> App:
     from serveur.maps.navigation import load_demo
 
     nav_map, waypoints = load_demo()
     cfg = config or CoreConfig(heartbeat=2.0, ack_timeout=3.0, auto_depart=True)
     return App(
-        db, port=port, clock=clock, nav_map=nav_map, waypoints=waypoints, robots=specs, config=cfg
+        db,
+        port=port,
+        clock=clock,
+        nav_map=nav_map,
+        waypoints=waypoints,
+        robots=specs,
+        config=cfg,
+        backups=backups,
     )
 
 
@@ -403,11 +411,13 @@ async def restaurant(
     proxied: bool = False,
     config: CoreConfig | None = None,
     link: Mapping[str, str] | None = None,
+    backups: bool = False,
     **sim_options: Any,
 ) -> AsyncIterator[Restaurant]:
     """A running restaurant on a SQLite file in ``tmp_path``, or on ``db_url`` if given.
 
     ``link``: more link options for every robot (``{"camera": "camera/image/compressed"}``).
+    ``backups``: the server keeps its backups in ``tmp_path / "backups"``.
 
     ``proxied``: each robot is reached through a :class:`~tests.netproxy.LinkProxy` that a
     test can blackhole or inject frames into. ``sim_options`` go to ``start_simulation``.
@@ -434,9 +444,12 @@ async def restaurant(
         for i, (r, url) in enumerate(zip(sim.robots, urls, strict=True))
     ]
     db = db_url or tmp_path / "serveur.db"
-    app = make_app(db, clock, specs, config=config)
+    folder = tmp_path / "backups" if backups else None
+    app = make_app(db, clock, specs, config=config, backups=folder)
     await app.start()
     r = Restaurant(app, sim, clock, db, specs, [], proxies=proxies)
+    if backups:
+        r.make = lambda *a: make_app(*a, config=config, backups=folder)
     r.token = await app.issue_token("staff", label="tests")
     try:
         yield r

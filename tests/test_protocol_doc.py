@@ -42,8 +42,9 @@ to that block. Its space-separated words:
   orders the ``orders=`` hint just created), ``task`` and ``stop`` (``r1``'s current trip and
   stop), ``alert`` (the active alert of the documented reply's kind and subject), ``device``
   (the id of the token the latest ``account`` ``create_token`` made, into ``token``), ``upload``
-  (the id the latest ``site`` ``upload`` answered, into ``upload``, ``yaml`` and ``image``), ``day``
-  (the run's service day, at the request's ``utc_offset``: a ``stats`` ``forecast`` needs a
+  (the id the latest ``site`` ``upload`` answered, into ``upload``, ``yaml`` and ``image``),
+  ``backup`` (the name of the backup the latest ``site`` ``backup_now`` made, into ``name``),
+  ``day`` (the run's service day, at the request's ``utc_offset``: a ``stats`` ``forecast`` needs a
   day with dishes).
 * ``token=ROLE:ROBOT``: replace the request's ``token`` by a fresh token of that role.
 * ``loose=a,b``: more volatile keys for this block. ``sample=k``: under key ``k`` the example
@@ -355,6 +356,7 @@ class World:
     alert: int | None = None  # the alert the latest ``fill=alert`` named
     device: int | None = None  # the token the latest ``account create_token`` made
     upload: int | None = None  # the upload the latest ``site upload`` started
+    backup: str | None = None  # the backup the latest ``site backup_now`` made
 
     def watched(self) -> list[dict[str, Any]]:
         return [
@@ -364,7 +366,7 @@ class World:
 
 @pytest.fixture
 async def world(tmp_path: Path) -> AsyncIterator[World]:
-    async with restaurant(tmp_path, robots=1, config=SITE) as r:
+    async with restaurant(tmp_path, robots=1, config=SITE, backups=True) as r:
         assert r.app.sessions is not None
         store = r.app.store
         await store.accounts.add_user(
@@ -604,6 +606,9 @@ async def _fill(w: World, msg: dict[str, Any], fill: str, reply: Block | None) -
             for key in ("upload", "yaml", "image"):
                 if key in msg:
                     msg[key] = w.upload
+        elif name == "backup":
+            assert w.backup is not None, "fill=backup before any site backup_now"
+            msg["name"] = w.backup
         elif name == "day":
             # The run's own service day (it starts at 04:00), at the request's utc_offset.
             tz = parse_offset(msg.get("utc_offset") or "+00:00")
@@ -638,6 +643,8 @@ async def _send(w: World, step: Step) -> None:
         w.device = got["device"]["id"]
     if msg["clientmsg"] == "site" and msg.get("action") == "upload" and "upload" in got:
         w.upload = got["upload"]["id"]
+    if msg["clientmsg"] == "site" and msg.get("action") == "backup_now" and "backup" in got:
+        w.backup = got["backup"]["name"]
     if reply is None:
         if got["servermsg"] != "ok":
             _fail(step, "documented without a reply, so it must succeed", [json.dumps(got)])
@@ -865,6 +872,7 @@ REPLAYED_CODES = frozenset(
         "invalid_field",
         "not_found",
         "unknown_message",
+        "backup_error",
     }
 )
 #: Where each error code of the doc's table is produced on the wire.

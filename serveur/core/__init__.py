@@ -15,10 +15,13 @@ lifecycle, the dispatcher's and the alerts' view of the fleet), :mod:`~serveur.c
 (what screens are shown, fan-out), :mod:`~serveur.core.traffic` and
 :mod:`~serveur.core.leases` (zones), :mod:`~serveur.core.site` (the owner's changes),
 :mod:`~serveur.core.service` (dishes' steps, the menu, blocked tables, the watch loop) and
-:mod:`~serveur.core.alerts` (the alert rules, pure). docs/architecture.md draws the whole.
+:mod:`~serveur.core.alerts` (the alert rules, pure), :mod:`~serveur.core.backups` (when backups
+are made and kept, pure), :mod:`~serveur.core.shelf` (the backups folder) and
+:mod:`~serveur.core.backup_desk` (the console's backups and restores). docs/architecture.md draws
+the whole.
 
 May import: serveur.clock, serveur.domain, serveur.status, serveur.protocol,
-serveur.scheduler, serveur.store.base, serveur.maps, serveur.robots.
+serveur.scheduler, serveur.store.base, serveur.store.restore, serveur.maps, serveur.robots.
 """
 
 __all__: list[str] = []

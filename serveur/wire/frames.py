@@ -29,6 +29,7 @@ from serveur.domain import (
     ZoneRecord,
 )
 from serveur.errors import ServeurError
+from serveur.wire.backups import BackupInfo, RestoreInfo
 from serveur.wire.fields import RequestId, Topic
 
 __all__ = [
@@ -234,6 +235,7 @@ ErrorCode: TypeAlias = Literal[
     "stale",
     "rosbridge_error",
     "link_error",
+    "backup_error",
     "internal_error",
 ]
 
@@ -305,6 +307,16 @@ class OkReply(_ServerModel):
     outside: list[str] | None = Field(
         default=None, description="site set_map: the places no longer on free floor"
     )
+    backups: list[BackupInfo] | None = Field(
+        default=None, description="site backups: the box's backups, newest first"
+    )
+    backup: BackupInfo | None = Field(default=None, description="site backup_now: the new one")
+    download: str | None = Field(
+        default=None, description="site backup_now, download_backup: the backup's link"
+    )
+    restore: RestoreInfo | None = Field(
+        default=None, description="site restore: what the backup holds, what it would lose"
+    )
     stats: dict[str, Any] | None = Field(
         default=None,
         description="stats: figures ({periods, total}) or the trip history ({trips, more})",
@@ -316,7 +328,7 @@ class UploadInfo(_ServerModel):
     ``received``, at most ``part`` bytes."""
 
     id: int
-    kind: Literal["map_yaml", "map_image"]
+    kind: Literal["map_yaml", "map_image", "plan", "backup"]
     name: str
     size: int
     received: int

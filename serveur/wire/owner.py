@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal, TypeAlias
 from pydantic import Field, StrictBool, model_validator
 from pydantic_core import PydanticCustomError
 
+from serveur.wire.backups import SiteBackupNow, SiteBackups, SiteDownloadBackup, SiteRestore
 from serveur.wire.base import ClientModel
 from serveur.wire.fields import Name, OrderId, WsUrl
 from serveur.wire.uploads import SitePlanMap, SiteSetMap, SiteUpload, SiteUploadPart
@@ -227,7 +228,11 @@ SiteMessage: TypeAlias = Annotated[
     | SiteUploadPart
     | SiteSetMap
     | SitePlanMap
-    | SiteProbeRobot,
+    | SiteProbeRobot
+    | SiteBackups
+    | SiteBackupNow
+    | SiteDownloadBackup
+    | SiteRestore,
     Field(discriminator="action"),
 ]
 

@@ -95,6 +95,14 @@ MESSAGES: dict[str, dict[str, Any]] = {
     },
     "site set_map": {"clientmsg": "site", "action": "set_map", "yaml": 1, "image": 2},
     "site probe_robot": {"clientmsg": "site", "action": "probe_robot", "url": "ws://10.0.0.9:9090"},
+    "site backups": {"clientmsg": "site", "action": "backups"},
+    "site backup_now": {"clientmsg": "site", "action": "backup_now"},
+    "site download_backup": {
+        "clientmsg": "site",
+        "action": "download_backup",
+        "name": "serveur-now-20261128-221502.db",
+    },
+    "site restore": {"clientmsg": "site", "action": "restore", "upload": 1},
     "site plan_map": {
         "clientmsg": "site",
         "action": "plan_map",
