@@ -1,18 +1,22 @@
 // The first-run setup page (setup.html#setup=CODE): the owner, on a tablet, chooses their
 // password (the code in the link the server printed at its first start creates the owner once:
 // `login` with `setup`), then the restaurant's name, languages and the address its tablets
-// reach it at (`site set_settings`: every screen's setup link and QR code uses it), then goes on
-// to the console to add robots, the map and places. Each step can be left and resumed: after the
+// reach it at (`site set_settings`: every screen's setup link and QR code uses it), the robots
+// (each address tested live), the places on the map (setup/places.js) and one test trip
+// (setup/trip.js), then goes on to the console. Each step can be left and resumed: after the
 // first the page is logged in as the owner (the session token is kept like the console's), and
-// opening it again shows the step not done yet, filled with what was saved.
+// opening it again shows the first step not done yet, filled with what was saved.
 
 import { Connection, loadToken } from "./ws.js";
+import { Live } from "./live.js";
 import { onLangChange, t } from "./i18n.js";
+import { say, show } from "./setup/steps.js";
+import { PlacesStep, placesState } from "./setup/places.js";
+import { TripStep } from "./setup/trip.js";
 
-const STEPS = ["owner", "restaurant", "robots", "next"];
 const code = setupCode();
 const conn = new Connection();
-const problem = document.getElementById("setup-problem");
+const live = new Live(conn);
 let settings = null;
 
 function setupCode() {
@@ -21,24 +25,6 @@ function setupCode() {
   // Out of the address bar and the history: a code is used once.
   window.history.replaceState(null, "", window.location.pathname + window.location.search);
   return decodeURIComponent(m[1]);
-}
-
-function say(key, params) {
-  problem.hidden = !key;
-  problem.textContent = key ? t(key, params) : "";
-}
-
-function show(step) {
-  const at = STEPS.indexOf(step);
-  for (const [i, name] of STEPS.entries()) {
-    document.getElementById(`step-${name}`).hidden = name !== step;
-    const item = document.querySelector(`.steps [data-step="${name}"]`);
-    if (i === at) item.setAttribute("aria-current", "step");
-    else item.removeAttribute("aria-current");
-    item.classList.toggle("done", i < at);
-  }
-  const first = document.querySelector(`#step-${step} input, #step-${step} a`);
-  if (first) first.focus();
 }
 
 // -- step 1: the owner -------------------------------------------------------------------------
@@ -176,7 +162,16 @@ robotForm.addEventListener("submit", async (e) => {
   }
 });
 
-document.getElementById("robots-done").addEventListener("click", () => show("next"));
+document.getElementById("robots-done").addEventListener("click", () => show("places"));
+
+// -- steps 4 and 5: the places, a test trip ------------------------------------------------------
+
+new PlacesStep(conn, live);
+new TripStep(conn, live);
+// Every robot's pose, live on the map (as the console follows them).
+live.addEventListener("change", (e) => {
+  if (e.detail.topic === "robots") conn.subscribe([...live.robots.keys()].map((n) => `pose:${n}`));
+});
 
 // -- the connection -------------------------------------------------------------------------------
 
@@ -190,8 +185,9 @@ conn.addEventListener("login", (e) => {
   document.getElementById("owner-form").hidden = !code;
 });
 
-// Online (after the session: the "state" event follows it): as the owner, the step not done.
-// Only once: a reconnect (the Wi-Fi blinked) must not refill a form being typed in.
+// Online (after the session: the "state" event follows it): as the owner, the first step not
+// done, once the live state's first snapshot is in. Only once: a reconnect (the Wi-Fi blinked)
+// must not refill a form being typed in, nor move the owner to another step.
 let resumed = false;
 conn.addEventListener("state", async (e) => {
   if (e.detail.state !== "online" || !conn.session || resumed) return;
@@ -205,8 +201,15 @@ conn.addEventListener("state", async (e) => {
   // this page, whatever default they give the screens.
   settings = reply.settings;
   fillRestaurant(settings);
+  conn.subscribe(["robots", "waypoints", "map", "tasks", "orders", "settings"]);
+});
+conn.addEventListener("snapshot", (e) => {
+  if (resumed || !settings || !("robots" in e.detail.data)) return;
   resumed = true;
-  show(settings.name && settings.public_url ? "robots" : "restaurant");
+  if (!(settings.name && settings.public_url)) show("restaurant");
+  else if (!live.robots.size) show("robots");
+  else if (!placesState(live).ready) show("places");
+  else show("trip");
 });
 
 onLangChange(() => settings && fillLanguages(languageSelect.value));
