@@ -8,6 +8,9 @@ script, so the browser context bypasses it to inject axe.
 Checked: the staff console after login on each of its tabs (the owner's, so the menu and
 accounts tabs too, the latter also showing a new password and a screen's QR code),
 a robot's screen and a table's screen, with a trip under way so status badges and buttons show.
+The first-run setup page is checked with ``violations`` where its tests reach each state:
+tests/web/test_setup_ui.py (each step on a phone, the places step with and without a map) and
+tests/web/test_first_service.py (the places placed and the test trip at its table, on a tablet).
 The WCAG 2.1 A/AA rules and best practices run, with ``label-content-name-mismatch`` (an
 experimental rule: a button whose accessible name does not contain its visible words).
 """
