@@ -98,7 +98,14 @@ def ui_app(r_db: Path, clock: ScaledClock, specs: list[RobotSpec], port: int = 0
     nav_map, waypoints = load_demo()
     cfg = CoreConfig(heartbeat=10.0, ack_timeout=5.0, auto_depart=True)
     return App(
-        r_db, port=port, clock=clock, nav_map=nav_map, waypoints=waypoints, robots=specs, config=cfg
+        r_db,
+        port=port,
+        clock=clock,
+        nav_map=nav_map,
+        waypoints=waypoints,
+        robots=specs,
+        config=cfg,
+        backups=r_db.parent / "backups",
     )
 
 

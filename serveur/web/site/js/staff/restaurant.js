@@ -6,7 +6,7 @@
 // `create zone` with `replace`.
 //
 // This module is the panel: it lays out the sections (restaurant/robots.js, places.js, zones.js,
-// settings.js) and keeps them live. It also follows the `settings` topic (every role may read
+// settings.js, map.js, plan.js, backups.js) and keeps them live. It also follows the `settings` topic (every role may read
 // it): the language pickers offer the site's languages and a device with no choice of its own
 // speaks the site's default.
 
@@ -18,6 +18,7 @@ import { SettingsSection } from "./restaurant/settings.js";
 import { ZonesSection } from "./restaurant/zones.js";
 import { MapSection } from "./restaurant/map.js";
 import { PlanSection } from "./restaurant/plan.js";
+import { BackupsSection } from "./restaurant/backups.js";
 
 export class RestaurantPanel {
   constructor(root, conn, live) {
@@ -35,6 +36,7 @@ export class RestaurantPanel {
 
     this.map = new MapSection(conn);
     this.plan = new PlanSection(conn);
+    this.backups = new BackupsSection(conn);
     root.append(
       el(
         "div",
@@ -45,6 +47,7 @@ export class RestaurantPanel {
         this.settings.section,
         this.map.section,
         this.plan.section,
+        this.backups.section,
       ),
     );
 
@@ -61,6 +64,7 @@ export class RestaurantPanel {
       this.robots.rows.invalidate();
       this.places.rows.invalidate();
       this.zones.rows.invalidate();
+      this.backups.rows.invalidate();
       this.settings.fillLanguage();
       this.render();
     });
@@ -71,6 +75,7 @@ export class RestaurantPanel {
   /** The tab was opened: the lists are live; read the settings afresh. */
   async shown() {
     this.render();
+    this.backups.load();
     try {
       const reply = await this.conn.request({ clientmsg: "site", action: "settings" });
       this.settings.got(reply.settings); // a form the owner began filling meanwhile is kept
