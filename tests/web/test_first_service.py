@@ -4,7 +4,9 @@ robot's address is tested and the robot added; the map is made from the restaura
 in the console (opened from the setup page in a new tab; its measured distances within 2 % of
 the plan's truth); back on the setup page the pass, the robot's home and two tables are put on
 the map (a tap, "Save where r1 stands", the keyboard); and the test trip is sent, loaded (Go),
-delivered and collected, the robot back home. A screenshot of each step at tablet size.
+delivered and collected, the robot back home. A second one, left at its table, goes on after the
+site's time at a table (set in the console) and its dish is taken off the pass. A screenshot of
+each step at tablet size.
 
 The simulated robot lives in the room the plan draws (its map the plan's walls at their true
 scale, as a robot that mapped the room would have), so the places tapped on the owner's map are
@@ -189,6 +191,20 @@ async def test_a_new_owner_from_an_empty_database_to_a_delivered_trip(
         (order,) = await app.store.orders.list_orders()
         assert (order.table, order.status.value) == ("T1", "delivered")
         await page.screenshot(path=str(SHOTS / "first-run-7-delivered.png"), full_page=True)
+
+        # Nobody at the table: after the site's time at a table (10 s here, set in the console)
+        # the robot goes on by itself, and the test dish is taken off the pass.
+        await console.bring_to_front()
+        await console.get_by_label("Wait at a table (seconds)").fill("10")
+        await console.get_by_role("button", name="Save settings").click()
+        await expect(console.get_by_text("Settings saved: they apply now")).to_be_visible()
+        await page.bring_to_front()
+        await page.get_by_role("button", name="Send the test trip").click()
+        await page.get_by_role("button", name="Go", exact=True).click()
+        await expect(progress).to_contain_text("Nobody pressed Food collected within 10 s")
+        await expect(progress).to_have_attribute("data-dish", "voided")
+        orders = {o.id: o.status.value for o in await app.store.orders.list_orders()}
+        assert sorted(orders.values()) == ["delivered", "voided"], orders
         await page.get_by_role("link", name="Open the console").click()
         await expect(page.get_by_test_id("who")).to_contain_text("ana")
         assert errors == []

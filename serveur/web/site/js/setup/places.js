@@ -63,6 +63,9 @@ export class PlacesStep {
       this.save();
     });
     document.getElementById("place-cancel").addEventListener("click", () => this.cancel());
+    this.form.addEventListener("keydown", (e) => {
+      if (e.key === "Escape" && !document.querySelector("dialog[open]")) this.cancel();
+    });
     document.getElementById("places-back").addEventListener("click", () => show("robots"));
     this.doneBtn = document.getElementById("places-done");
     this.doneBtn.addEventListener("click", () => show("trip"));

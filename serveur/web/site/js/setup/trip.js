@@ -12,7 +12,7 @@
 import { el, formatDuration, KeyedList, newKey } from "../ui.js";
 import { onLangChange, statusName, t } from "../i18n.js";
 import { placesState } from "./places.js";
-import { show } from "./steps.js";
+import { say, show } from "./steps.js";
 
 const KEY = "serveur.setup.trip";
 // From these a robot can be woken for deliveries; any other is busy (or cannot move).
@@ -65,7 +65,9 @@ export class TripStep {
       e.preventDefault();
       this.send();
     });
-    this.robotSelect.addEventListener("change", () => this.pickNearestTable());
+    this.tablePicked = false; // the owner chose the table: it is kept
+    this.robotSelect.addEventListener("change", () => this.tablePicked || this.pickNearestTable());
+    this.tableSelect.addEventListener("change", () => (this.tablePicked = true));
     this.goBtn.addEventListener("click", () => this.press(this.goBtn, "go"));
     this.collectedBtn.addEventListener("click", () => this.press(this.collectedBtn, "next"));
     document.getElementById("trip-back").addEventListener("click", () => show("places"));
@@ -89,7 +91,7 @@ export class TripStep {
     if (!robots.includes(chosen)) this.robotSelect.value = robots[0] || "";
     const table = this.tableSelect.value;
     this.tables.update(state.tables);
-    if (!state.tables.includes(table)) this.pickNearestTable();
+    if (!this.tablePicked || !state.tables.includes(table)) this.pickNearestTable();
     this.follow();
   }
 
@@ -120,8 +122,9 @@ export class TripStep {
     const table = this.tableSelect.value;
     const r = this.live.robots.get(robot);
     if (!r || !table) return;
+    say(null);
     if (!WAKE.has(r.status) || (r.status === "Transit" && r.mode !== "auto")) {
-      this.say(t("setup.trip.busy", { robot, status: statusName(r.status) }), "");
+      say("setup.trip.busy", { robot, status: statusName(r.status) });
       return;
     }
     this.sendBtn.disabled = true;
@@ -134,13 +137,21 @@ export class TripStep {
         { resend: true },
       );
       this.setTrip({ order: made.order.id, task: null, robot, table, end: null });
-      const cart = await this.conn.request(
-        { clientmsg: "create", type: "task", orders: [made.order.id], key: newKey("setup-trip") },
-        { resend: true },
-      );
+      let cart;
+      try {
+        cart = await this.conn.request(
+          { clientmsg: "create", type: "task", orders: [made.order.id], key: newKey("setup-trip") },
+          { resend: true },
+        );
+      } catch (err) {
+        // No trip (a table robots cannot reach, ...): the test dish does not stay at the pass.
+        this.conn.request({ clientmsg: "dish", order: made.order.id, action: "void", status: "pending" }).catch(() => {});
+        this.setTrip(null);
+        throw err;
+      }
       this.setTrip({ ...this.trip, task: cart.tasks[0].id });
     } catch (err) {
-      this.say(t("setup.failed", { message: err.message }), "");
+      say("setup.failed", { message: err.message });
     } finally {
       this.sendBtn.disabled = false;
       this.follow();
@@ -151,11 +162,12 @@ export class TripStep {
   async press(button, verb) {
     const robot = this.tripRobot();
     if (!robot) return;
+    say(null);
     button.disabled = true;
     try {
       await this.conn.request({ clientmsg: verb, robot, ...this.live.target(robot) });
     } catch (err) {
-      this.say(t("setup.failed", { message: err.message }), "");
+      say("setup.failed", { message: err.message });
     } finally {
       button.disabled = false;
     }
@@ -169,7 +181,8 @@ export class TripStep {
     return (task && task.robot) || trip.robot;
   }
 
-  say(text, how) {
+  /** The trip's progress (a live region) and what to do now. */
+  tell(text, how) {
     if (this.progress.textContent !== text) this.progress.textContent = text;
     if (this.how.textContent !== how) this.how.textContent = how;
   }
@@ -185,13 +198,14 @@ export class TripStep {
       this.sendBtn.disabled = Boolean(trip && !trip.end);
     };
     if (!trip) {
-      this.say("", "");
+      this.tell("", "");
       return done();
     }
     const robot = this.tripRobot();
     const r = this.live.robots.get(robot);
     const order = this.live.orders.get(trip.order);
     const task = trip.task === null ? null : this.live.tasks.get(trip.task);
+    if (order) this.progress.dataset.dish = order.status; // the test dish's status, as last seen
     const where = { robot, table: trip.table };
     const timeout = this.live.settings ? this.live.settings.table_timeout : 180;
     if (order && order.status === "delivered" && !trip.end) trip.end = "delivered";
@@ -210,7 +224,7 @@ export class TripStep {
     store(trip);
     if (trip.end === "delivered") {
       const home = r && r.status === "Awaiting";
-      this.say(t(home ? "setup.trip.home" : "setup.trip.delivered", where), t("setup.trip.ready"));
+      this.tell(t(home ? "setup.trip.home" : "setup.trip.delivered", where), t("setup.trip.ready"));
     } else if (trip.end) {
       const key = {
         returned: "setup.trip.returned",
@@ -219,29 +233,29 @@ export class TripStep {
         over: "setup.trip.over",
       }[trip.end];
       const limit = timeout ? limitWords(timeout) : "";
-      this.say(t(key || "setup.trip.cancelled", { ...where, limit }), t("setup.trip.again"));
+      this.tell(t(key || "setup.trip.cancelled", { ...where, limit }), t("setup.trip.again"));
     } else if (!r) {
-      this.say(t("setup.trip.noRobot", where), "");
+      this.tell(t("setup.trip.noRobot", where), "");
     } else if (r.status === "Offline") {
-      this.say(t("setup.trip.offline", where), t("setup.trip.offlineHow"));
+      this.tell(t("setup.trip.offline", where), t("setup.trip.offlineHow"));
     } else if (!task || task.status === "queued" || r.current_task !== task.id) {
       const key = r.status === "Transit" ? "setup.trip.goingHome" : "setup.trip.waiting";
-      this.say(t(key, { ...where, status: statusName(r.status) }), "");
+      this.tell(t(key, { ...where, status: statusName(r.status) }), "");
     } else if (r.status === "Loading") {
       go = true;
-      this.say(t("setup.trip.loading", where), t("setup.trip.loadingHow"));
+      this.tell(t("setup.trip.loading", where), t("setup.trip.loadingHow"));
     } else if (r.status === "Delivering") {
-      this.say(t("setup.trip.delivering", where), "");
+      this.tell(t("setup.trip.delivering", where), "");
     } else if (r.status === "Delivered") {
       collected = true;
       const how = timeout
         ? t("setup.trip.atTableHow", { ...where, limit: limitWords(timeout) })
         : t("setup.trip.atTableForever", where);
-      this.say(t("setup.trip.atTable", where), how);
+      this.tell(t("setup.trip.atTable", where), how);
     } else if (r.status === "Stopped" || r.status === "Error") {
-      this.say(t("setup.trip.stuck", { ...where, status: statusName(r.status), why: r.last_error || "" }), t("setup.trip.stuckHow"));
+      this.tell(t("setup.trip.stuck", { ...where, status: statusName(r.status), why: r.last_error || "" }), t("setup.trip.stuckHow"));
     } else {
-      this.say(t("setup.trip.status", { ...where, status: statusName(r.status) }), "");
+      this.tell(t("setup.trip.status", { ...where, status: statusName(r.status) }), "");
     }
     return done();
   }
