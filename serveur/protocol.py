@@ -131,6 +131,7 @@ from serveur.wire.owner import (
 from serveur.wire.uploads import (
     UPLOAD_LIMITS,
     UPLOAD_PART,
+    SiteAlignMap,
     SitePlanMap,
     SiteSetMap,
     SiteUpload,
@@ -206,6 +207,7 @@ __all__ = [
     "ScanData",
     "ServerMessage",
     "Session",
+    "SiteAlignMap",
     "SiteAudit",
     "SiteBackupNow",
     "SiteBackups",
@@ -709,6 +711,7 @@ _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
             "set_map",
             "plan_map",
             "probe_robot",
+            "align_map",
             "backups",
             "backup_now",
             "download_backup",

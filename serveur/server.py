@@ -36,7 +36,7 @@ from serveur.core.backup_desk import DOWNLOAD_PATH, BackupDesk
 from serveur.core.camera import CameraRelay, CameraViewer
 from serveur.core.engine import Core
 from serveur.core.hub import Subscriber
-from serveur.core.site_map import plan_map, set_map_files
+from serveur.core.site_map import BACKDROP_PATH, align_map, backdrop_image, plan_map, set_map_files
 from serveur.core.uploads import Uploads
 from serveur.errors import (
     BackupError,
@@ -69,14 +69,18 @@ _STATE_TOPICS = frozenset(P.STATE_TOPICS)
 
 
 def _http(
-    status: http.HTTPStatus, body: bytes, content_type: str, *extra: tuple[str, str]
+    status: http.HTTPStatus,
+    body: bytes,
+    content_type: str,
+    *extra: tuple[str, str],
+    cache: str = "no-store",
 ) -> Response:
     headers = Headers(
         [
             ("Content-Type", content_type),
             ("Content-Length", str(len(body))),
             ("X-Content-Type-Options", "nosniff"),
-            ("Cache-Control", "no-store"),
+            ("Cache-Control", cache),
             *extra,
         ]
     )
@@ -228,6 +232,12 @@ class Server:
                 {"status": "ok", "robots": {n: st.value for n, st in self.core.robot_statuses()}}
             ).encode()
             return _http(http.HTTPStatus.OK, body, "application/json")
+        if path.startswith(BACKDROP_PATH):
+            found = await backdrop_image(self.core.store, path.removeprefix(BACKDROP_PATH))
+            if found is None:
+                return _http(http.HTTPStatus.NOT_FOUND, b"no such floor plan\n", "text/plain")
+            # Named by its digest: the same address is always the same picture.
+            return _http(http.HTTPStatus.OK, *found, cache="max-age=31536000, immutable")
         if path.startswith(DOWNLOAD_PATH) and self.backups is not None:
             status, body = await self.backups.fetch(request.path)
             if status is not http.HTTPStatus.OK:
@@ -488,6 +498,21 @@ class Server:
             conn.uploads.done(msg.upload)  # a preview keeps it for the next try
         return reply
 
+    async def _align_map(self, conn: _Conn, msg: P.SiteAlignMap) -> dict[str, Any]:
+        plan = None if msg.upload is None else conn.uploads.take(msg.upload, "plan")
+        core = self.core
+        reply = await align_map(
+            core.store,
+            core.places,
+            core.clock,
+            None if plan is None else bytes(plan.data),
+            msg,
+            actor=conn.actor,
+        )
+        if msg.apply and msg.upload is not None:
+            conn.uploads.done(msg.upload)
+        return reply
+
     async def _probe_robot(self, conn: _Conn, msg: P.SiteProbeRobot) -> dict[str, Any]:
         found = await probe(msg.url, ssl=self.core.crew.robot_ssl)
         return {"probe": found.as_dict()}
@@ -695,6 +720,7 @@ _SERVER_VERBS: dict[type, Callable[[Server, _Conn, Any], Awaitable[dict[str, Any
     P.SiteSetMap: Server._set_map,
     P.SitePlanMap: Server._plan_map,
     P.SiteProbeRobot: Server._probe_robot,
+    P.SiteAlignMap: Server._align_map,
     P.SiteAudit: Server._search_audit,
     P.SiteBackups: Server._list_backups,
     P.SiteBackupNow: Server._backup_now,

@@ -52,7 +52,7 @@ from serveur.core.robot import RobotController
 from serveur.core.runtime import CoreConfig, Destination, Runtime, pose_dict
 from serveur.core.service import Service
 from serveur.core.site import Site
-from serveur.core.site_map import stored_map
+from serveur.core.site_map import stored_backdrop, stored_map
 from serveur.core.traffic import Traffic
 from serveur.core.trips import Trips
 from serveur.domain import (
@@ -264,6 +264,7 @@ class Core:
         await self.publisher.skip_stored_events()
         await self.site.load_settings()
         await self.traffic.load_zones()
+        self.places.backdrop = await stored_backdrop(self.store)
         # Path distances between all waypoints are planned before any robot is driven.
         await self.places.load(
             await self.store.waypoints.list_waypoints(), stored=await stored_map(self.store)

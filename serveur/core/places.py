@@ -57,6 +57,8 @@ class Places:
         )
         self._map_path = map_path
         self._map_json: str | None = None
+        #: The floor plan drawn under the map (``site align_map``), as the snapshot says it.
+        self.backdrop: dict[str, Any] | None = None
         self._plan_in_child = plan_in_child
         self.distances = Distances()
         #: Background planning jobs (a new waypoint, an adopted map); cancelled by :meth:`close`.
@@ -144,9 +146,19 @@ class Places:
         """The ``map`` topic's snapshot: the map as screens draw it, or None."""
         return json.loads(self._map_json) if self._map_json else None
 
+    def use_backdrop(self, backdrop: dict[str, Any] | None) -> None:
+        """The floor plan under the map changed (fitted, or gone with a new map): every screen
+        gets the map again with it."""
+        self.backdrop = backdrop
+        if self.map is not None:
+            self._set_map(self.map)
+
     def _set_map(self, m: MapData) -> None:
         self.map = m
-        self._map_json = P.dump(m.snapshot())
+        snap = m.snapshot()
+        if self.backdrop is not None:
+            snap["backdrop"] = self.backdrop
+        self._map_json = P.dump(snap)
         self._hub.publish("map", self._map_json)
 
     async def _plan(self, sources: list[str] | None) -> None:

@@ -10,6 +10,7 @@ they are; those that are no longer on free floor are named to the owner, who mov
 from __future__ import annotations
 
 import base64
+import hashlib
 import json
 import logging
 from typing import Any
@@ -17,12 +18,27 @@ from typing import Any
 from serveur import protocol as P
 from serveur.clock import Clock
 from serveur.core.places import Places
+from serveur.errors import Conflict, InvalidField
+from serveur.maps.align import Similarity, fit
 from serveur.maps.child import run_child
 from serveur.maps.distances import MapData
 from serveur.maps.mapfiles import read_map_files_in_child
-from serveur.store.base import Store, StoredMap
+from serveur.store.base import Store, StoredBackdrop, StoredMap
 
-__all__ = ["plan_map", "set_map_files", "stored_map"]
+__all__ = [
+    "BACKDROP_PATH",
+    "align_map",
+    "backdrop_image",
+    "plan_map",
+    "set_map_files",
+    "stored_backdrop",
+    "stored_map",
+]
+
+#: Where the floor plan under the map is served: ``/site/backdrop/<digest>`` (the image's
+#: SHA-256: a new plan is a new address, and an address nobody was shown is not guessed).
+BACKDROP_PATH = "/site/backdrop/"
+_MIMES = {b"\x89PNG\r\n\x1a\n": "image/png", b"\xff\xd8\xff": "image/jpeg"}
 
 log = logging.getLogger(__name__)
 
@@ -60,6 +76,9 @@ async def _use(
     """Store ``m`` as the restaurant's map and use it; the places now off free floor."""
     stored = StoredMap(m.resolution, m.origin[:2], m.width, m.height, m.data, source)
     await store.site_map.put(stored, now=clock.epoch(), by=actor)
+    # A floor plan fitted onto the old map would sit wrong on this one (another frame).
+    if await store.site_backdrop.clear():
+        places.backdrop = None
     places.use_map(m)
     outside = places.outside(m)
     log.info("the owner set the map from %s; places off free floor: %s", source, outside)
@@ -113,4 +132,87 @@ async def plan_map(
     }
     if msg.apply:
         out["outside"] = await _use(store, places, clock, m, source, actor)
+    return out
+
+
+def _backdrop_info(b: StoredBackdrop) -> dict[str, Any]:
+    return {
+        "url": f"{BACKDROP_PATH}{b.digest}",
+        "scale": b.scale,
+        "rotation": b.rotation,
+        "tx": b.tx,
+        "ty": b.ty,
+    }
+
+
+async def stored_backdrop(store: Store) -> dict[str, Any] | None:
+    """The floor plan under the map, as the ``map`` snapshot says it, or None."""
+    got = await store.site_backdrop.get()
+    return None if got is None else _backdrop_info(got)
+
+
+async def backdrop_image(store: Store, digest: str) -> tuple[bytes, str] | None:
+    """The floor plan's image and its type, if ``digest`` names the one under the map."""
+    got = await store.site_backdrop.get()
+    if got is None or not digest or digest != got.digest:
+        return None
+    return got.image, got.mime
+
+
+def _fit_info(t: Similarity) -> dict[str, Any]:
+    return {
+        "scale": t.scale,
+        "rotation": t.rotation,
+        "tx": t.tx,
+        "ty": t.ty,
+        "residuals": [round(r, 4) for r in t.residuals],
+        "rms": round(t.rms, 4),
+    }
+
+
+async def align_map(
+    store: Store,
+    places: Places,
+    clock: Clock,
+    plan: bytes | None,
+    msg: P.SiteAlignMap,
+    *,
+    actor: str | None,
+) -> dict[str, Any]:
+    """Fit the floor plan onto the map from the owner's matched spots; with ``apply``, store
+    the plan (its bytes as given: browsers decode it) and draw it under the map everywhere.
+
+    A plan pixel (column, row) counts rows downwards and the map's y goes up, so the fit
+    carries (column, -row): a similarity has no mirror."""
+    if places.map is None:
+        raise Conflict("there is no map yet to fit the floor plan onto")
+    src = [(p.plan[0], -p.plan[1]) for p in msg.points]
+    dst = [(p.map[0], p.map[1]) for p in msg.points]
+    # Spots bunched together are refused by their spread on the map (metres): the same spots
+    # on the plan are bunched too.
+    t = fit(src, dst)
+    out: dict[str, Any] = {"alignment": _fit_info(t)}
+    if not msg.apply:
+        return out
+    if plan is None:
+        raise InvalidField("give the floor plan's upload to draw it under the map", field="upload")
+    mime = next((m for magic, m in _MIMES.items() if plan.startswith(magic)), None)
+    if mime is None:
+        raise InvalidField("the floor plan is not a PNG or JPEG picture", field="upload")
+    stored = StoredBackdrop(
+        plan,
+        mime,
+        hashlib.sha256(plan).hexdigest()[:32],
+        t.scale,
+        t.rotation,
+        t.tx,
+        t.ty,
+        t.rms,
+        len(msg.points),
+    )
+    await store.site_backdrop.put(stored, now=clock.epoch(), by=actor)
+    places.use_backdrop(_backdrop_info(stored))
+    log.info(
+        "the owner fitted the floor plan onto the map (%d points, rms %.3f m)", len(src), t.rms
+    )
     return out

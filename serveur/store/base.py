@@ -39,13 +39,13 @@ from serveur.store.events import Events
 from serveur.store.orders import Orders
 from serveur.store.robots import Robots
 from serveur.store.service import Service
-from serveur.store.sitemap import SiteMap, StoredMap
+from serveur.store.sitemap import SiteBackdrop, SiteMap, StoredBackdrop, StoredMap
 from serveur.store.sql import Db
 from serveur.store.tasks import Tasks
 from serveur.store.waypoints import Waypoints
 from serveur.store.zones import Zones
 
-__all__ = ["Store", "StoredMap", "TokenRecord", "UserRecord"]
+__all__ = ["Store", "StoredBackdrop", "StoredMap", "TokenRecord", "UserRecord"]
 
 
 class Store:
@@ -74,6 +74,7 @@ class Store:
         self.service = Service(db)
         self.zones = Zones(db)
         self.site_map = SiteMap(db)
+        self.site_backdrop = SiteBackdrop(db)
 
     async def __aenter__(self) -> Self:
         await self.open()

@@ -31,6 +31,7 @@ from serveur.domain import (
 from serveur.errors import ServeurError
 from serveur.wire.backups import BackupInfo, RestoreInfo
 from serveur.wire.fields import RequestId, Topic
+from serveur.wire.uploads import AlignInfo, BackdropInfo
 
 __all__ = [
     "SERVER_ADAPTER",
@@ -172,6 +173,9 @@ class MapSnapshot(_ServerModel):
     height: int = Field(ge=0)
     encoding: Literal["int8-base64"] = "int8-base64"
     data: str
+    backdrop: BackdropInfo | None = Field(
+        default=None, description="the floor plan drawn under the map (site align_map)"
+    )
 
 
 #: What one ``data`` snapshot holds per topic: a list of records for state topics, the map,
@@ -303,6 +307,9 @@ class OkReply(_ServerModel):
         default=None, description="site set_map, plan_map: the map now (or previewed)"
     )
     plan: PlanResult | None = Field(default=None, description="site plan_map: the result")
+    alignment: AlignInfo | None = Field(
+        default=None, description="site align_map: the floor plan fitted onto the map"
+    )
     probe: ProbeInfo | None = Field(default=None, description="site probe_robot: what was found")
     outside: list[str] | None = Field(
         default=None, description="site set_map: the places no longer on free floor"

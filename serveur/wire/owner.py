@@ -18,7 +18,13 @@ from pydantic_core import PydanticCustomError
 from serveur.wire.backups import SiteBackupNow, SiteBackups, SiteDownloadBackup, SiteRestore
 from serveur.wire.base import ClientModel
 from serveur.wire.fields import Name, OrderId, WsUrl
-from serveur.wire.uploads import SitePlanMap, SiteSetMap, SiteUpload, SiteUploadPart
+from serveur.wire.uploads import (
+    SiteAlignMap,
+    SitePlanMap,
+    SiteSetMap,
+    SiteUpload,
+    SiteUploadPart,
+)
 
 __all__ = [
     "LANGUAGES",
@@ -228,6 +234,7 @@ SiteMessage: TypeAlias = Annotated[
     | SiteUploadPart
     | SiteSetMap
     | SitePlanMap
+    | SiteAlignMap
     | SiteProbeRobot
     | SiteBackups
     | SiteBackupNow

@@ -12,15 +12,19 @@ from __future__ import annotations
 
 from typing import Annotated, Final, Literal
 
-from pydantic import Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from serveur.wire.base import ClientModel
 
 __all__ = [
     "UPLOAD_LIMITS",
     "UPLOAD_PART",
+    "AlignInfo",
+    "AlignPair",
+    "BackdropInfo",
     "PlanMeasure",
     "PlanStroke",
+    "SiteAlignMap",
     "SitePlanMap",
     "SiteSetMap",
     "SiteUpload",
@@ -110,3 +114,55 @@ class SitePlanMap(ClientModel):
     along: PlanMeasure
     resolution: Annotated[float, Field(ge=0.02, le=0.2)] = 0.05
     apply: bool = False
+
+
+#: A point on the map (m), as the map frame has it.
+MapPoint = Annotated[
+    list[Annotated[float, Field(ge=-10_000, le=10_000)]], Field(min_length=2, max_length=2)
+]
+
+
+class AlignPair(ClientModel):
+    """One spot marked on both: its pixel on the floor plan, its point on the robot's map."""
+
+    plan: PlanPoint
+    map: MapPoint
+
+
+class SiteAlignMap(ClientModel):
+    """Fit the floor plan onto the robot's map from matched spots (scale, rotation,
+    translation; serveur.maps.align). Without ``apply`` it is the fit alone; with it the plan
+    (``upload`` of kind ``plan``) is drawn under the map on every screen from then on."""
+
+    clientmsg: Literal["site"]
+    action: Literal["align_map"]
+    points: Annotated[list[AlignPair], Field(min_length=2, max_length=20)]
+    upload: Annotated[int, Field(ge=1)] | None = None
+    apply: bool = False
+
+
+class _Record(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class AlignInfo(_Record):
+    """The fit: metres on the map = ``scale`` * R(``rotation``) * (column, -row) + (tx, ty);
+    each pair's ``residuals`` (m) and their ``rms``."""
+
+    scale: float = Field(description="metres per plan pixel")
+    rotation: float = Field(description="radians")
+    tx: float
+    ty: float
+    residuals: list[float]
+    rms: float
+
+
+class BackdropInfo(_Record):
+    """The floor plan drawn under the map (the ``map`` topic's ``backdrop``): its image's
+    address and the fit that places its pixels (as :class:`AlignInfo`)."""
+
+    url: str
+    scale: float
+    rotation: float
+    tx: float
+    ty: float

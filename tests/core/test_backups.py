@@ -40,9 +40,9 @@ def test_names_say_the_kind_and_nothing_else_is_a_backup() -> None:
 
 
 def test_each_kind_keeps_its_newest() -> None:
-    entries = [
-        BackupEntry(f"n{i}", BackupKind.NIGHTLY, float(i), 1, "ok") for i in range(10)
-    ] + [BackupEntry(f"b{i}", BackupKind.BEFORE_RESTORE, float(i), 1, "ok") for i in range(2)]
+    entries = [BackupEntry(f"n{i}", BackupKind.NIGHTLY, float(i), 1, "ok") for i in range(10)] + [
+        BackupEntry(f"b{i}", BackupKind.BEFORE_RESTORE, float(i), 1, "ok") for i in range(2)
+    ]
     gone = to_prune(entries)
     assert gone == ["n0", "n1", "n2"]  # 7 nights kept; both before-restore copies too
     assert KEEP[BackupKind.NIGHTLY] == 7

@@ -95,6 +95,11 @@ MESSAGES: dict[str, dict[str, Any]] = {
     },
     "site set_map": {"clientmsg": "site", "action": "set_map", "yaml": 1, "image": 2},
     "site probe_robot": {"clientmsg": "site", "action": "probe_robot", "url": "ws://10.0.0.9:9090"},
+    "site align_map": {
+        "clientmsg": "site",
+        "action": "align_map",
+        "points": [{"plan": [0, 0], "map": [0.0, 0.0]}, {"plan": [100, 0], "map": [3.0, 0.0]}],
+    },
     "site backups": {"clientmsg": "site", "action": "backups"},
     "site backup_now": {"clientmsg": "site", "action": "backup_now"},
     "site download_backup": {

@@ -1097,3 +1097,22 @@ async def test_the_site_map_is_one_row_replaced_whole(store: Store) -> None:
     with pytest.raises(Conflict):
         await store.site_map.put(bad, now=12.0)
     assert await store.site_map.get() == second  # a refused map changed nothing
+
+
+async def test_the_floor_plan_under_the_map_is_one_row_cleared_with_a_new_map(
+    store: Store,
+) -> None:
+    from serveur.store.base import StoredBackdrop
+
+    assert await store.site_backdrop.get() is None
+    assert await store.site_backdrop.clear() is False
+    png = b"\x89PNG\r\n\x1a\n" + bytes(range(256)) * 40  # bytes kept as given
+    b = StoredBackdrop(png, "image/png", "ab" * 16, 0.027, 0.5, 1.0, -2.0, 0.03, 3)
+    await store.site_backdrop.put(b, now=10.0, by="user:ana")
+    assert await store.site_backdrop.get() == b
+    bad = StoredBackdrop(png, "image/gif", "cd" * 16, 0.027, 0.5, 1.0, -2.0, 0.03, 3)
+    with pytest.raises(Conflict):
+        await store.site_backdrop.put(bad, now=11.0)
+    assert await store.site_backdrop.get() == b
+    assert await store.site_backdrop.clear() is True
+    assert await store.site_backdrop.get() is None

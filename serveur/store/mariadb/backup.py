@@ -31,6 +31,7 @@ TABLES = (
     "settings",
     "zones",
     "site_map",
+    "site_backdrop",
 )
 # Every foreign key, as (table, its key, column, parent table, parent key), for the check.
 FOREIGN_KEYS = (

@@ -119,6 +119,21 @@ export function drawGrid(ctx, view, map, image) {
   ctx.restore();
 }
 
+/** The floor plan under the map (`map.backdrop`, fitted by the owner): its pixel (column, row)
+ *  is at scale * R(rotation) * (column, -row) + (tx, ty) on the map; drawn faint, over the grid. */
+export function drawBackdrop(ctx, view, backdrop, image) {
+  const { scale, rotation, tx, ty } = backdrop;
+  const c = Math.cos(rotation);
+  const s = Math.sin(rotation);
+  ctx.save();
+  ctx.globalAlpha = 0.4;
+  ctx.transform(view.scale, 0, 0, -view.scale, view.ox, view.oy);
+  ctx.transform(scale * c, scale * s, -scale * s, scale * c, tx, ty);
+  ctx.scale(1, -1);
+  ctx.drawImage(image, 0, 0);
+  ctx.restore();
+}
+
 /** Waypoint markers; their names go to `labels` (placed by drawLabels). */
 export function drawWaypoints(ctx, view, waypoints, labels) {
   ctx.save();

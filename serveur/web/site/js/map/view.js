@@ -36,6 +36,7 @@ import {
   arrow,
   drawBlocked,
   drawGoal,
+  drawBackdrop,
   drawGrid,
   drawLabels,
   drawLaterStops,
@@ -272,6 +273,22 @@ export class MapView {
     if (w && h) this._drawNow();
   }
 
+  /** The floor plan's image at `url` once loaded (null until then: it draws when it comes). */
+  _backdrop(url) {
+    if (!this._plan || this._plan.url !== url) {
+      const image = new Image();
+      this._plan = { url, image, ready: false };
+      image.onload = () => {
+        if (this._plan && this._plan.image === image) {
+          this._plan.ready = true;
+          this.requestDraw();
+        }
+      };
+      image.src = url;
+    }
+    return this._plan.ready ? this._plan.image : null;
+  }
+
   _drawNow() {
     if (this._frame) cancelAnimationFrame(this._frame);
     this._frame = 0;
@@ -295,6 +312,9 @@ export class MapView {
         if (!this.userMoved) this.fit();
       }
       drawGrid(ctx, this, map, this._image);
+      const plan = map.backdrop && this._backdrop(map.backdrop.url);
+      if (plan) drawBackdrop(ctx, this, map.backdrop, plan);
+      this.canvas.dataset.backdrop = String(Boolean(plan));
     } else {
       ctx.fillStyle = "#555";
       ctx.font = "16px system-ui, sans-serif";

@@ -6,7 +6,7 @@
 // `create zone` with `replace`.
 //
 // This module is the panel: it lays out the sections (restaurant/robots.js, places.js, zones.js,
-// settings.js, map.js, plan.js, backups.js) and keeps them live. It also follows the `settings` topic (every role may read
+// settings.js, map.js, plan.js, align.js, backups.js) and keeps them live. It also follows the `settings` topic (every role may read
 // it): the language pickers offer the site's languages and a device with no choice of its own
 // speaks the site's default.
 
@@ -19,6 +19,7 @@ import { ZonesSection } from "./restaurant/zones.js";
 import { MapSection } from "./restaurant/map.js";
 import { PlanSection } from "./restaurant/plan.js";
 import { BackupsSection } from "./restaurant/backups.js";
+import { AlignSection } from "./restaurant/align.js";
 
 export class RestaurantPanel {
   constructor(root, conn, live) {
@@ -36,6 +37,7 @@ export class RestaurantPanel {
 
     this.map = new MapSection(conn);
     this.plan = new PlanSection(conn);
+    this.align = new AlignSection(conn, live);
     this.backups = new BackupsSection(conn);
     root.append(
       el(
@@ -47,6 +49,7 @@ export class RestaurantPanel {
         this.settings.section,
         this.map.section,
         this.plan.section,
+        this.align.section,
         this.backups.section,
       ),
     );
@@ -55,6 +58,7 @@ export class RestaurantPanel {
     live.addEventListener("change", (e) => {
       const topic = e.detail.topic;
       if (topic === "robots" || topic === "waypoints" || topic === "zones" || topic === "leases") this.render();
+      if (topic === "map") this.align.mapChanged();
       if (topic === "settings") {
         applySiteLanguages(live.settings);
         this.settings.got(live.settings);
