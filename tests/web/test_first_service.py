@@ -178,7 +178,7 @@ async def test_a_new_owner_from_an_empty_database_to_a_delivered_trip(
         await expect(page.get_by_role("combobox", name="Table", exact=True)).to_have_value("T1")
         progress = page.locator("#trip-progress")
         await page.get_by_role("button", name="Send the test trip").click()
-        await expect(progress).to_have_text("r1 waits at the pass to be loaded.")
+        await expect(progress).to_have_text("r1 waits to be loaded.")
         await page.get_by_role("button", name="Go", exact=True).click()
         await expect(progress).to_have_text("r1 is at T1.")
         await expect(page.locator("#trip-how")).to_contain_text("within 3 minutes")
