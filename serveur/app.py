@@ -22,14 +22,13 @@ from serveur.core.backups import BackupKind
 from serveur.core.engine import Core, CoreConfig
 from serveur.core.shelf import BackupShelf
 from serveur.domain import WaypointKind, WaypointRecord, ZoneRecord
-from serveur.errors import Conflict
+from serveur.errors import Conflict, ServeurError
 from serveur.robots.names import OPTION_KEYS, RosNames
 from serveur.security.sessions import SecurityConfig, Sessions
 from serveur.server import Server
 from serveur.stats.remote import StatsService
 from serveur.store.base import Store
 from serveur.store.factory import open_store
-from serveur.store.restore import replace_sqlite_file
 from serveur.store.sqlite.db import SQLiteDb
 
 __all__ = ["App", "RobotSpec", "parse_robot_spec"]
@@ -182,11 +181,10 @@ class App:
         if self._backups is not None:
             self.shelf = BackupShelf(self._backups, self.store, self.clock)
             self.shelf.start()
-            file = self._sqlite_file()
             desk = BackupDesk(
                 self.shelf,
-                staging=None if file is None else file.with_name(file.name + ".restoring"),
-                restart=None if file is None else self.restart_on,
+                staging=self._staging(),
+                restart=self.restart_on,
             )
         self.server = Server(
             self.core,
@@ -201,32 +199,42 @@ class App:
         self._port = self.server.port  # a restart listens where the screens knew it
         return self
 
-    def _sqlite_file(self) -> Path | None:
-        """The database's file, when it is one SQLite file the app can swap."""
+    def _staging(self) -> Path:
+        """Where a backup waits for the restart that restores it: beside a SQLite file (the
+        rename is then within one file system), else in the backups folder."""
         db = self.store.db
         if isinstance(db, SQLiteDb) and db.path != ":memory:":
-            return Path(db.path)
-        return None
+            file = Path(db.path)
+            return file.with_name(file.name + ".restoring")
+        assert self._backups is not None
+        return self._backups / "restoring.db"
 
     async def restart_on(self, staged: Path) -> None:
-        """Stop, put the checked backup ``staged`` in place of the database, start again.
+        """Stop, make the database the checked backup ``staged``, start again.
 
         Robots are halted and every client closed first, as at any shutdown; robots and trips
-        are reconciled at the start as after any restart. If the restored database does not
-        start, the copy made just before (``before_restore``) is put back and started instead:
-        the restaurant is never left without a server.
+        are reconciled at the start as after any restart. The database is replaced whole or
+        not at all (a file renamed, or one transaction); if that fails the server starts again
+        on what it had, and if the restored database does not start, the copy made just before
+        (``before_restore``) is put back: the restaurant is never left without a server.
         """
         async with self._restart_lock:
-            file = self._sqlite_file()
-            assert file is not None and self.shelf is not None
+            assert self.shelf is not None
             shelf = self.shelf
             before = next(
                 (e for e in await shelf.entries() if e.kind is BackupKind.BEFORE_RESTORE), None
             )
             log.warning("restoring a backup: the server restarts on it")
             await self.close()
-            await asyncio.to_thread(replace_sqlite_file, file, staged)
             self.store = open_store(self._db)
+            try:
+                await self.store.replace_with(staged)
+            except ServeurError as exc:
+                log.error(
+                    "the backup could not be restored, starting on the database as it was: %s", exc
+                )
+            finally:
+                await asyncio.to_thread(staged.unlink, missing_ok=True)
             try:
                 await self.start()
             except Exception:
@@ -234,8 +242,8 @@ class App:
                 if before is None:
                     raise
                 await asyncio.to_thread(shutil.copyfile, shelf.path(before.name), staged)
-                await asyncio.to_thread(replace_sqlite_file, file, staged)
                 self.store = open_store(self._db)
+                await self.store.replace_with(staged)
                 await self.start()
             log.warning("restored: serving %s", self.url)
 

@@ -44,15 +44,14 @@ def entry_info(e: BackupEntry) -> dict[str, Any]:
 
 
 class BackupDesk:
-    """``restart`` is None where the database cannot be swapped from here (MariaDB: restored
-    with its own tools, docs/mariadb.md); ``staging`` is where a backup waits for it."""
+    """``staging`` is where a backup waits for ``restart`` (the app's) to restore it."""
 
     def __init__(
         self,
         shelf: BackupShelf,
         *,
-        staging: Path | None,
-        restart: Callable[[Path], Awaitable[None]] | None,
+        staging: Path,
+        restart: Callable[[Path], Awaitable[None]],
         monotonic: Callable[[], float] = time.monotonic,
     ) -> None:
         self.shelf = shelf
@@ -87,11 +86,6 @@ class BackupDesk:
     async def _restore(
         self, msg: P.SiteRestore, uploads: Uploads
     ) -> tuple[dict[str, Any], Path | None]:
-        if self._restart is None or self._staging is None:
-            raise BackupError(
-                "this restaurant's database is restored with its own tools (docs/mariadb.md)",
-                reason="backend",
-            )
         if self._restarting is not None:
             raise BackupError("a restore is already under way", reason="busy")
         staged = self._staging
@@ -126,7 +120,6 @@ class BackupDesk:
     def restart_after(self, replied: Awaitable[None], staged: Path) -> None:
         """Once ``replied`` (the requesting connection closed after its reply, or 5 s), hand
         the staged backup to the app's restart."""
-        assert self._restart is not None
         restart = self._restart
 
         async def go() -> None:

@@ -111,3 +111,7 @@ class Store:
     async def integrity_check(self) -> str:
         """``"ok"`` when the database is sound, else the problems found, one per line."""
         return await self.db.integrity_check()
+
+    async def replace_with(self, backup: Path) -> None:
+        """A restore, with the store closed: the database becomes the backup's content."""
+        await self.db.replace_with(backup)

@@ -24,7 +24,7 @@ from serveur.errors import BackupError
 from serveur.store.migrations import load_migrations
 from serveur.store.sql import Tx
 
-__all__ = ["BackupSummary", "inspect_backup", "lost_since", "replace_sqlite_file"]
+__all__ = ["BackupSummary", "inspect_backup", "lost_since"]
 
 #: What the console shows of a backup, and how each is counted.
 _COUNTS = {
@@ -110,15 +110,3 @@ async def lost_since(tx: Tx, backup: BackupSummary) -> dict[str, int]:
         )
         out[key] = int(rows[0]["n"])
     return out
-
-
-def replace_sqlite_file(db: str | Path, new: str | Path) -> None:
-    """Put ``new`` where the database ``db`` is (the server is stopped: nothing has it open).
-
-    The rename is atomic; the old file's ``-wal`` and ``-shm`` go first, or SQLite would
-    replay the old database's last transactions into the restored one.
-    """
-    target = Path(db)
-    for extra in ("-wal", "-shm", "-journal"):
-        target.with_name(target.name + extra).unlink(missing_ok=True)
-    os.replace(new, target)

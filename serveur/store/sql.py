@@ -136,6 +136,12 @@ class Db(Protocol):
         """``"ok"`` when the database is sound, else the problems found, one per line."""
         ...
 
+    async def replace_with(self, backup: Path) -> None:
+        """Make the database hold what the checked backup file ``backup`` (a SQLite copy, as
+        :meth:`backup` writes) holds; called while the database is closed (a restore: the
+        server is stopped). Whole or not at all."""
+        ...
+
 
 def sql_in(column: str, values: Sequence[object]) -> str:
     """``column IN (?, ...)``; false for no values (MariaDB refuses ``IN ()``)."""

@@ -15,10 +15,13 @@ from typing import Any
 from serveur.errors import StoreError
 from serveur.store.sql import Db, Tx
 
-__all__ = ["FOREIGN_KEYS", "TABLES", "backup", "integrity_check"]
+__all__ = ["FOREIGN_KEYS", "TABLES", "backup", "integrity_check", "restore"]
 
 # Tables in parent-before-child order, as the SQLite schema has them (for backups).
 TABLES = (
+    "users",
+    "tokens",
+    "audit",
     "waypoints",
     "robot_info",
     "task",
@@ -35,6 +38,7 @@ TABLES = (
 )
 # Every foreign key, as (table, its key, column, parent table, parent key), for the check.
 FOREIGN_KEYS = (
+    ("tokens", "id", "user_name", "users", "name"),
     ("robot_info", "name", "home", "waypoints", "name"),
     ("robot_info", "name", "current_task", "task", "id"),
     ("task", "id", "robot_name", "robot_info", "name"),
@@ -78,6 +82,51 @@ async def backup(db: Db, path: str | Path) -> None:
         await asyncio.to_thread(os.replace, tmp, target)
     except (OSError, sqlite3.Error) as exc:
         raise StoreError(f"backup to {target} failed: {exc}") from exc
+
+
+async def restore(db: Db, path: Path) -> None:
+    """Replace every row of every table with the SQLite backup's at ``path``, in one
+    transaction (a failure leaves the database as it was).
+
+    The backup is first brought to this version's schema (opened as a SQLite store: its own
+    migrations run), so an older copy restores too; ``schema_migrations`` itself is left as it
+    is. Foreign keys are checked by the copy's own integrity check before (a restore is only
+    offered for a checked backup), not row by row here: ``robot_info`` and ``task`` refer to
+    each other, so no insertion order satisfies both.
+    """
+    from serveur.store.sqlite.store import SQLiteStore
+
+    try:
+        async with SQLiteStore(path):
+            pass
+        columns = await asyncio.to_thread(_sqlite_columns, path)
+        rows = await asyncio.to_thread(_read_sqlite, path, columns)
+    except (OSError, sqlite3.Error) as exc:
+        raise StoreError(f"cannot read the backup {path}: {exc}") from exc
+
+    async def work(tx: Tx) -> None:
+        await tx.run("SET FOREIGN_KEY_CHECKS = 0")
+        try:
+            for table in reversed(TABLES):
+                await tx.run(f"DELETE FROM {table}")
+            for table in TABLES:
+                if rows[table]:
+                    names = ", ".join(f"`{c}`" for c in columns[table])
+                    marks = ", ".join("?" for _ in columns[table])
+                    await tx.many(f"INSERT INTO {table} ({names}) VALUES ({marks})", rows[table])
+        finally:
+            await tx.run("SET FOREIGN_KEY_CHECKS = 1")
+
+    await db.transact(work, "write")
+
+
+def _read_sqlite(path: Path, columns: Mapping[str, list[str]]) -> dict[str, list[tuple[Any, ...]]]:
+    with contextlib.closing(sqlite3.connect(path)) as conn:
+        out = {}
+        for table, cols in columns.items():
+            names = ", ".join(f'"{c}"' for c in cols)
+            out[table] = conn.execute(f"SELECT {names} FROM {table}").fetchall()
+        return out
 
 
 async def integrity_check(db: Db) -> str:

@@ -472,6 +472,15 @@ class Database:
         """A SQLite copy of every row (:func:`serveur.store.mariadb.backup.backup`)."""
         await maintenance.backup(self, path)
 
+    async def replace_with(self, backup: Path) -> None:
+        """Every row replaced by the backup's, in one transaction
+        (:func:`serveur.store.mariadb.backup.restore`)."""
+        await self.open()
+        try:
+            await maintenance.restore(self, backup)
+        finally:
+            await self.close()
+
     async def integrity_check(self) -> str:
         return await maintenance.integrity_check(self)
 

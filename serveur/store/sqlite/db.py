@@ -288,6 +288,13 @@ class SQLiteDb:
 
         await self.transact(work, "auto")
 
+    async def replace_with(self, backup: Path) -> None:
+        """The backup file takes the database file's place (renamed: whole or not at all; it
+        is migrated forward when the database is opened next)."""
+        if self.connection is not None:
+            raise StoreError("a database is replaced only while it is closed")
+        await asyncio.to_thread(_replace_file, self.path, backup)
+
     async def integrity_check(self) -> str:
         """``PRAGMA integrity_check`` and every foreign key (``PRAGMA foreign_key_check``)."""
 
@@ -300,6 +307,16 @@ class SQLiteDb:
 
         problems = await self.transact(work, "read")
         return "\n".join(problems) if problems != ["ok"] else "ok"
+
+
+def _replace_file(db: str, new: Path) -> None:
+    """Put ``new`` where the database ``db`` is (nothing has it open). The old file's
+    ``-wal`` and ``-shm`` go first, or SQLite would replay the old database's last
+    transactions into the restored one; the rename is atomic."""
+    target = Path(db)
+    for extra in ("-wal", "-shm", "-journal"):
+        target.with_name(target.name + extra).unlink(missing_ok=True)
+    os.replace(new, target)
 
 
 def _same_path(a: Path, b: str) -> bool:

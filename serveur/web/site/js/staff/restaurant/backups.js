@@ -25,7 +25,6 @@ const REASONS = {
   damaged: "owner.backups.reason.damaged",
   not_found: "owner.backups.reason.notFound",
   busy: "owner.backups.reason.busy",
-  backend: "owner.backups.reason.backend",
   off: "owner.backups.reason.off",
 };
 
