@@ -116,6 +116,24 @@ def _tls(ns: argparse.Namespace) -> tuple[ssl.SSLContext | None, ssl.SSLContext 
     return server, robots
 
 
+async def _backup_into(db: str, folder: str) -> int:
+    """``serveur backup --into FOLDER``: a backup made as the console's "Back up now" makes
+    it (named, checked, noted beside it, the oldest of its kind pruned), so the console lists
+    it with the server's own."""
+    from serveur.clock import ScaledClock
+    from serveur.core.backups import BackupKind
+    from serveur.core.shelf import BackupShelf
+    from serveur.store.factory import open_store
+
+    async with open_store(db) as store:
+        entry = await BackupShelf(folder, store, ScaledClock()).make(BackupKind.NOW)
+    if entry.check != "ok":
+        print(f"backup {folder}/{entry.name} is damaged:\n{entry.check}", file=sys.stderr)
+        return 1
+    print(f"backup of {db} written to {folder}/{entry.name} (integrity check: ok)")
+    return 0
+
+
 def _backups_folder(given: str | None, db: str) -> Path | None:
     """``--backups``, or the ``backups`` folder beside a SQLite file (a MariaDB server's
     backups need a folder named: its database is on another box)."""
@@ -455,6 +473,7 @@ def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     from serveur.store.maintenance import add_maintenance_parser
 
     add_maintenance_parser(sub)
+    sub.choices["backup"].set_defaults(backup_into=_backup_into)
     from serveur.stats.cli import add_stats_parser
 
     add_stats_parser(sub)

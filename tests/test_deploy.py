@@ -3,8 +3,8 @@
 Their command lines are run here with only the machine's paths swapped for a temporary
 directory (``/var/lib/serveur``, ``/etc/serveur``, ``/opt/serveur/bin/serveur``) and the
 address for loopback: the owner created the documented way before the first start (so no
-password is printed into the journal), the server started by ``ExecStart``, the nightly
-backup's shell line run against it while it serves, ``KillSignal`` stopping it with exit 0
+password is printed into the journal), the server started by ``ExecStart``, the by-hand
+backup's command line run against it while it serves (into the folder the server lists), ``KillSignal`` stopping it with exit 0
 within ``TimeoutStopSec``, and the documented restore bringing the backup's data back.
 ``systemd-analyze verify`` checks the files' syntax and keys where systemd is installed.
 """
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import configparser
+import json
 import os
 import shlex
 import shutil
@@ -29,7 +30,7 @@ from tests.subprocess_server import STARTUP, ServeurProcess, free_port, run_cli
 
 DEPLOY = Path(__file__).resolve().parent.parent / "deploy"
 BIN = "/opt/serveur/bin/serveur"
-UNITS = ("serveur.service", "serveur-backup.service", "serveur-backup.timer")
+UNITS = ("serveur.service", "serveur-backup.service")
 
 
 def unit(name: str) -> configparser.ConfigParser:
@@ -85,9 +86,10 @@ def test_the_service_keeps_its_database_where_it_may_write() -> None:
     assert db.startswith(state), "ProtectSystem=strict: only the StateDirectory is writable"
     assert svc["WorkingDirectory"] == state.rstrip("/")
     assert svc["KillSignal"] in ("SIGTERM", "SIGINT"), "the signals serveur stops cleanly on"
-    backup = unit("serveur-backup.service")["Service"]
-    assert f"--db {db} " in backup["ExecStart"], "the backup copies the service's database"
-    assert unit("serveur-backup.timer")["Timer"]["Persistent"] == "true"
+    backup = shlex.split(unit("serveur-backup.service")["Service"]["ExecStart"])
+    assert backup[backup.index("--db") + 1] == db, "the backup copies the service's database"
+    # The by-hand backup goes where the server keeps its nightly ones, listed in the console.
+    assert backup[backup.index("--into") + 1] == argv[argv.index("--backups") + 1]
 
 
 async def test_first_start_backup_stop_and_restore_as_documented(tmp_path: Path) -> None:
@@ -114,17 +116,15 @@ async def test_first_start_backup_stop_and_restore_as_documented(tmp_path: Path)
             "user", "add", "bob", "--role", "staff", "--db", str(db), stdin="another one\n"
         )
 
-        # the nightly backup, its shell line as systemd hands it to /bin/sh (%% is a %)
+        # the backup by hand (before an update), its command line as the unit has it
         line = local(unit("serveur-backup.service")["Service"]["ExecStart"], tmp_path, port)
-        # a lone % is a systemd specifier (%a: the architecture), not what date(1) gets
-        assert "%" not in line.replace("%%", ""), "write % as %% in a unit"
-        argv = shlex.split(line.replace("%%", "%"))
-        assert argv[:2] == ["/bin/sh", "-c"]
-        script = argv[2].replace(BIN, f"{shlex.quote(sys.executable)} -m serveur.cli")
-        res = await asyncio.create_subprocess_exec("/bin/sh", "-c", script, cwd=state)
+        assert "%" not in line, "a lone % is a systemd specifier: write %% in a unit"
+        res = await asyncio.create_subprocess_exec(*serveur_argv(line), cwd=state)
         assert await asyncio.wait_for(res.wait(), STARTUP) == 0
-        copies = list((state / "backups").glob("serveur-*.db"))
+        copies = list((state / "backups").glob("serveur-now-*.db"))
         assert len(copies) == 1, copies
+        note = json.loads(copies[0].with_name(copies[0].name + ".json").read_text())
+        assert note["check"] == "ok", note  # the console lists it, checked
         with sqlite3.connect(copies[0]) as con:
             assert con.execute("PRAGMA integrity_check").fetchone() == ("ok",)
     finally:
