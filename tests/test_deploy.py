@@ -4,8 +4,9 @@ Their command lines are run here with only the machine's paths swapped for a tem
 directory (``/var/lib/serveur``, ``/etc/serveur``, ``/opt/serveur/bin/serveur``) and the
 address for loopback: the owner created the documented way before the first start (so no
 password is printed into the journal), the server started by ``ExecStart``, the by-hand
-backup's command line run against it while it serves (into the folder the server lists), ``KillSignal`` stopping it with exit 0
-within ``TimeoutStopSec``, and the documented restore bringing the backup's data back.
+backup's command line run against it while it serves (into the folder the server lists),
+``KillSignal`` stopping it with exit 0 within ``TimeoutStopSec``, and the documented restore
+bringing the backup's data back.
 ``systemd-analyze verify`` checks the files' syntax and keys where systemd is installed.
 """
 
