@@ -17,10 +17,8 @@ from tests.test_align_map import SPOTS, TRUE, plan_pixel
 from tests.web.test_a11y import violations
 from tests.web.test_ui import (
     SHOTS,
-    TABLET,
     expect,
-    http_base,
-    log_in,
+    owner_tab,
     pytestmark,  # noqa: F401
     ui_restaurant,
 )
@@ -56,16 +54,10 @@ async def tap(canvas: Any, x: float, y: float) -> None:
 async def test_the_owner_lays_the_floor_plan_under_the_map(tmp_path: Path, browser: Any) -> None:
     await asyncio.to_thread(plan_of_the_demo_room, tmp_path / "plan.png")
     grid, _ = load_demo()
-    async with ui_restaurant(tmp_path) as r:
-        context = await browser.new_context(viewport=TABLET, bypass_csp=True)
-        owner = await context.new_page()
-        errors: list[str] = []
-        owner.on("pageerror", lambda e: errors.append(str(e)))
-        owner.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-        await owner.goto(f"{http_base(r)}/")
-        await log_in(owner, "owner", r.app.first_owner_password or "")
-        await expect(owner.locator("body")).to_have_attribute("data-connection", "online")
-        await owner.get_by_role("tab", name="Restaurant").click()
+    async with (
+        ui_restaurant(tmp_path) as r,
+        owner_tab(browser, r, "Restaurant") as (owner, errors),
+    ):
         section = owner.get_by_role("region", name="Floor plan under the map")
         said = section.get_by_role("status")
         await section.get_by_label("Floor plan (PNG or JPEG)").set_input_files(
@@ -103,4 +95,3 @@ async def test_the_owner_lays_the_floor_plan_under_the_map(tmp_path: Path, brows
         await expect(owner.locator("#map")).to_have_attribute("data-backdrop", "true")
         await owner.locator("#map").screenshot(path=str(SHOTS / "map-with-plan-tablet.png"))
         assert errors == [], errors
-        await context.close()

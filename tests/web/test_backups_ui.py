@@ -12,10 +12,8 @@ from typing import Any
 from tests.web.test_a11y import violations
 from tests.web.test_ui import (
     SHOTS,
-    TABLET,
     expect,
-    http_base,
-    log_in,
+    owner_tab,
     pytestmark,  # noqa: F401
     ui_restaurant,
 )
@@ -25,19 +23,12 @@ async def test_the_owner_backs_up_and_restores_from_the_console(
     tmp_path: Path, browser: Any
 ) -> None:
     (tmp_path / "photo.db").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(500))
-    async with ui_restaurant(tmp_path) as r:
+    async with (
+        ui_restaurant(tmp_path) as r,
+        owner_tab(browser, r, "Restaurant", accept_downloads=True) as (owner, errors),
+    ):
         store = r.app.store
         await store.service.put_settings({"name": "Chez Avant"}, now=0.0)
-        context = await browser.new_context(viewport=TABLET, bypass_csp=True, accept_downloads=True)
-        owner = await context.new_page()
-        errors: list[str] = []
-        owner.on("pageerror", lambda e: errors.append(str(e)))
-        owner.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-        await owner.goto(f"{http_base(r)}/")
-        password = r.app.first_owner_password or ""
-        await log_in(owner, "owner", password)
-        await expect(owner.locator("body")).to_have_attribute("data-connection", "online")
-        await owner.get_by_role("tab", name="Restaurant").click()
         section = owner.get_by_role("region", name="Backups")
         said = section.get_by_role("status")
         await expect(section.get_by_text("No backup yet")).to_be_visible()
@@ -93,4 +84,3 @@ async def test_the_owner_backs_up_and_restores_from_the_console(
         await expect(section.get_by_text("Before a restore")).to_be_visible()
         await section.screenshot(path=str(SHOTS / "backups-tablet.png"))
         assert errors == [], errors
-        await context.close()

@@ -13,10 +13,8 @@ from tests.test_site_map import walled_demo
 from tests.web.test_a11y import violations
 from tests.web.test_ui import (
     SHOTS,
-    TABLET,
     expect,
-    http_base,
-    log_in,
+    owner_tab,
     pytestmark,  # noqa: F401
     ui_restaurant,
 )
@@ -30,18 +28,11 @@ async def test_the_owner_uploads_a_robot_map(tmp_path: Path, browser: Any) -> No
     bad = tmp_path / "bad"
     bad.mkdir()
     (bad / "room.yaml").write_bytes(text.replace(b"image: room.pgm", b"image: ../maps/room.pgm"))
-    async with ui_restaurant(tmp_path) as r:
-        # bypass_csp: axe is injected into the page at the end (as tests/web/test_a11y.py).
-        context = await browser.new_context(viewport=TABLET, bypass_csp=True)
-        owner = await context.new_page()
-        errors: list[str] = []
-        owner.on("pageerror", lambda e: errors.append(str(e)))
-        owner.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-        await owner.goto(f"{http_base(r)}/")
-        await log_in(owner, "owner", r.app.first_owner_password or "")
-        await expect(owner.locator("body")).to_have_attribute("data-connection", "online")
-        await owner.get_by_role("tab", name="Restaurant").click()
-        section = owner.get_by_role("region", name="The map")
+    async with (
+        ui_restaurant(tmp_path) as r,
+        owner_tab(browser, r, "Restaurant") as (owner, errors),
+    ):
+        section = owner.get_by_role("region", name="The map", exact=True)
         result = section.get_by_role("status")
 
         await section.get_by_label("Map file (.yaml)").set_input_files(str(bad / "room.yaml"))
@@ -64,4 +55,3 @@ async def test_the_owner_uploads_a_robot_map(tmp_path: Path, browser: Any) -> No
         assert await violations(owner) == []
         await section.screenshot(path=str(SHOTS / "map-upload.png"))
         assert errors == []
-        await context.close()

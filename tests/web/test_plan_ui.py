@@ -20,10 +20,8 @@ from tests.maps.test_floorplan import free_run
 from tests.web.test_a11y import violations
 from tests.web.test_ui import (
     SHOTS,
-    TABLET,
     expect,
-    http_base,
-    log_in,
+    owner_tab,
     pytestmark,  # noqa: F401
     ui_restaurant,
 )
@@ -43,15 +41,10 @@ async def test_the_owner_draws_the_map_from_the_floor_plan(tmp_path: Path, brows
 
     size = Image.open(io.BytesIO(p.data)).size
     mid_x, mid_y = (p.left + p.partition_x) / 2, (p.top + p.bottom) / 2
-    async with ui_restaurant(tmp_path) as r:
-        context = await browser.new_context(viewport=TABLET, bypass_csp=True, accept_downloads=True)
-        owner = await context.new_page()
-        errors: list[str] = []
-        owner.on("pageerror", lambda e: errors.append(str(e)))
-        await owner.goto(f"{http_base(r)}/")
-        await log_in(owner, "owner", r.app.first_owner_password or "")
-        await expect(owner.locator("body")).to_have_attribute("data-connection", "online")
-        await owner.get_by_role("tab", name="Restaurant").click()
+    async with (
+        ui_restaurant(tmp_path) as r,
+        owner_tab(browser, r, "Restaurant", accept_downloads=True) as (owner, errors),
+    ):
         section = owner.get_by_role("region", name="Map from the floor plan")
         status = section.get_by_role("status")
         await section.get_by_label("Floor plan (PNG or JPEG)").set_input_files(
@@ -107,4 +100,3 @@ async def test_the_owner_draws_the_map_from_the_floor_plan(tmp_path: Path, brows
         text = await asyncio.to_thread(Path(saved).read_bytes)
         assert b"image: restaurant.pgm" in text
         assert errors == []
-        await context.close()

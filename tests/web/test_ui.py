@@ -170,6 +170,28 @@ async def log_in(page: Any, user: str, password: str) -> Any:
     return form
 
 
+@contextlib.asynccontextmanager
+async def owner_tab(
+    browser: Any, r: Restaurant, tab: str, **options: Any
+) -> AsyncIterator[tuple[Any, list[str]]]:
+    """The console on a tablet, logged in as the owner, on ``tab``: the page and the errors
+    it logged (a test asserts there are none). ``bypass_csp``: axe is injected at the end (as
+    tests/web/test_a11y.py does); ``options`` go to the browser context."""
+    context = await browser.new_context(viewport=TABLET, bypass_csp=True, **options)
+    page = await context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    try:
+        await page.goto(f"{http_base(r)}/")
+        await log_in(page, "owner", r.app.first_owner_password or "")
+        await expect(page.locator("body")).to_have_attribute("data-connection", "online")
+        await page.get_by_role("tab", name=tab).click()
+        yield page, errors
+    finally:
+        await context.close()
+
+
 async def dismiss_toasts(page: Any) -> None:
     for button in await page.get_by_role("button", name="Dismiss").all():
         await button.click()

@@ -13,7 +13,7 @@ import { el } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { field } from "../forms.js";
 import { decodeGrid } from "../../map/grid.js";
-import { sendFile } from "./upload.js";
+import { decodeImage, sendFile } from "./upload.js";
 
 const COLORS = ["#2563eb", "#c026d3", "#16a34a", "#ea580c", "#0891b2", "#be123c"];
 
@@ -91,11 +91,8 @@ export class AlignSection {
     this.fit = null;
     this.useBtn.disabled = true;
     if (!this.file) return;
-    const img = new Image();
-    img.src = URL.createObjectURL(this.file);
-    try {
-      await img.decode();
-    } catch {
+    const img = await decodeImage(this.file);
+    if (!img) {
       this.work.hidden = true;
       return this._say("owner.plan.notImage");
     }

@@ -16,7 +16,7 @@
 import { el } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { field } from "../forms.js";
-import { sendFile } from "./upload.js";
+import { decodeImage, sendFile } from "./upload.js";
 
 // Each tool and its words (written out: tests/web/test_i18n.py finds every key used).
 const TOOL_KEYS = {
@@ -133,11 +133,8 @@ export class PlanSection {
     this.preview = null;
     this.useBtn.disabled = this.downloadBtn.disabled = true;
     if (!this.file) return;
-    const img = new Image();
-    img.src = URL.createObjectURL(this.file);
-    try {
-      await img.decode();
-    } catch {
+    const img = await decodeImage(this.file);
+    if (!img) {
       this.work.hidden = true;
       this._say("owner.plan.notImage");
       return;

@@ -1,4 +1,4 @@
-// Sending a file to the server in parts (`site upload`, then `upload_part`s: a message is at most
+// Reading a picture the owner picked, and sending a file to the server in parts (`site upload`, then `upload_part`s: a message is at most
 // 64 KiB), for the Restaurant tab's map and floor plan. Each part waits for its answer, so a
 // refused part (a reconnect in between) stops the upload with the server's reason; a part the
 // rate limit refused is sent again after the wait the server names.
@@ -30,4 +30,18 @@ export async function sendFile(conn, file, kind, progress = () => {}) {
     progress(Math.floor((100 * Math.min(bytes.length, offset + up.part)) / bytes.length));
   }
   return up.id;
+}
+
+/** The picture in `file` as the browser decodes it (a floor plan shown on the page: the server
+ *  never decodes pictures), or null when it is not one. */
+export async function decodeImage(file) {
+  const img = new Image();
+  img.src = URL.createObjectURL(file);
+  try {
+    await img.decode();
+    return img;
+  } catch {
+    URL.revokeObjectURL(img.src);
+    return null;
+  }
 }
