@@ -339,6 +339,8 @@ async def test_audit_records_who_did_what_from_where(one_robot: Restaurant) -> N
     await owner.ok("login", username="owner", password=pw)
     await owner.subscribe("audit")
     staff = await r.client()
+    await staff.subscribe("robots")
+    await staff.status("r1", "Ready")  # a loaded machine: the robot may still be connecting
     await staff.ok("create", type="order", dish="soup", table="T1")
     await staff.ok("control", robot="r1", action="manual")
     await staff.ok("control", robot="r1", action="teleop", vx=0.1, wz=0.0)
