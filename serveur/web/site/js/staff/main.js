@@ -42,6 +42,7 @@ const showWho = () => {
     if (!owner && tab.getAttribute("aria-selected") === "true") document.getElementById("tab-map").click();
   }
   if (owner) accounts.refresh();
+  openLinked();
 };
 conn.addEventListener("session", showWho);
 onLangChange(showWho);
@@ -131,6 +132,22 @@ onLangChange(() => {
 setupTabs();
 conn.subscribe(["robots", "orders", "tasks", "waypoints", "map", "alerts", "menu", "blocks"]);
 conn.start();
+
+// A link into the console names a tab and, within it, a section: `/#restaurant/plan` opens the
+// Restaurant tab at "Map from the floor plan" (the setup page sends the owner there). An owner's
+// tab shows once the session says who is logged in, so the link is followed then.
+let followed = ""; // the link followed already: a later session event or language leaves it
+function openLinked() {
+  const hash = window.location.hash;
+  const [name, section] = decodeURIComponent(hash.slice(1)).split("/");
+  const tab = name && /^[a-z]+$/.test(name) ? document.getElementById(`tab-${name}`) : null;
+  if (!tab || tab.hidden || hash === followed) return;
+  followed = hash;
+  if (tab.getAttribute("aria-selected") !== "true") tab.click();
+  const title = section && /^[a-z]+$/.test(section) ? document.getElementById(`rest-${section}-title`) : null;
+  if (title) title.closest("section").scrollIntoView({ block: "start" });
+}
+window.addEventListener("hashchange", openLinked);
 
 function setupTabs() {
   const tabs = [...document.querySelectorAll('[role="tab"]')];
