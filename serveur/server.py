@@ -36,7 +36,7 @@ from serveur.core.backup_desk import DOWNLOAD_PATH, BackupDesk
 from serveur.core.camera import CameraRelay, CameraViewer
 from serveur.core.engine import Core
 from serveur.core.hub import Subscriber
-from serveur.core.site_map import BACKDROP_PATH, align_map, backdrop_image, plan_map, set_map_files
+from serveur.core.site_map import BACKDROP_PATH, SiteMaps
 from serveur.core.uploads import Uploads
 from serveur.errors import (
     BackupError,
@@ -174,6 +174,8 @@ class Server:
         )
         #: The owner's backups (None: this server keeps none, e.g. a database in memory).
         self.backups = backups
+        #: The owner's map actions (a robot's files, a floor plan, the plan under the map).
+        self.maps = SiteMaps(core.store, core.places, core.clock)
         self.security = sessions.config
         self.host = host
         self.port = port
@@ -233,7 +235,7 @@ class Server:
             ).encode()
             return _http(http.HTTPStatus.OK, body, "application/json")
         if path.startswith(BACKDROP_PATH):
-            found = await backdrop_image(self.core.store, path.removeprefix(BACKDROP_PATH))
+            found = await self.maps.backdrop_image(path.removeprefix(BACKDROP_PATH))
             if found is None:
                 return _http(http.HTTPStatus.NOT_FOUND, b"no such floor plan\n", "text/plain")
             # Named by its digest: the same address is always the same picture.
@@ -473,45 +475,13 @@ class Server:
         return {"upload": conn.uploads.add_part(msg)}
 
     async def _set_map(self, conn: _Conn, msg: P.SiteSetMap) -> dict[str, Any]:
-        yaml_file = conn.uploads.take(msg.yaml, "map_yaml")
-        image = conn.uploads.take(msg.image, "map_image")
-        core = self.core
-        reply = await set_map_files(
-            core.store,
-            core.places,
-            core.clock,
-            bytes(yaml_file.data),
-            bytes(image.data),
-            image.name,
-            actor=conn.actor,
-        )
-        conn.uploads.done(msg.yaml, msg.image)
-        return reply
+        return await self.maps.set_map(conn.uploads, msg, conn.actor)
 
     async def _plan_map(self, conn: _Conn, msg: P.SitePlanMap) -> dict[str, Any]:
-        plan = conn.uploads.take(msg.upload, "plan")
-        core = self.core
-        reply = await plan_map(
-            core.store, core.places, core.clock, bytes(plan.data), plan.name, msg, actor=conn.actor
-        )
-        if msg.apply:
-            conn.uploads.done(msg.upload)  # a preview keeps it for the next try
-        return reply
+        return await self.maps.plan_map(conn.uploads, msg, conn.actor)
 
     async def _align_map(self, conn: _Conn, msg: P.SiteAlignMap) -> dict[str, Any]:
-        plan = None if msg.upload is None else conn.uploads.take(msg.upload, "plan")
-        core = self.core
-        reply = await align_map(
-            core.store,
-            core.places,
-            core.clock,
-            None if plan is None else bytes(plan.data),
-            msg,
-            actor=conn.actor,
-        )
-        if msg.apply and msg.upload is not None:
-            conn.uploads.done(msg.upload)
-        return reply
+        return await self.maps.align_map(conn.uploads, msg, conn.actor)
 
     async def _probe_robot(self, conn: _Conn, msg: P.SiteProbeRobot) -> dict[str, Any]:
         found = await probe(msg.url, ssl=self.core.crew.robot_ssl)

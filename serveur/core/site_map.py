@@ -18,6 +18,7 @@ from typing import Any
 from serveur import protocol as P
 from serveur.clock import Clock
 from serveur.core.places import Places
+from serveur.core.uploads import Uploads
 from serveur.errors import Conflict, InvalidField
 from serveur.maps.align import Similarity, fit
 from serveur.maps.child import run_child
@@ -25,15 +26,7 @@ from serveur.maps.distances import MapData
 from serveur.maps.mapfiles import read_map_files_in_child
 from serveur.store.base import Store, StoredBackdrop, StoredMap
 
-__all__ = [
-    "BACKDROP_PATH",
-    "align_map",
-    "backdrop_image",
-    "plan_map",
-    "set_map_files",
-    "stored_backdrop",
-    "stored_map",
-]
+__all__ = ["BACKDROP_PATH", "SiteMaps", "stored_backdrop", "stored_map"]
 
 #: Where the floor plan under the map is served: ``/site/backdrop/<digest>`` (the image's
 #: SHA-256: a new plan is a new address, and an address nobody was shown is not guessed).
@@ -50,24 +43,6 @@ async def stored_map(store: Store) -> MapData | None:
         return None
     log.info("using the restaurant's map set in the console (%s)", got.source)
     return MapData(got.resolution, (*got.origin, 0.0), got.width, got.height, got.cells)
-
-
-async def set_map_files(
-    store: Store,
-    places: Places,
-    clock: Clock,
-    yaml_bytes: bytes,
-    image: bytes,
-    image_name: str,
-    *,
-    actor: str | None,
-) -> dict[str, Any]:
-    """Check, store and use a robot's map files; the reply: the map's size and the places
-    that are no longer on free floor."""
-    m = await read_map_files_in_child(yaml_bytes, image, image_name)
-    source = f"robot map files ({image_name})"
-    outside = await _use(store, places, clock, m, source, actor)
-    return {"map": _info(m, source), "outside": outside}
 
 
 async def _use(
@@ -95,14 +70,13 @@ def _info(m: MapData, source: str) -> dict[str, Any]:
     }
 
 
-async def plan_map(
+async def _plan_map(
     store: Store,
     places: Places,
     clock: Clock,
     plan: bytes,
     plan_name: str,
     msg: P.SitePlanMap,
-    *,
     actor: str | None,
 ) -> dict[str, Any]:
     """A floor plan made a map in a child process (:mod:`serveur.maps.floorplan`): the
@@ -151,8 +125,7 @@ async def stored_backdrop(store: Store) -> dict[str, Any] | None:
     return None if got is None else _backdrop_info(got)
 
 
-async def backdrop_image(store: Store, digest: str) -> tuple[bytes, str] | None:
-    """The floor plan's image and its type, if ``digest`` names the one under the map."""
+async def _backdrop_image(store: Store, digest: str) -> tuple[bytes, str] | None:
     got = await store.site_backdrop.get()
     if got is None or not digest or digest != got.digest:
         return None
@@ -170,13 +143,12 @@ def _fit_info(t: Similarity) -> dict[str, Any]:
     }
 
 
-async def align_map(
+async def _align_map(
     store: Store,
     places: Places,
     clock: Clock,
     plan: bytes | None,
     msg: P.SiteAlignMap,
-    *,
     actor: str | None,
 ) -> dict[str, Any]:
     """Fit the floor plan onto the map from the owner's matched spots; with ``apply``, store
@@ -216,3 +188,51 @@ async def align_map(
         "the owner fitted the floor plan onto the map (%d points, rms %.3f m)", len(src), t.rms
     )
     return out
+
+
+class SiteMaps:
+    """The owner's map actions over ``/ws``, on the files a connection sent in parts
+    (``uploads``): a robot's map files, a floor plan made a map, the plan fitted under the map.
+    A refused action keeps its uploads for another try; one that is done uses them up."""
+
+    def __init__(self, store: Store, places: Places, clock: Clock) -> None:
+        self._store = store
+        self._places = places
+        self._clock = clock
+
+    async def set_map(
+        self, uploads: Uploads, msg: P.SiteSetMap, actor: str | None
+    ) -> dict[str, Any]:
+        """Check, store and use a robot's map files (read in a child process); the reply:
+        the map's size and the places no longer on free floor."""
+        yaml_file = uploads.take(msg.yaml, "map_yaml")
+        image = uploads.take(msg.image, "map_image")
+        m = await read_map_files_in_child(bytes(yaml_file.data), bytes(image.data), image.name)
+        source = f"robot map files ({image.name})"
+        outside = await _use(self._store, self._places, self._clock, m, source, actor)
+        uploads.done(msg.yaml, msg.image)
+        return {"map": _info(m, source), "outside": outside}
+
+    async def plan_map(
+        self, uploads: Uploads, msg: P.SitePlanMap, actor: str | None
+    ) -> dict[str, Any]:
+        plan = uploads.take(msg.upload, "plan")
+        reply = await _plan_map(
+            self._store, self._places, self._clock, bytes(plan.data), plan.name, msg, actor
+        )
+        if msg.apply:
+            uploads.done(msg.upload)  # a preview keeps it for the next try
+        return reply
+
+    async def align_map(
+        self, uploads: Uploads, msg: P.SiteAlignMap, actor: str | None
+    ) -> dict[str, Any]:
+        plan = None if msg.upload is None else bytes(uploads.take(msg.upload, "plan").data)
+        reply = await _align_map(self._store, self._places, self._clock, plan, msg, actor)
+        if msg.apply and msg.upload is not None:
+            uploads.done(msg.upload)
+        return reply
+
+    async def backdrop_image(self, digest: str) -> tuple[bytes, str] | None:
+        """The floor plan's image and its type, if ``digest`` names the one under the map."""
+        return await _backdrop_image(self._store, digest)
