@@ -85,13 +85,21 @@ async def test_a_new_owner_sets_the_restaurant_up_from_a_phone(
 
         # A robot: its address tested live (a wrong one said in words), then added.
         found = page.locator("#robot-found")
+        # A bare IP is completed with rosbridge's port (nothing listens on 127.0.0.2 here).
+        await page.get_by_label("Robot address").fill("127.0.0.2")
+        await page.get_by_role("button", name="Test the address").click()
+        await expect(page.get_by_label("Robot address")).to_have_value("ws://127.0.0.2:9090")
+        await expect(found).to_contain_text("Cannot reach the robot")
         await page.get_by_label("Robot address").fill(f"ws://127.0.0.1:{free_port()}")
         await page.get_by_role("button", name="Test the address").click()
         await expect(found).to_contain_text("Cannot reach the robot: nothing listens there")
         await expect(page.get_by_role("button", name="Add this robot")).to_be_disabled()
-        await page.get_by_label("Robot address").fill(sim.urls[0])
+        # Typed as a robot's label gives it: the host and port, no scheme (a bare host would
+        # get rosbridge's 9090); the field shows the address as it will be used.
+        await page.get_by_label("Robot address").fill(sim.urls[0].removeprefix("ws://"))
         await page.get_by_role("button", name="Test the address").click()
         await expect(found).to_have_text("Found: a ROS 2 robot (Nav2).")
+        await expect(page.get_by_label("Robot address")).to_have_value(sim.urls[0])
         assert await violations(page) == []
         await page.screenshot(path=str(SHOTS / "setup-3-robots.png"), full_page=True)
         await page.get_by_role("button", name="Add this robot").click()

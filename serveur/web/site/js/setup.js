@@ -105,8 +105,16 @@ const found = document.getElementById("robot-found");
 const addBtn = document.getElementById("robot-add");
 let tested = null; // {url, ros} of the last address found reachable
 
+/** The robot's rosbridge address as typed, completed: a bare host or IP (what a robot's label
+ *  or its maker's sheet usually gives) becomes ws://HOST:9090, rosbridge's default port. */
 function robotAddress() {
-  return document.getElementById("robot-address").value.trim();
+  const input = document.getElementById("robot-address");
+  let url = input.value.trim();
+  if (url && !/^[a-z]+:\/\//i.test(url)) url = `ws://${url}`;
+  const m = /^(wss?:\/\/)([^\s/#?:]+|\[[0-9a-f:]+\])(:\d+)?(\/.*)?$/i.exec(url);
+  if (m && !m[3]) url = `${m[1]}${m[2]}:9090${m[4] || ""}`;
+  if (url !== input.value.trim()) input.value = url; // shown as it will be used
+  return url;
 }
 
 document.getElementById("robot-address").addEventListener("input", () => {
