@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import io
+import re
 from pathlib import Path
 from typing import Any
 
@@ -81,6 +82,10 @@ async def test_the_owner_draws_the_map_from_the_floor_plan(tmp_path: Path, brows
 
         await section.get_by_role("button", name="Check the map").click()
         await expect(status).to_contain_text("The map will be 17.")
+        # The map as the robot will have it, drawn before "Use".
+        preview = section.get_by_role("img", name="The map made from the floor plan")
+        await expect(preview).to_be_visible()
+        await expect(preview).to_have_attribute("data-cells", re.compile(r"^\d+x\d+$"))
         assert await r.app.store.site_map.get() is None  # a preview changes nothing
         assert await violations(owner) == []
         await section.scroll_into_view_if_needed()

@@ -16,6 +16,7 @@
 import { el } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { field } from "../forms.js";
+import { decodeGrid } from "../../map/grid.js";
 import { decodeImage, sendFile } from "./upload.js";
 
 // Each tool and its words (written out: tests/web/test_i18n.py finds every key used).
@@ -83,6 +84,9 @@ export class PlanSection {
     this.useBtn = el("button", { type: "button", class: "primary", "data-needs-online": true, disabled: true, "data-i18n": "owner.plan.use", onclick: () => this._check(true) });
     this.downloadBtn = el("button", { type: "button", disabled: true, "data-i18n": "owner.plan.download", onclick: () => this._download() });
     this.status = el("p", { class: "rest-plan-status", role: "status", "aria-live": "polite" });
+    // The map as the robot will have it (the preview's cells), once checked: what "Use" keeps.
+    this.previewCanvas = el("canvas", { class: "plan-canvas plan-preview", role: "img", "data-i18n-aria-label": "owner.plan.previewCanvas" });
+    this.previewBox = el("div", { hidden: true }, el("h3", { "data-i18n": "owner.plan.previewTitle" }), this.previewCanvas, el("p", { class: "muted rest-hint", "data-i18n": "owner.plan.downloadNote" }));
     this.work = el(
       "div",
       { class: "plan-work", hidden: true },
@@ -92,6 +96,7 @@ export class PlanSection {
       field("plan-across", "owner.plan.acrossMetres", this.metres.across),
       field("plan-along", "owner.plan.alongMetres", this.metres.along),
       el("div", { class: "form-buttons" }, this.checkBtn, this.useBtn, this.downloadBtn),
+      this.previewBox,
     );
     this.section = el(
       "section",
@@ -278,6 +283,7 @@ export class PlanSection {
       if (reply.plan.stretched) parts.push(t("owner.plan.stretched", { percent: (reply.plan.disagreement * 100).toFixed(1) }));
       if (apply && reply.outside.length) parts.push(t("owner.map.outside", { places: reply.outside.join(", ") }));
       this.status.textContent = parts.join(" ");
+      this._drawPreview(reply.plan.map);
       this.downloadBtn.disabled = false;
       this.useBtn.disabled = apply;
     } catch (err) {
@@ -287,6 +293,18 @@ export class PlanSection {
     } finally {
       this.checkBtn.disabled = false;
     }
+  }
+
+  /** The previewed map's cells, the right way up (their rows go up from the bottom). */
+  _drawPreview(map) {
+    const grid = decodeGrid(map);
+    this.previewCanvas.width = map.width;
+    this.previewCanvas.height = map.height;
+    const ctx = this.previewCanvas.getContext("2d");
+    ctx.setTransform(1, 0, 0, -1, 0, map.height);
+    ctx.drawImage(grid, 0, 0);
+    this.previewBox.hidden = false;
+    this.previewCanvas.dataset.cells = `${map.width}x${map.height}`;
   }
 
   _download() {
