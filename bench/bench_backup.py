@@ -92,8 +92,9 @@ async def child(db: str, backups: str) -> None:
     app = App(db, port=0, backups=backups)
     await app.start()
     token = await app.issue_token("staff", label="bench")
-    owner = await app.issue_token("integration", scopes=["site"], label="bench owner")
-    print(json.dumps({"url": app.url, "token": token, "owner": owner}), flush=True)
+    # Backups need an owner's session (the accounts scope: no token has it).
+    password = app.first_owner_password
+    print(json.dumps({"url": app.url, "token": token, "password": password}), flush=True)
     with contextlib.suppress(asyncio.CancelledError):
         await asyncio.Event().wait()  # until the bench stops it
     await app.close()
@@ -157,9 +158,11 @@ async def once(args: argparse.Namespace, db: Path, folder: Path) -> dict[str, An
             ),
         ]
         await asyncio.sleep(args.before)  # the quiet phase (the bench's pacing)
-        async with connect(
-            info["url"], additional_headers={"Authorization": f"Bearer {info['owner']}"}
-        ) as ws:
+        async with connect(info["url"]) as ws:
+            login = {"clientmsg": "login", "id": 0, "username": "owner"}
+            await ws.send(json.dumps({**login, "password": info["password"]}))
+            logged = json.loads(await asyncio.wait_for(ws.recv(), 30))
+            assert logged["servermsg"] == "ok", logged
             b0 = time.monotonic()
             await ws.send(json.dumps({"clientmsg": "site", "id": 1, "action": "backup_now"}))
             reply = json.loads(await asyncio.wait_for(ws.recv(), 600))

@@ -146,6 +146,9 @@ def parse_scopes(text: str | Iterable[str]) -> frozenset[Scope]:
     return frozenset(out)
 
 
+_BACKUP_ACTIONS = frozenset({"backups", "backup_now", "download_backup", "restore"})
+
+
 def required_scope(msg: Any) -> Scope:
     """The scope an instruction needs (``login``/``logout``/``ping`` need none, not asked)."""
     verb = msg.clientmsg
@@ -173,6 +176,10 @@ def required_scope(msg: Any) -> Scope:
     if verb == "site":
         if msg.action == "audit":
             return Scope.AUDIT
+        if msg.action in _BACKUP_ACTIONS:
+            # A backup holds every account (password hashes, token digests) and restoring one
+            # sets them all: as much as the accounts themselves, which no token can be given.
+            return Scope.ACCOUNTS
         return Scope.SITE
     if verb == "stats":
         return Scope.STATS

@@ -127,6 +127,9 @@ MESSAGES: dict[str, dict[str, Any]] = {
 }
 #: The owner's console messages: never staff's, never a screen's.
 SITE = {k for k in MESSAGES if k.startswith("site ")}
+#: The backups: every account is in them and a restore sets them all, so they need the accounts
+#: scope, which only an owner's session has (no token can be given it).
+BACKUPS = {"site backups", "site backup_now", "site download_backup", "site restore"}
 STATS = {k for k in MESSAGES if k.startswith("stats ")}
 
 OWNER = Principal(Role.OWNER, 1, user="o", scopes=auth.OWNER_SCOPES)
@@ -155,7 +158,7 @@ ALLOWED: dict[str, set[str]] = {
     "pos": {"create order", "dish", "data", "order table", "order robot"},
     # Every site action but the audit search, which needs the audit scope (and no topic:
     # ``data`` needs read).
-    "site script": SITE - {"site audit"} | {"create zone"},
+    "site script": SITE - {"site audit"} - BACKUPS | {"create zone"},
     "audit script": {"site audit"},
     "stats script": STATS,
 }
@@ -204,6 +207,8 @@ def test_the_owners_console_scopes() -> None:
         need = auth.required_scope(parse(MESSAGES[what]))
         if what == "site audit":
             assert need is Scope.AUDIT
+        elif what in BACKUPS:
+            assert need is Scope.ACCOUNTS
         else:
             assert need is (Scope.SITE if what in SITE else Scope.STATS), what
         assert need in auth.OWNER_SCOPES and need not in auth.STAFF_SCOPES
