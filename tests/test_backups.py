@@ -134,6 +134,17 @@ def newer_copy(src: bytes, folder: Path) -> bytes:
     return path.read_bytes()
 
 
+def with_extra(src: bytes, folder: Path, sql: str) -> bytes:
+    """A real backup with one object added (the live database would run it after a restore)."""
+    path = folder / "extra.db"
+    path.write_bytes(src)
+    con = sqlite3.connect(path)
+    con.execute(sql)
+    con.commit()
+    con.close()
+    return path.read_bytes()
+
+
 def other_program(folder: Path) -> bytes:
     path = folder / "other.db"
     con = sqlite3.connect(path)
@@ -156,12 +167,25 @@ async def test_bad_backups_are_refused_and_nothing_changes(tmp_path: Path) -> No
         cases = {
             "not_a_backup": [PNG, other_program(tmp_path), body[: len(body) // 3]],
             "newer": [newer_copy(body, tmp_path)],
+            "not_a_backup ": [  # a serveur copy with something of its own planted in it
+                with_extra(
+                    body,
+                    tmp_path,
+                    "CREATE TRIGGER planted AFTER INSERT ON orders BEGIN DELETE FROM users; END",
+                ),
+                with_extra(
+                    body,
+                    tmp_path,
+                    "CREATE VIEW endless AS WITH RECURSIVE c(x) AS (SELECT 1 UNION ALL"
+                    " SELECT x + 1 FROM c) SELECT x FROM c",
+                ),
+            ],
         }
         for reason, files in cases.items():
             for data in files:
                 sent = await upload(c, "backup", "x.db", data)
                 err = await c.error("site", "backup_error", action="restore", upload=sent)
-                assert err["details"]["reason"] == reason, err
+                assert err["details"]["reason"] == reason.strip(), err
         # A damaged page is either no database at all or one that fails its check.
         sent = await upload(c, "backup", "x.db", bytes(damaged))
         err = await c.error("site", "backup_error", action="restore", upload=sent, confirm=True)

@@ -13,8 +13,10 @@ The functions here are blocking (SQLite does the work); callers run them in a th
 
 from __future__ import annotations
 
+import functools
 import os
 import sqlite3
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,7 +26,10 @@ from serveur.errors import BackupError
 from serveur.store.migrations import load_migrations
 from serveur.store.sql import Tx
 
-__all__ = ["BackupSummary", "inspect_backup", "lost_since"]
+__all__ = ["INSPECT_SECONDS", "BackupSummary", "inspect_backup", "lost_since"]
+
+#: The longest a backup's reading may take (its integrity check on a Pi's SD card included).
+INSPECT_SECONDS = 300.0
 
 #: What the console shows of a backup, and how each is counted.
 _COUNTS = {
@@ -58,10 +63,36 @@ def inspect_backup(path: str | Path) -> BackupSummary:
         con = sqlite3.connect(uri, uri=True)
     except sqlite3.Error as exc:
         raise BackupError(f"cannot open it: {exc}", reason="not_a_backup") from exc
+    deadline = time.monotonic() + INSPECT_SECONDS
+    # Stops a query that runs away (a crafted file's recursive view): "interrupted", refused.
+    con.set_progress_handler(lambda: int(time.monotonic() > deadline), 10_000)
     try:
         return _inspect(con)
     except sqlite3.Error as exc:
         raise BackupError(f"it is not a serveur database ({exc})", reason="not_a_backup") from exc
+    finally:
+        con.close()
+
+
+def _schema(con: sqlite3.Connection) -> set[tuple[str, str, str]]:
+    """The database's own objects (tables, indexes, views, triggers) and their SQL."""
+    rows = con.execute("SELECT type, name, coalesce(sql, '') FROM sqlite_master").fetchall()
+    return {
+        (t, n, q) for t, n, q in rows if not n.startswith("sqlite_") and n != "schema_migrations"
+    }
+
+
+@functools.cache
+def _expected_schema(version: int) -> frozenset[tuple[str, str, str]]:
+    """The objects this serveur's migrations 1..``version`` make, in a scratch database: a
+    backup written by serveur has exactly these (nothing added: no view or trigger of its own,
+    which would run in the live database after a restore)."""
+    con = sqlite3.connect(":memory:")
+    try:
+        for m in load_migrations("sqlite"):
+            if m.version <= version:
+                con.executescript(m.sql)
+        return frozenset(_schema(con))
     finally:
         con.close()
 
@@ -77,8 +108,15 @@ def _inspect(con: sqlite3.Connection) -> BackupSummary:
         raise BackupError(
             "it was written by a newer serveur: update this one first", reason="newer"
         )
-    if any(history[v] != known[v] for v in history):
+    if any(history[v] != known[v] for v in history) or sorted(history) != list(
+        range(1, max(history) + 1)
+    ):
         raise BackupError("it is not a serveur database", reason="not_a_backup")
+    if _schema(con) != _expected_schema(max(history)):
+        raise BackupError(
+            "it is not a serveur database as serveur writes it (its tables were changed)",
+            reason="not_a_backup",
+        )
     problems = [str(r[0]) for r in con.execute("PRAGMA integrity_check")]
     problems += [
         f"foreign key: {r[0]} row {r[1]} refers to a missing {r[2]}"

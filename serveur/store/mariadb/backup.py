@@ -92,15 +92,16 @@ async def restore(db: Db, path: Path) -> None:
     migrations run), so an older copy restores too; ``schema_migrations`` itself is left as it
     is. Foreign keys are checked by the copy's own integrity check before (a restore is only
     offered for a checked backup), not row by row here: ``robot_info`` and ``task`` refer to
-    each other, so no insertion order satisfies both.
+    each other, so no insertion order satisfies both. Only the live tables' own columns are
+    copied (a name is never taken from the file into SQL), and rows go in batches of
+    :data:`_BATCH`, so a year of events never sits in memory at once.
     """
     from serveur.store.sqlite.store import SQLiteStore
 
     try:
         async with SQLiteStore(path):
             pass
-        columns = await asyncio.to_thread(_sqlite_columns, path)
-        rows = await asyncio.to_thread(_read_sqlite, path, columns)
+        in_file = await asyncio.to_thread(_sqlite_columns, path)
     except (OSError, sqlite3.Error) as exc:
         raise StoreError(f"cannot read the backup {path}: {exc}") from exc
 
@@ -110,23 +111,50 @@ async def restore(db: Db, path: Path) -> None:
             for table in reversed(TABLES):
                 await tx.run(f"DELETE FROM {table}")
             for table in TABLES:
-                if rows[table]:
-                    names = ", ".join(f"`{c}`" for c in columns[table])
-                    marks = ", ".join("?" for _ in columns[table])
-                    await tx.many(f"INSERT INTO {table} ({names}) VALUES ({marks})", rows[table])
+                live = {
+                    str(r["name"])
+                    for r in await tx.all(
+                        "SELECT COLUMN_NAME AS name FROM information_schema.COLUMNS"
+                        " WHERE TABLE_SCHEMA = DATABASE() AND TABLE_NAME = ?",
+                        (table,),
+                    )
+                }
+                cols = [c for c in in_file[table] if c in live]
+                names = ", ".join(f"`{c}`" for c in cols)
+                marks = ", ".join("?" for _ in cols)
+                after = None
+                while True:
+                    batch, after = await asyncio.to_thread(_batch, path, table, cols, after)
+                    if not batch:
+                        break
+                    await tx.many(f"INSERT INTO {table} ({names}) VALUES ({marks})", batch)
         finally:
             await tx.run("SET FOREIGN_KEY_CHECKS = 1")
 
-    await db.transact(work, "write")
+    try:
+        await db.transact(work, "write")
+    except sqlite3.Error as exc:
+        raise StoreError(f"cannot read the backup {path}: {exc}") from exc
 
 
-def _read_sqlite(path: Path, columns: Mapping[str, list[str]]) -> dict[str, list[tuple[Any, ...]]]:
+#: Rows read from a backup and inserted at a time (MariaDB restore).
+_BATCH = 2000
+
+
+def _batch(
+    path: Path, table: str, cols: list[str], after: int | None
+) -> tuple[list[tuple[Any, ...]], int | None]:
+    """The next rows of ``table`` after rowid ``after`` (the live table's column names,
+    quoted), and the last rowid read."""
+    names = ", ".join(f'"{c}"' for c in cols)
     with contextlib.closing(sqlite3.connect(path)) as conn:
-        out = {}
-        for table, cols in columns.items():
-            names = ", ".join(f'"{c}"' for c in cols)
-            out[table] = conn.execute(f"SELECT {names} FROM {table}").fetchall()
-        return out
+        rows = conn.execute(
+            f"SELECT rowid, {names} FROM {table} WHERE rowid > ? ORDER BY rowid LIMIT ?",
+            (-(2**63) if after is None else after, _BATCH),
+        ).fetchall()
+    if not rows:
+        return [], after
+    return [tuple(r[1:]) for r in rows], int(rows[-1][0])
 
 
 async def integrity_check(db: Db) -> str:
