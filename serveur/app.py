@@ -128,6 +128,8 @@ class App:
         self._backups = None if backups is None else Path(backups)
         self.shelf: BackupShelf | None = None
         self._restart_lock = asyncio.Lock()
+        #: Set when a restore left no server running (see :meth:`restart_on`).
+        self.broken = asyncio.Event()
         self.core: Core | None = None
         self.sessions: Sessions | None = None
         self.server: Server | None = None
@@ -212,40 +214,55 @@ class App:
     async def restart_on(self, staged: Path) -> None:
         """Stop, make the database the checked backup ``staged``, start again.
 
-        Robots are halted and every client closed first, as at any shutdown; robots and trips
-        are reconciled at the start as after any restart. The database is replaced whole or
-        not at all (a file renamed, or one transaction); if that fails the server starts again
-        on what it had, and if the restored database does not start, the copy made just before
-        (``before_restore``) is put back: the restaurant is never left without a server.
+        Robots are halted and every client closed first, as at any shutdown: from then on
+        nothing changes the database, and only then is the state about to be replaced copied
+        (``before_restore``: a restore is undone like any other; a dish ordered while the owner
+        confirmed is in it). If that copy cannot be made, the restore is abandoned and the
+        server starts again as it was. The database is replaced whole or not at all (a file
+        renamed, or one transaction); if that fails the server starts on what it had, and if
+        the restored database does not start, the copy made just before is put back. If even
+        that does not start, :attr:`broken` is set: ``serveur run`` exits non-zero and systemd
+        starts it afresh, rather than a process that serves nothing.
         """
         async with self._restart_lock:
-            assert self.shelf is not None
-            shelf = self.shelf
-            before = next(
-                (e for e in await shelf.entries() if e.kind is BackupKind.BEFORE_RESTORE), None
-            )
-            log.warning("restoring a backup: the server restarts on it")
-            await self.close()
-            self.store = open_store(self._db)
             try:
-                await self.store.replace_with(staged)
-            except ServeurError as exc:
-                log.error(
-                    "the backup could not be restored, starting on the database as it was: %s", exc
-                )
+                await self._restart_on(staged)
+            except Exception:
+                log.exception("the server could not start again after a restore")
+                self.broken.set()
             finally:
                 await asyncio.to_thread(staged.unlink, missing_ok=True)
-            try:
-                await self.start()
-            except Exception:
-                log.exception("the restored database does not start: putting back %s", before)
-                if before is None:
-                    raise
-                await asyncio.to_thread(shutil.copyfile, shelf.path(before.name), staged)
-                self.store = open_store(self._db)
-                await self.store.replace_with(staged)
-                await self.start()
-            log.warning("restored: serving %s", self.url)
+
+    async def _restart_on(self, staged: Path) -> None:
+        assert self.shelf is not None
+        shelf = self.shelf
+        log.warning("restoring a backup: the server restarts on it")
+        await self._stop_serving()
+        try:
+            before = await shelf.make(BackupKind.BEFORE_RESTORE)
+        except ServeurError as exc:
+            log.error("restore abandoned: the state before it could not be kept: %s", exc)
+            await self._release()
+            self.store = open_store(self._db)
+            await self.start()
+            return
+        await self._release()
+        self.store = open_store(self._db)
+        try:
+            await self.store.replace_with(staged)
+        except ServeurError as exc:
+            log.error("the backup was not restored, starting on the database as it was: %s", exc)
+        try:
+            await self.start()
+        except Exception:
+            log.exception("the restored database does not start: putting back %s", before.name)
+            with contextlib.suppress(Exception):
+                await self.close()
+            await asyncio.to_thread(shutil.copyfile, shelf.path(before.name), staged)
+            self.store = open_store(self._db)
+            await self.store.replace_with(staged)
+            await self.start()
+        log.warning("restored: serving %s", self.url)
 
     async def issue_token(
         self,
@@ -288,10 +305,17 @@ class App:
 
     async def close(self) -> None:
         """Shut down: robots stopped first (within half a second), then clients, then the rest."""
+        await self._stop_serving()
+        await self._release()
+
+    async def _stop_serving(self) -> None:
+        """Robots halted, every client closed: nothing changes the database from here on."""
         if self.core is not None:
             await self.core.halt_robots()
         if self.server is not None:
             await self.server.close()
+
+    async def _release(self) -> None:
         if self.sessions is not None:
             await self.sessions.close()
         if self.shelf is not None:

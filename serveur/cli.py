@@ -221,10 +221,17 @@ async def _run(ns: argparse.Namespace) -> int:
             flush=True,
         )
     try:
-        await stop.wait()
+        # A restore that left no server running ends the process: systemd starts it afresh.
+        stopped, broken = (
+            asyncio.ensure_future(stop.wait()),
+            asyncio.ensure_future(app.broken.wait()),
+        )
+        await asyncio.wait([stopped, broken], return_when=asyncio.FIRST_COMPLETED)
+        for waiter in (stopped, broken):
+            waiter.cancel()
     finally:
         await app.close()
-    return 0
+    return 1 if app.broken.is_set() else 0
 
 
 async def _demo(ns: argparse.Namespace) -> int:

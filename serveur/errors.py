@@ -105,8 +105,8 @@ class MapError(ServeurError):
 
 class BackupError(ServeurError):
     """A backup cannot be used or made: ``details.reason`` says why (``not_a_backup``,
-    ``newer``, ``damaged``, ``not_found``, ``busy``: a restore under way, ``off``: the server
-    keeps no backups)."""
+    ``newer``, ``damaged``, ``not_found``, ``busy``: a restore under way, ``disk``: the copy
+    could not be written, ``off``: the server keeps no backups)."""
 
     code = "backup_error"
 

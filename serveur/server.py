@@ -505,8 +505,8 @@ class Server:
         desk = self._desk()
         reply, staged = await desk.restore(msg, conn.uploads)
         if staged is not None:
-            # This connection closes once its reply is out; then the app restarts on the
-            # backup, closing every other (1012: pages reconnect when it is back).
+            # This connection closes once its reply is out (1012: service restart); then the
+            # app restarts on the backup, closing every other as at any shutdown (1001).
             conn.close_after = (CLOSE_RESTART, "the server restarts on a backup")
             desk.restart_after(conn.ws.wait_closed(), staged)
         return reply

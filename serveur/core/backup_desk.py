@@ -104,9 +104,6 @@ class BackupDesk:
                 )
             store = self.shelf.store
             lost = await store.db.transact(lambda tx: lost_since(tx, summary), "read")
-            if msg.confirm:
-                # The state about to be replaced, kept: a restore is undone like any other.
-                await self.shelf.make(BackupKind.BEFORE_RESTORE)
         except BaseException:
             await asyncio.to_thread(staged.unlink, missing_ok=True)
             raise

@@ -19,7 +19,7 @@ from pathlib import Path
 from serveur.clock import Clock
 from serveur.core.backups import BackupEntry, BackupKind, backup_name, kind_of, next_nightly
 from serveur.core.backups import to_prune as prune_rule
-from serveur.errors import BackupError, ServeurError
+from serveur.errors import BackupError
 from serveur.store.base import Store
 from serveur.store.restore import BackupSummary, inspect_backup
 
@@ -48,7 +48,13 @@ class BackupShelf:
 
     async def make(self, kind: BackupKind) -> BackupEntry:
         """Write and check a new backup (one at a time: two copies at once would only double
-        the SD card's work)."""
+        the SD card's work). A full card or a folder it may not write is a BackupError."""
+        try:
+            return await self._make(kind)
+        except OSError as exc:
+            raise BackupError(f"the backup could not be written: {exc}", reason="disk") from exc
+
+    async def _make(self, kind: BackupKind) -> BackupEntry:
         async with self._making:
             await asyncio.to_thread(self.folder.mkdir, parents=True, exist_ok=True)
             made = self.clock.epoch()
@@ -124,7 +130,10 @@ class BackupShelf:
         self._nightly = asyncio.create_task(self._night_loop(), name="nightly-backup")
 
     async def close(self) -> None:
-        task, self._nightly = self._nightly, None
+        """Stop the nightly loop, once a copy under way is finished (its thread would go on
+        reading the database while a restore replaces it)."""
+        async with self._making:
+            task, self._nightly = self._nightly, None
         if task is not None:
             task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
@@ -137,7 +146,7 @@ class BackupShelf:
             try:
                 entry = await self.make(BackupKind.NIGHTLY)
                 log.info("nightly backup %s (check: %s)", entry.name, entry.check)
-            except ServeurError as exc:  # a full card: said, and tried again the next night
+            except Exception as exc:  # a full card: said, and tried again the next night
                 log.error("nightly backup failed: %s", exc)
             async with self._night:
                 self.nights += 1
