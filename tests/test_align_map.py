@@ -106,6 +106,9 @@ async def test_bad_fits_are_refused_and_change_nothing(tmp_path: object) -> None
         bunched = pairs([(5.0, 5.0), (5.1, 5.0), (5.0, 5.1)])
         err = await c.error("site", "invalid_field", action="align_map", points=bunched)
         assert "too close together" in err["message"]
+        mirrored = [{"plan": [820 - q["plan"][0], q["plan"][1]], "map": q["map"]} for q in pairs()]
+        err = await c.error("site", "invalid_field", action="align_map", points=mirrored)
+        assert err["details"]["reason"] == "mismatch", err
         err = await c.error("site", "invalid_field", action="align_map", points=pairs(), apply=True)
         assert err["details"]["field"] == "upload"
         text = await upload(c, "plan", "plan.png", b"not a picture at all")

@@ -76,12 +76,14 @@ def kind_of(name: str) -> BackupKind | None:
 def next_nightly(now: float, tz: tzinfo | None = None, at: time = NIGHTLY_AT) -> float:
     """The epoch of the next ``at`` (local time in ``tz``; None: the box's) strictly after
     ``now``."""
+    # Wall-clock arithmetic on the local date: with tz None a naive local time, whose
+    # timestamp() asks the box's zone for that day's offset (a daylight-saving night's 03:30
+    # is 03:30, not an hour off as a fixed offset taken today would make it).
     local = datetime.fromtimestamp(now, tz)
-    if tz is None:
-        local = local.astimezone()
     due = local.replace(hour=at.hour, minute=at.minute, second=at.second, microsecond=0)
-    if due <= local:
-        due = (due + timedelta(days=1)).replace(hour=at.hour, minute=at.minute)
+    if due.timestamp() <= now:
+        nxt = local.date() + timedelta(days=1)
+        due = datetime.combine(nxt, at, tzinfo=tz)
     return due.timestamp()
 
 

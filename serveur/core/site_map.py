@@ -13,6 +13,7 @@ import base64
 import hashlib
 import json
 import logging
+import math
 from typing import Any
 
 from serveur import protocol as P
@@ -31,6 +32,11 @@ __all__ = ["BACKDROP_PATH", "SiteMaps", "stored_backdrop", "stored_map"]
 #: Where the floor plan under the map is served: ``/site/backdrop/<digest>`` (the image's
 #: SHA-256: a new plan is a new address, and an address nobody was shown is not guessed).
 BACKDROP_PATH = "/site/backdrop/"
+#: The plausible scales of a floor plan (metres per pixel): a 0.1 mm scan to a 1 m sketch.
+MIN_SCALE = 1e-4
+MAX_SCALE = 1.0
+#: A fit whose spots are off by this share of their spread on the average matched nothing.
+MISMATCH = 0.3
 _MIMES = {b"\x89PNG\r\n\x1a\n": "image/png", b"\xff\xd8\xff": "image/jpeg"}
 
 log = logging.getLogger(__name__)
@@ -163,6 +169,17 @@ async def _align_map(
     # Spots bunched together are refused by their spread on the map (metres): the same spots
     # on the plan are bunched too.
     t = fit(src, dst)
+    cx, cy = sum(x for x, _ in dst) / len(dst), sum(y for _, y in dst) / len(dst)
+    spread = sum(math.hypot(x - cx, y - cy) for x, y in dst) / len(dst)
+    if not MIN_SCALE <= t.scale <= MAX_SCALE or t.rms > MISMATCH * spread:
+        # Spots in another order on the two pictures, or a plan mirrored: no turn and shift
+        # carries one onto the other (the spots are off by about their own spread). One spot
+        # tapped wrong is not this: the reply names it by its residual.
+        raise InvalidField(
+            "the spots do not match: mark them in the same order on the plan and the map",
+            field="points",
+            reason="mismatch",
+        )
     out: dict[str, Any] = {"alignment": _fit_info(t)}
     if not msg.apply:
         return out
@@ -199,6 +216,7 @@ class SiteMaps:
         self._store = store
         self._places = places
         self._clock = clock
+        self._image: tuple[str, bytes, str] | None = None  # the backdrop's (digest, bytes, type)
 
     async def set_map(
         self, uploads: Uploads, msg: P.SiteSetMap, actor: str | None
@@ -234,5 +252,16 @@ class SiteMaps:
         return reply
 
     async def backdrop_image(self, digest: str) -> tuple[bytes, str] | None:
-        """The floor plan's image and its type, if ``digest`` names the one under the map."""
-        return await _backdrop_image(self._store, digest)
+        """The floor plan's image and its type, if ``digest`` names the one under the map.
+
+        Asked without a login (an image element's GET): another digest is answered from
+        memory, and the image is read from the database once, not once per request."""
+        shown = self._places.backdrop
+        if shown is None or shown["url"] != f"{BACKDROP_PATH}{digest}":
+            return None
+        if self._image is None or self._image[0] != digest:
+            found = await _backdrop_image(self._store, digest)
+            if found is None:
+                return None
+            self._image = (digest, *found)
+        return self._image[1], self._image[2]

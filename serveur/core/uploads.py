@@ -23,9 +23,9 @@ from serveur.errors import Conflict, InvalidField, NotFound
 __all__ = ["MAX_HELD", "MAX_OPEN", "Upload", "Uploads"]
 
 MAX_OPEN: Final = 4
-#: The most bytes one connection's uploads may declare together: a backup, or a floor plan, or
-#: a map's image and YAML, with room to spare — never hundreds of MB held for one tablet.
-MAX_HELD: Final = 80 * 1024 * 1024
+#: The most bytes one connection's uploads may declare together: one backup (held in memory
+#: until it is staged: a Pi 4 holds one), or a floor plan, or a map's image and YAML.
+MAX_HELD: Final = 280 * 1024 * 1024
 
 
 @dataclass

@@ -3,7 +3,10 @@ The shelf that makes them is tested in tests/test_backups.py (files and threads)
 
 from __future__ import annotations
 
+import time
 from datetime import UTC, datetime, timedelta, timezone
+
+import pytest
 
 from serveur.core.backups import (
     KEEP,
@@ -46,3 +49,19 @@ def test_each_kind_keeps_its_newest() -> None:
     gone = to_prune(entries)
     assert gone == ["n0", "n1", "n2"]  # 7 nights kept; both before-restore copies too
     assert KEEP[BackupKind.NIGHTLY] == 7
+
+
+def test_a_daylight_saving_night_is_still_half_past_three(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With the box's own zone (tz None), on the nights the clocks change: 03:30 local, not an
+    hour off (a POSIX rule, so no zone database is needed: Paris, CET/CEST)."""
+    monkeypatch.setenv("TZ", "CET-1CEST,M3.5.0,M10.5.0/3")
+    time.tzset()
+    try:
+        for evening in ("2026-03-28T22:00:00", "2026-10-24T22:00:00"):  # before each change
+            start = time.mktime(time.strptime(evening, "%Y-%m-%dT%H:%M:%S"))
+            due = time.localtime(next_nightly(start))
+            assert (due.tm_hour, due.tm_min) == (3, 30), (evening, due)
+            assert due.tm_mday == int(evening[8:10]) + 1
+    finally:
+        monkeypatch.delenv("TZ")
+        time.tzset()

@@ -39,7 +39,7 @@ def test_parts_in_order_make_a_complete_upload() -> None:
 
 def test_a_connection_never_holds_more_than_a_plans_worth() -> None:
     table = Uploads()
-    first = table.start(up("backup", 60 * 2**20))
+    first = table.start(up("backup", 256 * 2**20))
     second = table.start(up("plan", 25 * 2**20))
     assert first["id"] not in table and second["id"] in table  # the first made room
     assert table.held() <= MAX_HELD

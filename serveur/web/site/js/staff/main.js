@@ -139,7 +139,12 @@ conn.start();
 let followed = ""; // the link followed already: a later session event or language leaves it
 function openLinked() {
   const hash = window.location.hash;
-  const [name, section] = decodeURIComponent(hash.slice(1)).split("/");
+  let name, section;
+  try {
+    [name, section] = decodeURIComponent(hash.slice(1)).split("/");
+  } catch {
+    return; // a malformed link: the page stays as it is
+  }
   const tab = name && /^[a-z]+$/.test(name) ? document.getElementById(`tab-${name}`) : null;
   if (!tab || tab.hidden || hash === followed) return;
   followed = hash;

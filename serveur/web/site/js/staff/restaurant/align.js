@@ -161,7 +161,13 @@ export class AlignSection {
       this.useBtn.disabled = false;
     } catch (err) {
       const field = err.details && err.details.field;
-      const why = field === "points" ? t("owner.align.tooClose") : field === "upload" ? t("owner.plan.notImage") : err.code === "conflict" ? t("owner.align.noMap") : err.message;
+      const reason = err.details && err.details.reason;
+      const why =
+        reason === "mismatch" ? t("owner.align.mismatch")
+        : field === "points" ? t("owner.align.tooClose")
+        : field === "upload" ? t("owner.plan.notImage")
+        : err.code === "conflict" && !(err.details && err.details.upload) ? t("owner.align.noMap")
+        : err.message;
       this._say("owner.align.refused", { why });
     } finally {
       button.disabled = false;
