@@ -6,6 +6,7 @@ reconnects by itself, and the restaurant is as it was."""
 from __future__ import annotations
 
 import asyncio
+import re
 from pathlib import Path
 from typing import Any
 
@@ -83,4 +84,7 @@ async def test_the_owner_backs_up_and_restores_from_the_console(
         await expect(section.get_by_role("listitem")).to_have_count(2)
         await expect(section.get_by_text("Before a restore")).to_be_visible()
         await section.screenshot(path=str(SHOTS / "backups-tablet.png"))
-        assert errors == [], errors
+        # The only errors allowed: the browser's own notes of connection attempts refused
+        # while the server was restarting (as tests/web/test_ui.py's restart test allows).
+        refused = re.compile(r"WebSocket connection to .* failed")
+        assert [e for e in errors if not refused.search(e)] == [], errors
