@@ -126,6 +126,7 @@ class Instructions:
         else:
             assert msg.x is not None and msg.y is not None and msg.yaw is not None
             x, y, yaw = msg.x, msg.y, msg.yaw
+            self.places.check_spot(x, y)  # a robot's own pose is where a robot stood
         wp = WaypointRecord(name=msg.name, x=x, y=y, yaw=yaw, kind=WaypointKind(msg.kind))
         return {"waypoint": await self.creation.waypoint(wp, replace=msg.replace)}
 

@@ -24,7 +24,7 @@ from typing import Any
 from serveur import protocol as P
 from serveur.core.hub import Hub
 from serveur.domain import WaypointKind, WaypointRecord
-from serveur.errors import NotFound, ServeurError
+from serveur.errors import NotFound, ServeurError, Unreachable
 from serveur.maps.distances import Distances, MapData, PlanRequest, plan_async
 from serveur.maps.memory import trim_heap
 
@@ -98,6 +98,15 @@ class Places:
         if wp is None:
             raise NotFound(f"no waypoint named {name!r}", waypoint=name)
         return wp
+
+    def check_spot(self, x: float, y: float) -> None:
+        """A place put by hand must be on free floor of the map (when there is one): a table
+        at (9999, -50) was stored, dishes were taken for it and a robot sent there needed help.
+        :class:`~serveur.errors.Unreachable` (``reason``: outside_map, unknown, occupied)."""
+        problem = None if self.map is None else self.map.goal_problem(x, y)
+        if problem is not None:
+            reason, message = problem
+            raise Unreachable(f"a place cannot be there: {message}", x=x, y=y, reason=reason)
 
     def put(self, wp: WaypointRecord) -> None:
         """A waypoint stored (new or moved): its distances are planned in the background."""

@@ -119,16 +119,16 @@ async def test_the_owner_edits_the_restaurant_and_reads_the_activity(
 
         await places.get_by_role("button", name="Move T7", exact=True).click()
         form = page.get_by_role("dialog", name="Move T7")
-        await form.get_by_label("x (metres)").fill("2.5")
+        await form.get_by_label("x (metres)").fill("3")  # free floor (2.5 is a table's edge)
         await form.get_by_label("y (metres)").fill("1.25")
         await form.get_by_label("Facing (degrees)").fill("90")
         await form.get_by_role("button", name="Move").click()
         await expect(form).to_have_count(0)
         await expect(places.locator('li[data-waypoint="T7"]')).to_contain_text(
-            "x 2.50 m, y 1.25 m, facing 90°"
+            "x 3.00 m, y 1.25 m, facing 90°"
         )
         t7 = r.app.core.places.waypoint("T7")
-        assert (t7.x, t7.y, round(t7.yaw, 3)) == (2.5, 1.25, round(math.pi / 2, 3))
+        assert (t7.x, t7.y, round(t7.yaw, 3)) == (3.0, 1.25, round(math.pi / 2, 3))
 
         # -- remove: T3 has an open dish and a trip, so the owner is told why not.
         await places.get_by_role("button", name="Remove T3", exact=True).click()
