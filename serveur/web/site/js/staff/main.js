@@ -48,16 +48,26 @@ conn.addEventListener("session", showWho);
 onLangChange(showWho);
 logout.addEventListener("click", () => conn.logout().catch(showError));
 
-// Which robot the map's scan, the tools, teleop and waypoints act on.
+// Which robot the map's scan, the tools, teleop and waypoints act on. Its laser scan streams
+// only while the map is shown on a visible page (a tablet on another tab or asleep would pull
+// ~6 kB/s for nothing).
+let scanTopic = null;
+function streamScan() {
+  const mapShown = document.getElementById("tab-map").getAttribute("aria-selected") === "true";
+  const want = selection.name && mapShown && document.visibilityState === "visible" ? `scan:${selection.name}` : null;
+  if (want === scanTopic) return;
+  if (scanTopic) conn.unsubscribe([scanTopic]);
+  if (want) conn.subscribe([want]);
+  scanTopic = want;
+}
+document.addEventListener("visibilitychange", streamScan);
 const selection = {
   name: null,
   listeners: [],
   set(name) {
     if (name === this.name) return;
-    const old = this.name;
     this.name = name;
-    if (old) conn.unsubscribe([`scan:${old}`]);
-    if (name) conn.subscribe([`scan:${name}`]);
+    streamScan();
     this.listeners.forEach((f) => f(name));
   },
   onChange(f) {
@@ -164,6 +174,7 @@ function setupTabs() {
       document.getElementById(t.getAttribute("aria-controls")).hidden = !on;
     }
     if (tab.id === "tab-map") view.requestDraw();
+    streamScan();
     if (tab.id === "tab-accounts") accounts.refresh();
     if (ownerPanels[tab.id]) ownerPanels[tab.id].shown();
     tab.scrollIntoView({ block: "nearest", inline: "nearest" }); // a phone's tab row scrolls
