@@ -14,6 +14,8 @@ import logging
 import os
 import tempfile
 import time
+import urllib.error
+import urllib.request
 from collections.abc import AsyncIterator, Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -323,6 +325,23 @@ class Restaurant:
     token: str = ""
     #: With ``restaurant(..., proxied=True)``: each robot's link goes through one of these.
     proxies: list[LinkProxy] = field(default_factory=list)
+
+    @property
+    def http_base(self) -> str:
+        """The server's plain HTTP address (the pages, downloads, the floor plan's image)."""
+        return self.app.url.replace("ws://", "http://").removesuffix("/ws")
+
+    async def get(self, path: str) -> tuple[int, bytes, str]:
+        """GET ``path`` as a browser does (a tapped link, an image): status, body, type."""
+
+        def fetch() -> tuple[int, bytes, str]:
+            try:
+                with urllib.request.urlopen(self.http_base + path, timeout=10) as resp:
+                    return resp.status, resp.read(), resp.headers["Content-Type"]
+            except urllib.error.HTTPError as exc:
+                return exc.code, exc.read(), exc.headers["Content-Type"]
+
+        return await asyncio.to_thread(fetch)
 
     def auth_headers(self) -> dict[str, str]:
         """Handshake headers that authenticate a raw ``connect(self.app.url, ...)`` as staff.

@@ -5,18 +5,15 @@ map of the room; a bad request changes nothing."""
 
 from __future__ import annotations
 
-import asyncio
 import io
 import math
-import urllib.error
-import urllib.request
 
 import numpy as np
 from PIL import Image
 
 from serveur.maps.align import Similarity
 from serveur.maps.mapfiles import map_files
-from tests.conftest import Client, Restaurant, restaurant
+from tests.conftest import Client, restaurant
 from tests.test_site_map import owner, upload, walled_demo
 
 # A robot's map frame vs the floor plan's pixels: 3 cm per pixel, turned 15 degrees, shifted
@@ -40,15 +37,6 @@ def png() -> bytes:
     out = io.BytesIO()
     Image.fromarray(np.full((40, 60), 200, dtype=np.uint8)).save(out, format="PNG")
     return out.getvalue()
-
-
-def get(r: Restaurant, path: str) -> tuple[int, bytes, str]:
-    base = r.app.url.replace("ws", "http", 1).removesuffix("/ws")
-    try:
-        with urllib.request.urlopen(base + path, timeout=10) as resp:
-            return resp.status, resp.read(), resp.headers["Content-Type"]
-    except urllib.error.HTTPError as exc:
-        return exc.code, b"", ""
 
 
 async def map_now(c: Client) -> dict[str, object]:
@@ -81,10 +69,10 @@ async def test_the_floor_plan_is_fitted_and_drawn_under_the_map(tmp_path: object
         backdrop = drawn["backdrop"]
         assert isinstance(backdrop, dict)
         assert math.isclose(backdrop["scale"], TRUE.scale, rel_tol=1e-4)
-        status, body, kind = await asyncio.to_thread(get, r, backdrop["url"])
+        status, body, kind = await r.get(backdrop["url"])
         assert (status, body, kind) == (200, image, "image/png")
         wrong = backdrop["url"][:-4] + "0000"
-        assert (await asyncio.to_thread(get, r, wrong))[0] == 404
+        assert (await r.get(wrong))[0] == 404
 
         await r.restart_server()  # kept in the database
         c = await owner(r, password)
@@ -96,7 +84,7 @@ async def test_the_floor_plan_is_fitted_and_drawn_under_the_map(tmp_path: object
         i = await upload(c, "map_image", "room.pgm", pgm)
         await c.ok("site", action="set_map", yaml=y, image=i)
         assert "backdrop" not in await map_now(c)
-        assert (await asyncio.to_thread(get, r, backdrop["url"]))[0] == 404
+        assert (await r.get(backdrop["url"]))[0] == 404
 
 
 async def test_bad_fits_are_refused_and_change_nothing(tmp_path: object) -> None:

@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import asyncio
 import sqlite3
-import urllib.error
-import urllib.request
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -32,16 +30,6 @@ async def owner(r: Restaurant, password: str) -> Client:
     r.clients.append(c)
     await c.ok("login", username="owner", password=password)
     return c
-
-
-def fetch(r: Restaurant, link: str) -> tuple[int, bytes]:
-    """GET ``link`` from the server, as the browser does when the owner taps it."""
-    base = r.app.url.replace("ws", "http", 1).removesuffix("/ws")
-    try:
-        with urllib.request.urlopen(base + link, timeout=10) as resp:
-            return resp.status, resp.read()
-    except urllib.error.HTTPError as exc:
-        return exc.code, exc.read()
 
 
 async def name_and_orders(r: Restaurant, c: Client) -> tuple[str, int]:
@@ -83,13 +71,13 @@ async def test_a_restore_brings_back_the_backed_up_state(
         await c.ok("create", type="order", dish="Laksa", table="T3", status="ordered")
         made = await c.ok("site", action="backup_now")
         assert made["backup"]["check"] == "ok" and made["backup"]["kind"] == "now"
-        status, body = await asyncio.to_thread(fetch, r, made["download"])
+        status, body, _ = await r.get(made["download"])
         assert status == 200 and body.startswith(b"SQLite format 3\x00")
         # The link is good once.
-        assert (await asyncio.to_thread(fetch, r, made["download"]))[0] == 403
+        assert (await r.get(made["download"]))[0] == 403
         link = await c.ok("site", action="download_backup", name=made["backup"]["name"])
         wrong = link["download"].replace(made["backup"]["name"], "serveur-now-20000101-000000.db")
-        assert (await asyncio.to_thread(fetch, r, wrong))[0] == 403
+        assert (await r.get(wrong))[0] == 403
 
         # Service goes on after the backup.
         await c.ok("site", action="set_settings", name="Chez Later")
@@ -113,7 +101,7 @@ async def test_a_restore_brings_back_the_backed_up_state(
 
         # Undone with a file: the state replaced, downloaded and sent back as an upload.
         link = await c.ok("site", action="download_backup", name=before[0]["name"])
-        status, body = await asyncio.to_thread(fetch, r, link["download"])
+        status, body, _ = await r.get(link["download"])
         assert status == 200
         sent = await upload(c, "backup", "from-my-tablet.db", body)
         await restored(r, c, upload=sent)
@@ -161,7 +149,7 @@ async def test_bad_backups_are_refused_and_nothing_changes(tmp_path: Path) -> No
         c = await owner(r, password)
         await c.ok("site", action="set_settings", name="Untouched")
         good = await c.ok("site", action="backup_now")
-        body = (await asyncio.to_thread(fetch, r, good["download"]))[1]
+        body = (await r.get(good["download"]))[1]
         damaged = bytearray(body)
         damaged[4096 * 3 : 4096 * 4] = bytes(4096)  # a page of a table zeroed
         cases = {

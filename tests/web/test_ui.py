@@ -29,7 +29,7 @@ from serveur.clock import ScaledClock
 from serveur.core.engine import CoreConfig
 from serveur.maps.navigation import demo_map_path, load_demo
 from serveur.robot_sim import start_simulation
-from tests.conftest import TIME_SCALE, Client, Restaurant
+from tests.conftest import TIME_SCALE, Client, Restaurant, make_app
 from tests.web.conftest import import_playwright, needs_browser
 
 playwright_api = import_playwright()
@@ -95,18 +95,8 @@ def ui_app(r_db: Path, clock: ScaledClock, specs: list[RobotSpec], port: int = 0
     """The harness's app (conftest.make_app) with a heartbeat a loaded machine can keep: the
     browser shares the 2 CI cores with the server and the robots, and a stalled sim tick must
     not turn the robot Offline in the middle of a click-through."""
-    nav_map, waypoints = load_demo()
     cfg = CoreConfig(heartbeat=10.0, ack_timeout=5.0, auto_depart=True)
-    return App(
-        r_db,
-        port=port,
-        clock=clock,
-        nav_map=nav_map,
-        waypoints=waypoints,
-        robots=specs,
-        config=cfg,
-        backups=r_db.parent / "backups",
-    )
+    return make_app(r_db, clock, specs, port, config=cfg, backups=r_db.parent / "backups")
 
 
 @contextlib.asynccontextmanager
@@ -136,7 +126,7 @@ async def ui_restaurant(
 
 
 def http_base(r: Restaurant) -> str:
-    return r.app.url.replace("ws://", "http://").removesuffix("/ws")
+    return r.http_base
 
 
 async def staff_client(r: Restaurant) -> Client:
