@@ -10,6 +10,18 @@ const UNKNOWN = [200, 204, 210];
 const FREE = [255, 255, 255];
 const OCCUPIED = [31, 38, 48];
 
+/** The grid the right way up (row 0 at the top), for a canvas drawn in pixels, without the map
+ *  view's y-up transform (the owner's map pictures in the Restaurant tab). */
+export function uprightGrid(map) {
+  const canvas = document.createElement("canvas");
+  canvas.width = map.width;
+  canvas.height = map.height;
+  const ctx = canvas.getContext("2d");
+  ctx.setTransform(1, 0, 0, -1, 0, map.height); // the grid's rows go up
+  ctx.drawImage(decodeGrid(map), 0, 0);
+  return canvas;
+}
+
 export function decodeGrid(map) {
   const { width, height } = map;
   const raw = atob(map.data);

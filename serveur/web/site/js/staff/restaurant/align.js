@@ -12,8 +12,8 @@
 import { el } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { field } from "../forms.js";
-import { decodeGrid } from "../../map/grid.js";
-import { decodeImage, sendFile } from "./upload.js";
+import { uprightGrid } from "../../map/grid.js";
+import { decodeImage, pixelAt, sendFile } from "./upload.js";
 
 const COLORS = ["#2563eb", "#c026d3", "#16a34a", "#ea580c", "#0891b2", "#be123c"];
 
@@ -104,16 +104,11 @@ export class AlignSection {
     this._draw();
   }
 
-  _at(canvas, e) {
-    const r = canvas.getBoundingClientRect();
-    return [((e.clientX - r.left) * canvas.width) / r.width, ((e.clientY - r.top) * canvas.height) / r.height].map((v) => Math.round(v * 10) / 10);
-  }
-
   _tapPlan(e) {
     if (!this.image || !this.live.map) return;
     const last = this.pairs[this.pairs.length - 1];
-    if (last && !last.map) last.plan = this._at(this.planCanvas, e); // tapped again: moved
-    else this.pairs.push({ plan: this._at(this.planCanvas, e), map: null });
+    if (last && !last.map) last.plan = pixelAt(this.planCanvas, e); // tapped again: moved
+    else this.pairs.push({ plan: pixelAt(this.planCanvas, e), map: null });
     this._changed("owner.align.tapMap");
   }
 
@@ -121,7 +116,7 @@ export class AlignSection {
     const map = this.live.map;
     const last = this.pairs[this.pairs.length - 1];
     if (!map || !last || last.map) return this._say("owner.align.planFirst");
-    const [cx, cy] = this._at(this.mapCanvas, e);
+    const [cx, cy] = pixelAt(this.mapCanvas, e);
     last.map = [map.origin[0] + cx * map.resolution, map.origin[1] + (map.height - cy) * map.resolution].map((v) => Math.round(v * 1000) / 1000);
     this._changed("owner.align.tapPlan");
   }
@@ -186,16 +181,13 @@ export class AlignSection {
     const map = this.live.map;
     if (!map) return;
     if (this._gridOf !== map) {
-      this._grid = decodeGrid(map);
+      this._grid = uprightGrid(map);
       this._gridOf = map;
       this.mapCanvas.width = map.width;
       this.mapCanvas.height = map.height;
     }
     const mc = this.mapCanvas.getContext("2d");
-    mc.save();
-    mc.setTransform(1, 0, 0, -1, 0, map.height); // the grid's rows go up
     mc.drawImage(this._grid, 0, 0);
-    mc.restore();
     if (this.fit) {
       // The plan laid over the map as fitted: world = scale * R * (column, -row) + shift.
       const { scale, rotation, tx, ty } = this.fit;

@@ -12,7 +12,7 @@ import { act, confirmDialog, el, formatTime, toast } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { field } from "../forms.js";
 import { listSection, rowButton } from "./form.js";
-import { sendFile } from "./upload.js";
+import { saveAs, sendFile } from "./upload.js";
 
 const KINDS = {
   nightly: "owner.backups.kind.nightly",
@@ -37,13 +37,6 @@ function megabytes(size) {
   return (size / 1e6).toFixed(size < 1e7 ? 1 : 0);
 }
 
-/** Let the browser save the file behind `link` (the server answers it as an attachment). */
-function download(link) {
-  const a = el("a", { href: link, download: "", hidden: true });
-  document.body.append(a);
-  a.click();
-  a.remove();
-}
 
 export class BackupsSection {
   constructor(conn) {
@@ -123,13 +116,13 @@ export class BackupsSection {
     const reply = await act(this.nowBtn, () => this.conn.request({ clientmsg: "site", action: "backup_now" }));
     if (!reply) return this._say(null);
     this._say(reply.backup.check === "ok" ? "owner.backups.made" : "owner.backups.madeDamaged");
-    download(reply.download);
+    saveAs(reply.download); // the server answers it as an attachment
     await this.load();
   }
 
   async _download(name, button) {
     const reply = await act(button, () => this.conn.request({ clientmsg: "site", action: "download_backup", name }));
-    if (reply) download(reply.download);
+    if (reply) saveAs(reply.download);
   }
 
   async _restoreFile(button) {

@@ -16,8 +16,8 @@
 import { el } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { field } from "../forms.js";
-import { decodeGrid } from "../../map/grid.js";
-import { decodeImage, sendFile } from "./upload.js";
+import { uprightGrid } from "../../map/grid.js";
+import { decodeImage, pixelAt, saveAs, sendFile } from "./upload.js";
 
 // Each tool and its words (written out: tests/web/test_i18n.py finds every key used).
 const TOOL_KEYS = {
@@ -51,11 +51,9 @@ export function mapServerFiles(snap, stem = "restaurant") {
 }
 
 function download(name, data, type) {
-  const a = el("a", { href: URL.createObjectURL(new Blob([data], { type })), download: name });
-  document.body.append(a);
-  a.click();
-  a.remove();
-  setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+  const href = URL.createObjectURL(new Blob([data], { type }));
+  saveAs(href, name);
+  setTimeout(() => URL.revokeObjectURL(href), 1000);
 }
 
 export class PlanSection {
@@ -202,17 +200,11 @@ export class PlanSection {
     return Math.max(4, Math.round((STROKE_PX * Math.max(this.canvas.width, this.canvas.height)) / 1000));
   }
 
-  /** A pointer position in the plan's own pixels. */
-  _at(e) {
-    const r = this.canvas.getBoundingClientRect();
-    return [((e.clientX - r.left) * this.canvas.width) / r.width, ((e.clientY - r.top) * this.canvas.height) / r.height].map((v) => Math.round(v * 10) / 10);
-  }
-
   _pointer() {
     let drawing = null;
     this.canvas.addEventListener("pointerdown", (e) => {
       if (!this.image || !this.tool) return;
-      const p = this._at(e);
+      const p = pixelAt(this.canvas, e);
       if (this.tool === "across" || this.tool === "along") {
         if (!this.pending) {
           this.pending = p;
@@ -233,7 +225,7 @@ export class PlanSection {
     });
     this.canvas.addEventListener("pointermove", (e) => {
       if (!drawing || drawing.points.length >= 500) return;
-      drawing.points.push(this._at(e));
+      drawing.points.push(pixelAt(this.canvas, e));
       this._draw();
     });
     const end = () => {
@@ -297,12 +289,9 @@ export class PlanSection {
 
   /** The previewed map's cells, the right way up (their rows go up from the bottom). */
   _drawPreview(map) {
-    const grid = decodeGrid(map);
     this.previewCanvas.width = map.width;
     this.previewCanvas.height = map.height;
-    const ctx = this.previewCanvas.getContext("2d");
-    ctx.setTransform(1, 0, 0, -1, 0, map.height);
-    ctx.drawImage(grid, 0, 0);
+    this.previewCanvas.getContext("2d").drawImage(uprightGrid(map), 0, 0);
     this.previewBox.hidden = false;
     this.previewCanvas.dataset.cells = `${map.width}x${map.height}`;
   }

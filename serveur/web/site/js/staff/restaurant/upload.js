@@ -1,5 +1,6 @@
-// Reading a picture the owner picked, and sending a file to the server in parts (`site upload`, then `upload_part`s: a message is at most
-// 64 KiB), for the Restaurant tab's map and floor plan. Each part waits for its answer, so a
+// The Restaurant tab's files: a picture the owner picked, decoded here, and where a pointer is
+// on it; a file saved on the device; and a file sent to the server in parts (`site upload`, then
+// `upload_part`s: a message is at most 64 KiB), for the map, the floor plan and backups. Each part waits for its answer, so a
 // refused part (a reconnect in between) stops the upload with the server's reason; a part the
 // rate limit refused is sent again after the wait the server names.
 
@@ -30,6 +31,23 @@ export async function sendFile(conn, file, kind, progress = () => {}) {
     progress(Math.floor((100 * Math.min(bytes.length, offset + up.part)) / bytes.length));
   }
   return up.id;
+}
+
+/** A pointer's position on `canvas` in the canvas's own pixels (a tenth of a pixel). */
+export function pixelAt(canvas, e) {
+  const r = canvas.getBoundingClientRect();
+  return [((e.clientX - r.left) * canvas.width) / r.width, ((e.clientY - r.top) * canvas.height) / r.height].map((v) => Math.round(v * 10) / 10);
+}
+
+/** Let the browser save what `href` points at (a download link or an object URL) as `name`. */
+export function saveAs(href, name = "") {
+  const a = document.createElement("a");
+  a.href = href;
+  a.download = name;
+  a.hidden = true;
+  document.body.append(a);
+  a.click();
+  a.remove();
 }
 
 /** The picture in `file` as the browser decodes it (a floor plan shown on the page: the server
