@@ -13,7 +13,6 @@ import base64
 import hashlib
 import json
 import logging
-import math
 from typing import Any
 
 from serveur import protocol as P
@@ -21,7 +20,7 @@ from serveur.clock import Clock
 from serveur.core.places import Places
 from serveur.core.uploads import Uploads
 from serveur.errors import Conflict, InvalidField
-from serveur.maps.align import Similarity, fit
+from serveur.maps.align import Similarity, fit, matches_nothing
 from serveur.maps.child import run_child
 from serveur.maps.distances import MapData
 from serveur.maps.mapfiles import read_map_files_in_child
@@ -35,8 +34,6 @@ BACKDROP_PATH = "/site/backdrop/"
 #: The plausible scales of a floor plan (metres per pixel): a 0.1 mm scan to a 1 m sketch.
 MIN_SCALE = 1e-4
 MAX_SCALE = 1.0
-#: A fit whose spots are off by this share of their spread on the average matched nothing.
-MISMATCH = 0.3
 _MIMES = {b"\x89PNG\r\n\x1a\n": "image/png", b"\xff\xd8\xff": "image/jpeg"}
 
 log = logging.getLogger(__name__)
@@ -51,21 +48,6 @@ async def stored_map(store: Store) -> MapData | None:
     return MapData(got.resolution, (*got.origin, 0.0), got.width, got.height, got.cells)
 
 
-async def _use(
-    store: Store, places: Places, clock: Clock, m: MapData, source: str, actor: str | None
-) -> list[str]:
-    """Store ``m`` as the restaurant's map and use it; the places now off free floor."""
-    stored = StoredMap(m.resolution, m.origin[:2], m.width, m.height, m.data, source)
-    await store.site_map.put(stored, now=clock.epoch(), by=actor)
-    # A floor plan fitted onto the old map would sit wrong on this one (another frame).
-    if await store.site_backdrop.clear():
-        places.backdrop = None
-    places.use_map(m)
-    outside = places.outside(m)
-    log.info("the owner set the map from %s; places off free floor: %s", source, outside)
-    return outside
-
-
 def _info(m: MapData, source: str) -> dict[str, Any]:
     return {
         "width": m.width,
@@ -74,45 +56,6 @@ def _info(m: MapData, source: str) -> dict[str, Any]:
         "origin": list(m.origin),
         "source": source,
     }
-
-
-async def _plan_map(
-    store: Store,
-    places: Places,
-    clock: Clock,
-    plan: bytes,
-    plan_name: str,
-    msg: P.SitePlanMap,
-    actor: str | None,
-) -> dict[str, Any]:
-    """A floor plan made a map in a child process (:mod:`serveur.maps.floorplan`): the
-    preview (the map's cells, the scale, whether the plan is stretched) and, with ``apply``,
-    the restaurant's map from now on."""
-    request = {
-        "plan": base64.b64encode(plan).decode(),
-        "threshold": msg.threshold,
-        "strokes": [s.model_dump() for s in msg.strokes],
-        "across": msg.across.model_dump(),
-        "along": msg.along.model_dump(),
-        "resolution": msg.resolution,
-    }
-    reply = await run_child("serveur.maps.floorplan", json.dumps(request).encode())
-    m = MapData.from_snapshot(reply["map"])
-    scale = reply["scale"]
-    source = f"floor plan ({plan_name})"
-    out: dict[str, Any] = {
-        "plan": {
-            "map": reply["map"],
-            "scale_x": scale["x"],
-            "scale_y": scale["y"],
-            "disagreement": scale["disagreement"],
-            "stretched": bool(scale["stretched"]),
-        },
-        "map": _info(m, source),
-    }
-    if msg.apply:
-        out["outside"] = await _use(store, places, clock, m, source, actor)
-    return out
 
 
 def _backdrop_info(b: StoredBackdrop) -> dict[str, Any]:
@@ -131,13 +74,6 @@ async def stored_backdrop(store: Store) -> dict[str, Any] | None:
     return None if got is None else _backdrop_info(got)
 
 
-async def _backdrop_image(store: Store, digest: str) -> tuple[bytes, str] | None:
-    got = await store.site_backdrop.get()
-    if got is None or not digest or digest != got.digest:
-        return None
-    return got.image, got.mime
-
-
 def _fit_info(t: Similarity) -> dict[str, Any]:
     return {
         "scale": t.scale,
@@ -147,64 +83,6 @@ def _fit_info(t: Similarity) -> dict[str, Any]:
         "residuals": [round(r, 4) for r in t.residuals],
         "rms": round(t.rms, 4),
     }
-
-
-async def _align_map(
-    store: Store,
-    places: Places,
-    clock: Clock,
-    plan: bytes | None,
-    msg: P.SiteAlignMap,
-    actor: str | None,
-) -> dict[str, Any]:
-    """Fit the floor plan onto the map from the owner's matched spots; with ``apply``, store
-    the plan (its bytes as given: browsers decode it) and draw it under the map everywhere.
-
-    A plan pixel (column, row) counts rows downwards and the map's y goes up, so the fit
-    carries (column, -row): a similarity has no mirror."""
-    if places.map is None:
-        raise Conflict("there is no map yet to fit the floor plan onto")
-    src = [(p.plan[0], -p.plan[1]) for p in msg.points]
-    dst = [(p.map[0], p.map[1]) for p in msg.points]
-    # Spots bunched together are refused by their spread on the map (metres): the same spots
-    # on the plan are bunched too.
-    t = fit(src, dst)
-    cx, cy = sum(x for x, _ in dst) / len(dst), sum(y for _, y in dst) / len(dst)
-    spread = sum(math.hypot(x - cx, y - cy) for x, y in dst) / len(dst)
-    if not MIN_SCALE <= t.scale <= MAX_SCALE or t.rms > MISMATCH * spread:
-        # Spots in another order on the two pictures, or a plan mirrored: no turn and shift
-        # carries one onto the other (the spots are off by about their own spread). One spot
-        # tapped wrong is not this: the reply names it by its residual.
-        raise InvalidField(
-            "the spots do not match: mark them in the same order on the plan and the map",
-            field="points",
-            reason="mismatch",
-        )
-    out: dict[str, Any] = {"alignment": _fit_info(t)}
-    if not msg.apply:
-        return out
-    if plan is None:
-        raise InvalidField("give the floor plan's upload to draw it under the map", field="upload")
-    mime = next((m for magic, m in _MIMES.items() if plan.startswith(magic)), None)
-    if mime is None:
-        raise InvalidField("the floor plan is not a PNG or JPEG picture", field="upload")
-    stored = StoredBackdrop(
-        plan,
-        mime,
-        hashlib.sha256(plan).hexdigest()[:32],
-        t.scale,
-        t.rotation,
-        t.tx,
-        t.ty,
-        t.rms,
-        len(msg.points),
-    )
-    await store.site_backdrop.put(stored, now=clock.epoch(), by=actor)
-    places.use_backdrop(_backdrop_info(stored))
-    log.info(
-        "the owner fitted the floor plan onto the map (%d points, rms %.3f m)", len(src), t.rms
-    )
-    return out
 
 
 class SiteMaps:
@@ -227,29 +105,87 @@ class SiteMaps:
         image = uploads.take(msg.image, "map_image")
         m = await read_map_files_in_child(bytes(yaml_file.data), bytes(image.data), image.name)
         source = f"robot map files ({image.name})"
-        outside = await _use(self._store, self._places, self._clock, m, source, actor)
+        outside = await self._use(m, source, actor)
         uploads.done(msg.yaml, msg.image)
         return {"map": _info(m, source), "outside": outside}
 
     async def plan_map(
         self, uploads: Uploads, msg: P.SitePlanMap, actor: str | None
     ) -> dict[str, Any]:
+        """A floor plan made a map in a child process (:mod:`serveur.maps.floorplan`): the
+        preview (the map's cells, the scale, whether the plan is stretched) and, with
+        ``apply``, the restaurant's map from now on."""
         plan = uploads.take(msg.upload, "plan")
-        reply = await _plan_map(
-            self._store, self._places, self._clock, bytes(plan.data), plan.name, msg, actor
-        )
+        request = {
+            "plan": base64.b64encode(bytes(plan.data)).decode(),
+            "threshold": msg.threshold,
+            "strokes": [s.model_dump() for s in msg.strokes],
+            "across": msg.across.model_dump(),
+            "along": msg.along.model_dump(),
+            "resolution": msg.resolution,
+        }
+        reply = await run_child("serveur.maps.floorplan", json.dumps(request).encode())
+        m = MapData.from_snapshot(reply["map"])
+        scale = reply["scale"]
+        source = f"floor plan ({plan.name})"
+        out: dict[str, Any] = {
+            "plan": {
+                "map": reply["map"],
+                "scale_x": scale["x"],
+                "scale_y": scale["y"],
+                "disagreement": scale["disagreement"],
+                "stretched": bool(scale["stretched"]),
+            },
+            "map": _info(m, source),
+        }
         if msg.apply:
+            out["outside"] = await self._use(m, source, actor)
             uploads.done(msg.upload)  # a preview keeps it for the next try
-        return reply
+        return out
 
     async def align_map(
         self, uploads: Uploads, msg: P.SiteAlignMap, actor: str | None
     ) -> dict[str, Any]:
+        """Fit the floor plan onto the map from the owner's matched spots; with ``apply``,
+        store the plan (its bytes as given: browsers decode it) and draw it under the map
+        everywhere.
+
+        A plan pixel (column, row) counts rows downwards and the map's y goes up, so the fit
+        carries (column, -row): a similarity has no mirror."""
         plan = None if msg.upload is None else bytes(uploads.take(msg.upload, "plan").data)
-        reply = await _align_map(self._store, self._places, self._clock, plan, msg, actor)
-        if msg.apply and msg.upload is not None:
-            uploads.done(msg.upload)
-        return reply
+        if self._places.map is None:
+            raise Conflict("there is no map yet to fit the floor plan onto")
+        src = [(p.plan[0], -p.plan[1]) for p in msg.points]
+        dst = [(p.map[0], p.map[1]) for p in msg.points]
+        # Spots bunched together are refused by their spread on the map (metres): the same
+        # spots on the plan are bunched too.
+        t = fit(src, dst)
+        if not MIN_SCALE <= t.scale <= MAX_SCALE or matches_nothing(t, dst):
+            # Spots in another order on the two pictures, or a plan mirrored.
+            raise InvalidField(
+                "the spots do not match: mark them in the same order on the plan and the map",
+                field="points",
+                reason="mismatch",
+            )
+        out: dict[str, Any] = {"alignment": _fit_info(t)}
+        if not msg.apply:
+            return out
+        if msg.upload is None or plan is None:
+            raise InvalidField(
+                "give the floor plan's upload to draw it under the map", field="upload"
+            )
+        mime = next((m for magic, m in _MIMES.items() if plan.startswith(magic)), None)
+        if mime is None:
+            raise InvalidField("the floor plan is not a PNG or JPEG picture", field="upload")
+        digest = hashlib.sha256(plan).hexdigest()[:32]
+        stored = StoredBackdrop(
+            plan, mime, digest, t.scale, t.rotation, t.tx, t.ty, t.rms, len(msg.points)
+        )
+        await self._store.site_backdrop.put(stored, now=self._clock.epoch(), by=actor)
+        self._places.use_backdrop(_backdrop_info(stored))
+        uploads.done(msg.upload)
+        log.info("the floor plan fitted onto the map (%d points, rms %.3f m)", len(src), t.rms)
+        return out
 
     async def backdrop_image(self, digest: str) -> tuple[bytes, str] | None:
         """The floor plan's image and its type, if ``digest`` names the one under the map.
@@ -260,8 +196,20 @@ class SiteMaps:
         if shown is None or shown["url"] != f"{BACKDROP_PATH}{digest}":
             return None
         if self._image is None or self._image[0] != digest:
-            found = await _backdrop_image(self._store, digest)
-            if found is None:
+            got = await self._store.site_backdrop.get()
+            if got is None or got.digest != digest:
                 return None
-            self._image = (digest, *found)
+            self._image = (digest, got.image, got.mime)
         return self._image[1], self._image[2]
+
+    async def _use(self, m: MapData, source: str, actor: str | None) -> list[str]:
+        """Store ``m`` as the restaurant's map and use it; the places now off free floor."""
+        stored = StoredMap(m.resolution, m.origin[:2], m.width, m.height, m.data, source)
+        await self._store.site_map.put(stored, now=self._clock.epoch(), by=actor)
+        # A floor plan fitted onto the old map would sit wrong on this one (another frame).
+        if await self._store.site_backdrop.clear():
+            self._places.backdrop = None
+        self._places.use_map(m)
+        outside = self._places.outside(m)
+        log.info("the owner set the map from %s; places off free floor: %s", source, outside)
+        return outside

@@ -18,12 +18,14 @@ from dataclasses import dataclass
 
 from serveur.errors import InvalidField
 
-__all__ = ["MIN_SPREAD", "Similarity", "fit"]
+__all__ = ["MIN_SPREAD", "MISMATCH", "Similarity", "fit", "matches_nothing"]
 
 Point = tuple[float, float]
 
 #: Matched points closer together than this (m, in either map) cannot fix a rotation.
 MIN_SPREAD = 0.5
+#: A fit whose points are off by this share of their spread on the average matched nothing.
+MISMATCH = 0.3
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,10 +60,22 @@ class Similarity:
         return Similarity(inv_scale, -self.rotation, tx, ty)
 
 
-def _spread(points: Sequence[Point]) -> float:
+def _from_centre(points: Sequence[Point]) -> list[float]:
     cx = sum(p[0] for p in points) / len(points)
     cy = sum(p[1] for p in points) / len(points)
-    return max(math.hypot(p[0] - cx, p[1] - cy) for p in points)
+    return [math.hypot(p[0] - cx, p[1] - cy) for p in points]
+
+
+def _spread(points: Sequence[Point]) -> float:
+    return max(_from_centre(points))
+
+
+def matches_nothing(t: Similarity, dst: Sequence[Point]) -> bool:
+    """Whether the fit's points are off by about their own spread (by :data:`MISMATCH` of their
+    mean distance from their centre): points marked in another order on the two maps, or a
+    mirrored map — no turn and shift carries one onto the other. One point marked wrong is not
+    this: its residual names it."""
+    return t.rms > MISMATCH * (sum(_from_centre(dst)) / len(dst))
 
 
 def fit(src: Sequence[Point], dst: Sequence[Point]) -> Similarity:
