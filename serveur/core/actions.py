@@ -15,7 +15,7 @@ from typing import Any
 
 from serveur.core.robot import RobotController
 from serveur.core.runtime import Destination
-from serveur.errors import Conflict, LinkError, Unreachable
+from serveur.errors import Conflict, LinkError
 from serveur.status import Action, Event, RobotStatus
 
 __all__ = ["ACTIONS", "ActionHandler"]
@@ -66,11 +66,7 @@ async def _initial_pose(ctl: RobotController, msg: Any, actor: str | None) -> No
 async def _goal(ctl: RobotController, msg: Any, actor: str | None) -> None:
     # Refused at once if the robot could never reach it (off the map, in a wall), rather
     # than sent and reported through ``last_error`` when move_base gives up.
-    m = ctl.crew.places.map
-    problem = m.goal_problem(msg.x, msg.y) if m is not None else None
-    if problem is not None:
-        reason, message = problem
-        raise Unreachable(f"goal {message}", x=msg.x, y=msg.y, reason=reason)
+    ctl.crew.places.check_spot(msg.x, msg.y, "goal")
     await ctl.drive(Destination("manual", "", msg.x, msg.y, msg.yaw))
 
 

@@ -99,14 +99,15 @@ class Places:
             raise NotFound(f"no waypoint named {name!r}", waypoint=name)
         return wp
 
-    def check_spot(self, x: float, y: float) -> None:
-        """A place put by hand must be on free floor of the map (when there is one): a table
-        at (9999, -50) was stored, dishes were taken for it and a robot sent there needed help.
-        :class:`~serveur.errors.Unreachable` (``reason``: outside_map, unknown, occupied)."""
+    def check_spot(self, x: float, y: float, what: str = "a place cannot be there:") -> None:
+        """(x, y) must be on free floor of the map (when there is one): a manual goal, or a
+        place put by hand (a table at (9999, -50) was stored, dishes were taken for it and a
+        robot sent there needed help). :class:`~serveur.errors.Unreachable` (``reason``:
+        outside_map, unknown, occupied), its message starting with ``what``."""
         problem = None if self.map is None else self.map.goal_problem(x, y)
         if problem is not None:
             reason, message = problem
-            raise Unreachable(f"a place cannot be there: {message}", x=x, y=y, reason=reason)
+            raise Unreachable(f"{what} {message}", x=x, y=y, reason=reason)
 
     def put(self, wp: WaypointRecord) -> None:
         """A waypoint stored (new or moved): its distances are planned in the background."""
