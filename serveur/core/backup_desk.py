@@ -2,10 +2,10 @@
 
 The server hands the ``site`` backup actions here and the ``/backups/<name>`` GETs; the files
 are the shelf's (:mod:`serveur.core.shelf`), the checks :mod:`serveur.store.restore`'s. A
-restore never touches the live database itself: it checks the backup, makes a copy of the
-current state (a restore can be undone from the list), stages the backup beside the database
-and asks the app to restart on it (``restart``, given by :class:`serveur.app.App`, which owns
-the database file and the order things stop and start in).
+restore never touches the live database itself: it checks the backup, stages it beside the
+database and asks the app to restart on it (``restart``, given by :class:`serveur.app.App`,
+which owns the database file and the order things stop and start in: it copies the current
+state once nothing changes it any more, so a restore can be undone from the list).
 
 A download link carries a ticket instead of the session token: good for one download, within
 a minute, of the one backup it was made for. The browser opens it itself (a file save), so no
@@ -96,6 +96,7 @@ class BackupDesk:
             assert msg.upload is not None  # one of the two (the message says so)
             up = uploads.take(msg.upload, "backup")
             await asyncio.to_thread(staged.write_bytes, bytes(up.data))
+        keep = False  # the staged file waits for the restart only once confirmed
         try:
             summary = await asyncio.to_thread(inspect_backup, staged)
             if summary.check != "ok":
@@ -104,13 +105,12 @@ class BackupDesk:
                 )
             store = self.shelf.store
             lost = await store.db.transact(lambda tx: lost_since(tx, summary), "read")
-        except BaseException:
-            await asyncio.to_thread(staged.unlink, missing_ok=True)
-            raise
-        if not msg.confirm:
-            await asyncio.to_thread(staged.unlink, missing_ok=True)
-        else:
-            uploads.done(*([msg.upload] if msg.upload is not None else []))
+            keep = msg.confirm
+        finally:
+            if not keep:
+                await asyncio.to_thread(staged.unlink, missing_ok=True)
+        if msg.confirm and msg.upload is not None:
+            uploads.done(msg.upload)
         info = {**summary.info(), "lost": lost, "restarting": msg.confirm}
         return {"restore": info}, (staged if msg.confirm else None)
 
