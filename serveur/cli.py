@@ -141,10 +141,10 @@ def _backups_folder(given: str | None, db: str) -> Path | None:
         return None
     if given:
         return Path(given)
-    if "://" in db and not db.startswith("sqlite:"):
-        return None
-    file = db.removeprefix("sqlite:").removeprefix("//")
-    return None if file == ":memory:" else Path(file).resolve().parent / "backups"
+    from serveur.store.factory import sqlite_file
+
+    file = sqlite_file(db)
+    return None if file is None else file.resolve().parent / "backups"
 
 
 async def _run(ns: argparse.Namespace) -> int:

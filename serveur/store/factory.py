@@ -8,10 +8,12 @@ given, so a SQLite site needs no MariaDB driver installed.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from serveur.errors import StoreError
 from serveur.store.base import Store
 
-__all__ = ["open_store"]
+__all__ = ["open_store", "sqlite_file"]
 
 
 def open_store(url: str) -> Store:
@@ -34,6 +36,21 @@ def open_store(url: str) -> Store:
                 f"the MariaDB backend needs its driver: pip install 'serveur[mariadb]' ({exc})"
             ) from exc
         return MariaDBStore.from_url(url)
+    from serveur.store.sqlite.store import SQLiteStore
+
+    return SQLiteStore(_sqlite_path(url))
+
+
+def sqlite_file(url: str) -> Path | None:
+    """The file of a SQLite database ``url`` (as :func:`open_store` reads it), or None for
+    another backend or a database in memory."""
+    if url.startswith(("mariadb://", "mysql://")):
+        return None
+    path = _sqlite_path(url)
+    return None if path == ":memory:" else Path(path)
+
+
+def _sqlite_path(url: str) -> str:
     if url.startswith("sqlite://"):
         path = url[len("sqlite://") :]
         if not path.startswith("/"):
@@ -48,6 +65,4 @@ def open_store(url: str) -> Store:
         path = url
     if not path:
         raise StoreError("empty database path", url=url)
-    from serveur.store.sqlite.store import SQLiteStore
-
-    return SQLiteStore(path)
+    return path
