@@ -28,8 +28,7 @@ from serveur.security.sessions import SecurityConfig, Sessions
 from serveur.server import Server
 from serveur.stats.remote import StatsService
 from serveur.store.base import Store
-from serveur.store.factory import open_store
-from serveur.store.sqlite.db import SQLiteDb
+from serveur.store.factory import open_store, sqlite_file
 
 __all__ = ["App", "RobotSpec", "parse_robot_spec"]
 
@@ -204,9 +203,8 @@ class App:
     def _staging(self) -> Path:
         """Where a backup waits for the restart that restores it: beside a SQLite file (the
         rename is then within one file system), else in the backups folder."""
-        db = self.store.db
-        if isinstance(db, SQLiteDb) and db.path != ":memory:":
-            file = Path(db.path)
+        file = sqlite_file(self._db)
+        if file is not None:
             return file.with_name(file.name + ".restoring")
         assert self._backups is not None
         return self._backups / "restoring.db"
