@@ -92,7 +92,9 @@ async def test_the_owner_edits_the_restaurant_and_reads_the_activity(
         # r1 is on a trip: the server refuses, the owner reads why.
         await robots.get_by_role("button", name="Remove r1", exact=True).click()
         await confirm(page, "Remove")
-        await expect(page.get_by_role("alert").filter(has_text="conflict")).to_be_visible()
+        await expect(
+            page.get_by_role("alert").filter(has_text="r1 is on a trip: wait until it is back.")
+        ).to_be_visible()
         await expect(robots.locator('li[data-robot="r1"]')).to_be_visible()
         # r9 has none: removed, gone here and from the map's robot list.
         await robots.get_by_role("button", name="Remove r9", exact=True).click()

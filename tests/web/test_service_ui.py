@@ -225,12 +225,17 @@ async def test_a_blocked_table_its_alert_and_a_dish_changed(tmp_path: Path, brow
 
         # A robot could not reach T5 (as the core records it): no robot goes there.
         assert r.app.core is not None
-        await r.app.core.service.block("T5", "r1 could not reach T5", "r1")
+        why = "r1: move_base ABORTED: no path to the goal: goal (9.20, 3.10) is occupied"
+        await r.app.core.service.block("T5", why, "r1")
         blocked = staff.get_by_role("list", name="Blocked tables")
-        await expect(blocked).to_contain_text("r1 could not reach T5")
+        # In staff's words; the robot's own text only for whoever opens "For the technician".
+        await expect(blocked).to_contain_text("r1 could not get there.")
+        await expect(blocked).not_to_contain_text("move_base", use_inner_text=True)
         await expect(staff.get_by_role("row").filter(has_text="Laksa")).to_contain_text(
-            "blocked: r1 could not reach T5"
+            "blocked: r1 could not get there."
         )
+        await blocked.get_by_text("For the technician").click()
+        await expect(blocked).to_contain_text(why, use_inner_text=True)
         await expect(add).to_be_disabled()
         # A critical alert: on the banner, and a chime (WebAudio) for it.
         banner = staff.get_by_role("region", name="Alerts")

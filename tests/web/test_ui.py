@@ -62,11 +62,17 @@ class Screens:
         self.sent: list[dict[str, Any]] = []  # every message the pages sent on their websockets
 
     async def open(
-        self, path: str, ws_route: Any = None, *, online: bool = True, token: str | None = None
+        self,
+        path: str,
+        ws_route: Any = None,
+        *,
+        online: bool = True,
+        token: str | None = None,
+        viewport: dict[str, int] | None = None,
     ) -> Any:
         # One context (window) per screen, as on separate devices: a second tab in the same
         # window would be a hidden tab, whose animation frames Chromium pauses.
-        context = await self.browser.new_context(viewport=TABLET)
+        context = await self.browser.new_context(viewport=viewport or TABLET)
         page = await context.new_page()
         if ws_route is not None:
             await page.route_web_socket(re.compile(r"/ws$"), ws_route)
@@ -526,9 +532,10 @@ async def test_server_refusals_are_shown_and_gaps_resync(tmp_path: Path, browser
         await c.ok("control", robot="r1", action="auto")  # another tablet, unseen by this page
         await take.click()
         # The server refuses (r1 is Awaiting now) and the person is told why.
-        alert = staff.get_by_role("alert").filter(has_text="not_allowed_in_status")
+        # In words, from the error's details: the robot's name and its status as staff say it.
+        alert = staff.get_by_role("alert").filter(has_text="That cannot be done while r1 is Free")
         await expect(alert).to_be_visible()
-        await expect(alert).to_contain_text("Awaiting")
+        await expect(alert).not_to_contain_text("not_allowed_in_status")
         # Updates flow again; the next one (a new order) shows a seq gap, the page subscribes
         # again, and the fresh snapshot shows what the server has.
         held["on"] = False
@@ -610,17 +617,19 @@ async def test_the_owner_registers_a_robot_staff_cannot(tmp_path: Path, browser:
             await form.get_by_label("Robot name").fill("r1")
             await form.get_by_label("Rosbridge address").fill(extra.urls[0])
             await form.get_by_role("button", name="Register robot").click()
-            await expect(owner.get_by_role("alert").filter(has_text="conflict")).to_be_visible()
+            await expect(
+                owner.get_by_role("alert").filter(has_text="There is already a robot called r1")
+            ).to_be_visible()
             await dismiss_toasts(owner)
 
             await form.get_by_label("Robot name").fill("r2")
             await form.get_by_label("Drive").select_option("diff")
             await form.get_by_role("button", name="Register robot").click()
             await expect(owner.get_by_text("Registered r2")).to_be_visible()
-            # the server reached it: Ready, in both consoles' lists
+            # the server reached it: Paused (not taking trips yet), in both consoles' lists
             for page in (owner, staff):
                 await expect(page.get_by_role("listitem").filter(has_text="r2")).to_contain_text(
-                    "Ready"
+                    "Paused"
                 )
             robot = await r.app.store.robots.get_robot("r2")
             assert (robot.url, robot.home, robot.kinematics) == (

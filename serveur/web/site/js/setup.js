@@ -7,6 +7,7 @@
 // first the page is logged in as the owner (the session token is kept like the console's), and
 // opening it again shows the first step not done yet, filled with what was saved.
 
+import { describeError } from "./ui.js";
 import { Connection, loadToken } from "./ws.js";
 import { Live } from "./live.js";
 import { onLangChange, t } from "./i18n.js";
@@ -94,7 +95,7 @@ form.addEventListener("submit", async (e) => {
     settings = reply.settings;
     show("robots");
   } catch (err) {
-    say("setup.failed", { message: err.message });
+    say("setup.failed", { message: describeError(err) });
   }
 });
 
@@ -142,7 +143,7 @@ document.getElementById("robot-test").addEventListener("click", async () => {
       ? t("setup.robots.found", { ros: p.ros === 2 ? "ROS 2" : "ROS 1", nav: p.navigation || t("setup.robots.noNav") })
       : t("setup.robots.foundUnknown");
   } catch (err) {
-    found.textContent = t("setup.failed", { message: err.message });
+    found.textContent = t("setup.failed", { message: describeError(err) });
   }
 });
 
@@ -166,7 +167,7 @@ robotForm.addEventListener("submit", async (e) => {
     const next = name.match(/^(.*?)(\d+)$/);
     document.getElementById("robot-name").value = next ? `${next[1]}${Number(next[2]) + 1}` : "";
   } catch (err) {
-    say("setup.failed", { message: err.message });
+    say("setup.failed", { message: describeError(err) });
   }
 });
 
@@ -187,7 +188,7 @@ conn.addEventListener("login", (e) => {
   // Not logged in: a setup code makes the owner; without one, this restaurant is set up
   // already (or the link was not the newest): the console's login is the way in.
   const err = e.detail.error;
-  if (err) say("setup.failed", { message: err.message });
+  if (err) say("setup.failed", { message: describeError(err) });
   else if (!code) say("setup.noCode");
   show("owner");
   document.getElementById("owner-form").hidden = !code;

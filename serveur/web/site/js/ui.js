@@ -4,6 +4,7 @@
 // are applied at once and again after a language change.
 
 import { onLangChange, t, translateNode } from "./i18n.js";
+import { wordError } from "./errors.js";
 
 // Whether the page is live. A control marked `data-needs-online` sends something to the server:
 // while the connection is lost it is shown disabled (aria-disabled, so the page's own reasons
@@ -89,14 +90,18 @@ export function toast(message, { kind = "info", ms } = {}) {
   setTimeout(() => node.remove(), ms ?? (error ? 12000 : 5000));
 }
 
-// Errors made in this page (ws.js), already worded in the page's language; any other code is
-// the server's, whose message is shown as it was sent, after a translated prefix.
-const CLIENT_CODES = new Set(["offline", "timeout", "connection_lost", "bad_json"]);
-
-/** A ServerError (or any error) as words for the person in front of the screen. */
+/**
+ * A ServerError (or any error) as one sentence for the person in front of the screen, in the
+ * page's language: this page's own (offline, timeout) as made; the server's worded from its code
+ * and details (errors.js), never its English message, which goes to the console for whoever
+ * integrates or debugs.
+ */
 export function describeError(err) {
-  if (err && err.code && CLIENT_CODES.has(err.code)) return `${err.message} (${err.code})`;
-  if (err && err.code) return t("error.server", { message: err.message, code: err.code });
+  if (err && err.local) return err.message;
+  if (err && err.code) {
+    console.info(`serveur refused: ${err.code}: ${err.message}`, err.details || {});
+    return wordError(err.code, err.details, err.request) ?? t("errors.unknown");
+  }
   return t("error.other", { message: String((err && err.message) || err) });
 }
 

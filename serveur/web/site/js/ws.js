@@ -25,12 +25,23 @@ const SILENT_MS = 5000;
 
 /** A refused or failed request: `code` is the protocol's error code (or a client-side one). */
 export class ServerError extends Error {
-  constructor(code, message, details = null) {
+  /**
+   * `request`: the message it answers (ui.js words the error from it and `details`); `local`:
+   * made by this page (offline, timeout...), its `message` already in the page's words.
+   */
+  constructor(code, message, details = null, { request = null, local = false } = {}) {
     super(message);
     this.name = "ServerError";
     this.code = code;
     this.details = details;
+    this.request = request;
+    this.local = local;
   }
+}
+
+/** An error this page made, its message already worded in the page's language. */
+function localError(code, message) {
+  return new ServerError(code, message, null, { local: true });
 }
 
 const TOKEN_KEY = "serveur.token";
@@ -143,7 +154,7 @@ export class Connection extends EventTarget {
     };
     entry.timer = setTimeout(() => {
       this._pending.delete(id);
-      entry.reject(new ServerError("timeout", t("error.timeout")));
+      entry.reject(localError("timeout", t("error.timeout")));
     }, REPLY_TIMEOUT_MS);
     this._pending.set(id, entry);
     this._send(entry);
@@ -172,14 +183,14 @@ export class Connection extends EventTarget {
   request(msg, { resend = false, timeout = REPLY_TIMEOUT_MS } = {}) {
     return new Promise((resolve, reject) => {
       if (this.state !== "online" && !resend) {
-        reject(new ServerError("offline", t("error.offline")));
+        reject(localError("offline", t("error.offline")));
         return;
       }
       const id = this._nextId++;
       const entry = { msg: { ...msg, id }, resolve, reject, resend, sent: false, timer: null };
       entry.timer = setTimeout(() => {
         this._pending.delete(id);
-        reject(new ServerError("timeout", t("error.timeout")));
+        reject(localError("timeout", t("error.timeout")));
       }, timeout);
       this._pending.set(id, entry);
       if (this.state === "online") this._send(entry);
@@ -195,7 +206,7 @@ export class Connection extends EventTarget {
       if (!entry.resend) {
         clearTimeout(entry.timer);
         this._pending.delete(entry.msg.id);
-        entry.reject(new ServerError("connection_lost", t("error.connectionLost")));
+        entry.reject(localError("connection_lost", t("error.connectionLost")));
       }
       return;
     }
@@ -252,7 +263,7 @@ export class Connection extends EventTarget {
     try {
       ws = new WebSocket(this.url);
     } catch (e) {
-      this._problem(new ServerError("offline", t("error.cannotOpen", { url: this.url, error: e.message })));
+      this._problem(localError("offline", t("error.cannotOpen", { url: this.url, error: e.message })));
       this._scheduleRetry();
       return;
     }
@@ -281,7 +292,7 @@ export class Connection extends EventTarget {
       } else {
         clearTimeout(entry.timer);
         this._pending.delete(id);
-        entry.reject(new ServerError("connection_lost", t("error.connectionLost")));
+        entry.reject(localError("connection_lost", t("error.connectionLost")));
       }
     }
   }
@@ -305,7 +316,7 @@ export class Connection extends EventTarget {
     try {
       msg = JSON.parse(text);
     } catch (e) {
-      this._problem(new ServerError("bad_json", t("error.badJson", { error: e.message })));
+      this._problem(localError("bad_json", t("error.badJson", { error: e.message })));
       return;
     }
     if (msg.servermsg === "update") {
@@ -327,7 +338,7 @@ export class Connection extends EventTarget {
     this._pending.delete(msg.id);
     clearTimeout(entry.timer);
     if (msg.servermsg === "ok") entry.resolve(msg);
-    else entry.reject(new ServerError(msg.code, msg.message, msg.details));
+    else entry.reject(new ServerError(msg.code, msg.message, msg.details, { request: entry.msg }));
   }
 
   _setState(state, retryIn = 0) {

@@ -10,7 +10,7 @@
 // console (a new tab), and shows the map as soon as one comes (the `map` topic).
 
 import { MapView } from "../map/view.js";
-import { byName, confirmDialog, el, KeyedList } from "../ui.js";
+import { byName, confirmDialog, describeError, el, KeyedList } from "../ui.js";
 import { onLangChange, statusName, t } from "../i18n.js";
 import { show } from "./steps.js";
 
@@ -264,7 +264,7 @@ export class PlacesStep {
       this.said.textContent = done;
       if (back && back.isConnected && !back.disabled) back.focus();
     } catch (err) {
-      this.said.textContent = t("setup.failed", { message: err.message });
+      this.said.textContent = t("setup.failed", { message: describeError(err) });
     } finally {
       saveBtn.disabled = false;
     }

@@ -9,7 +9,7 @@
 // dish counts as returned: the page says so and takes the test dish off the pass (`dish` `void`).
 // The trip is remembered on this tablet, so the page opened again follows it still.
 
-import { el, formatDuration, KeyedList, newKey } from "../ui.js";
+import { describeError, el, formatDuration, KeyedList, newKey } from "../ui.js";
 import { onLangChange, statusName, t } from "../i18n.js";
 import { placesState } from "./places.js";
 import { say, show } from "./steps.js";
@@ -151,7 +151,7 @@ export class TripStep {
       }
       this.setTrip({ ...this.trip, task: cart.tasks[0].id });
     } catch (err) {
-      say("setup.failed", { message: err.message });
+      say("setup.failed", { message: describeError(err) });
     } finally {
       this.sendBtn.disabled = false;
       this.follow();
@@ -167,7 +167,7 @@ export class TripStep {
     try {
       await this.conn.request({ clientmsg: verb, robot, ...this.live.target(robot) });
     } catch (err) {
-      say("setup.failed", { message: err.message });
+      say("setup.failed", { message: describeError(err) });
     } finally {
       button.disabled = false;
     }

@@ -5,6 +5,7 @@
 
 import { act, el, formatTime, KeyedList } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
+import { blockWords, troubleWords } from "./trouble.js";
 
 const MUTE_KEY = "serveur.alertsMuted";
 
@@ -158,10 +159,13 @@ export class AlertsPanel {
    * the zones a robot waits for ("Waiting for aisle (held by r2)").
    */
   _detail(alert) {
-    if (alert.kind === "table_unreachable") return this.live.blocks.get(alert.subject)?.reason || null;
+    if (alert.kind === "table_unreachable") {
+      const block = this.live.blocks.get(alert.subject);
+      return block ? blockWords(block) : null;
+    }
     const robot = this.live.robots.get(alert.subject);
     if (!robot) return null;
-    if (alert.kind === "robot_error") return robot.last_error || null;
+    if (alert.kind === "robot_error") return troubleWords(robot, this.live);
     if (alert.kind === "low_battery" && typeof robot.battery === "number") {
       return t("robots.battery", { value: t("robots.batteryPercent", { percent: Math.round(robot.battery * 100) }) });
     }

@@ -8,6 +8,7 @@
 import { act, byName, el, formatDuration, KeyedList, newKey, toast } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
 import { dishLabel, dishStep, editButtons, goButton, trayList, traySignature, voidDish } from "./dishes.js";
+import { blockWords, technicalNote } from "./trouble.js";
 
 function taskStatus(status) {
   return status === "queued" ? t("task.queued") : status === "active" ? t("task.active") : status;
@@ -90,7 +91,7 @@ export class IssuePanel {
     );
     this.pendingRows = new KeyedList(this.pendingBody, {
       key: (o) => o.id,
-      signature: (o) => [dishLabel(o), o.table, o.ready_at, o.status, this.live.blocks.get(o.table)?.reason ?? null],
+      signature: (o) => [dishLabel(o), o.table, o.ready_at, o.status, this.live.blocks.get(o.table)?.robot ?? null, this.live.blocks.has(o.table)],
       build: (o) => this._pendingRow(o),
       empty: () => el("tr", {}, el("td", { colspan: 4, class: "muted" }, this._pending().length ? t("issue.allInCart") : t("issue.noneWaiting"))),
     });
@@ -176,7 +177,7 @@ export class IssuePanel {
       "tr",
       { "data-order": o.id, class: block ? "blocked" : "" },
       el("td", {}, label),
-      el("td", {}, o.table, block ? el("span", { class: "why-waiting" }, t("blocks.dishWaits", { reason: block.reason })) : null),
+      el("td", {}, o.table, block ? el("span", { class: "why-waiting" }, t("blocks.dishWaits", { reason: blockWords(block) })) : null),
       el("td", { class: "waiting", "data-ready-at": o.ready_at }, this._waiting(o.ready_at)),
       el(
         "td",
@@ -230,7 +231,8 @@ export class IssuePanel {
       "li",
       { "data-table": b.table },
       el("span", { class: "table-tag" }, b.table),
-      el("span", { class: "dish" }, b.reason),
+      el("span", { class: "dish" }, blockWords(b)),
+      technicalNote(b.reason),
       el("button", {
         "data-needs-online": true,
         "aria-label": t("blocks.clearFor", { table: b.table }),

@@ -6,6 +6,7 @@ import { act, confirmDialog, el, formatClock, KeyedList, refocus } from "../ui.j
 import { allowed, statusColour } from "../status.js";
 import { onLangChange, statusName, t } from "../i18n.js";
 import { goButton, trayList, traySignature } from "./dishes.js";
+import { technicalNote, troubleWords } from "./trouble.js";
 
 // [action, label key, request]. `ready` takes a robot out of Manual (staff are done driving it)
 // or out of Auto (it stops taking trips): its words depend on which (readyKey).
@@ -40,7 +41,7 @@ export class RobotsPanel {
         const loading = robot.status === "Loading" ? traySignature(this.live, robot.current_task) : "";
         return [
           robot.status, robot.mode, battery(robot), this._trip(robot), this.selection.name === robot.name, robot.last_error,
-          loading, robot.status_since, rosVersion(robot), this._waiting(robot), Boolean(robot.lost),
+          loading, robot.status_since, this.live.destination(robot.name), this._waiting(robot), Boolean(robot.lost),
         ];
       },
       build: (robot) => this._row(robot),
@@ -119,9 +120,8 @@ export class RobotsPanel {
         statusName(robot.status),
       ),
       el("span", { class: "battery" }, t("robots.battery", { value: battery(robot) })),
-      el("span", { class: "ros" }, t("robots.ros", { version: rosVersion(robot) })),
       el("span", { class: "trip" }, trip),
-      robot.last_error ? el("span", { class: "last-error" }, t("robots.lastError", { message: robot.last_error })) : null,
+      this._trouble(robot),
       robot.lost ? el("span", { class: "lost", "data-testid": "lost", role: "status" }, t("robots.lost")) : null,
       robot.waiting_for && robot.waiting_for.length
         ? el("span", { class: "waiting-for", "data-testid": "waiting-for" }, this._waiting(robot))
@@ -130,6 +130,13 @@ export class RobotsPanel {
       robot.status === "Loading" ? this._loading(robot) : null,
       el("div", { class: "actions", role: "group", "aria-label": t("robots.actions", { name }) }, buttons),
     ];
+  }
+
+  /** What went wrong, in words (trouble.js), with the robot's own text folded underneath. */
+  _trouble(robot) {
+    const words = troubleWords(robot, this.live);
+    if (!words && !robot.last_error) return null;
+    return el("div", { class: "last-error" }, words ? el("span", { class: "trouble" }, words) : null, technicalNote(robot.last_error));
   }
 
   /** "Waiting for aisle (held by r2)": the zones a robot waits for and who is in them, or "". */
@@ -222,9 +229,4 @@ function battery(robot) {
   return robot.battery === null || robot.battery === undefined
     ? t("robots.batteryUnknown")
     : t("robots.batteryPercent", { percent: Math.round(robot.battery * 100) });
-}
-
-/** Which ROS the robot runs ("1": move_base, "2": Nav2), from its registration options. */
-function rosVersion(robot) {
-  return (robot.link && robot.link.ros) || "1";
 }

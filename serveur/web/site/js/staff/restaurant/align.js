@@ -9,7 +9,7 @@
 // The plan is decoded by this page (the server never decodes pictures); the map is the `map`
 // topic's grid, drawn here the right way up (its rows go up from the bottom).
 
-import { el } from "../../ui.js";
+import { describeError, el } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { field } from "../forms.js";
 import { uprightGrid } from "../../map/grid.js";
@@ -162,7 +162,7 @@ export class AlignSection {
         : field === "points" ? t("owner.align.tooClose")
         : field === "upload" ? t("owner.plan.notImage")
         : err.code === "conflict" && !(err.details && err.details.upload) ? t("owner.align.noMap")
-        : err.message;
+        : describeError(err);
       this._say("owner.align.refused", { why });
     } finally {
       button.disabled = false;

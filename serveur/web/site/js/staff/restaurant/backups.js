@@ -8,7 +8,7 @@
 // Downloads are plain links the server made (a ticket good once, for a minute): the browser
 // saves the file itself, the session's token never goes in an address.
 
-import { act, confirmDialog, el, formatTime, toast } from "../../ui.js";
+import { act, confirmDialog, describeError, el, formatTime, toast } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { field } from "../forms.js";
 import { listSection, rowButton } from "./form.js";
@@ -108,7 +108,7 @@ export class BackupsSection {
 
   _refused(err) {
     const reason = err.details && err.details.reason;
-    this._say("owner.backups.refused", { why: reason && REASONS[reason] ? t(REASONS[reason]) : err.message });
+    this._say("owner.backups.refused", { why: reason && REASONS[reason] ? t(REASONS[reason]) : describeError(err) });
   }
 
   async _backupNow() {

@@ -3,7 +3,7 @@
 // `site set_map` checks them and makes them the map; the places now in a wall are named so the
 // owner moves them. A refused file says why in the owner's words, and nothing changes.
 
-import { el } from "../../ui.js";
+import { describeError, el } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { field } from "../forms.js";
 import { sendFile } from "./upload.js";
@@ -64,7 +64,7 @@ export class MapSection {
         : t("owner.map.done", size);
     } catch (err) {
       const reason = err.details && err.details.reason;
-      this._say("owner.map.refused", { why: reason && REASONS[reason] ? t(REASONS[reason]) : err.message });
+      this._say("owner.map.refused", { why: reason && REASONS[reason] ? t(REASONS[reason]) : describeError(err) });
     } finally {
       this.useBtn.disabled = false;
     }

@@ -13,7 +13,7 @@
 // places now in a wall are named. "Download for the robot" saves the map as map_server's PGM and
 // YAML, made here from the preview's cells (the robot's AMCL reads them).
 
-import { el } from "../../ui.js";
+import { describeError, el } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { field } from "../forms.js";
 import { uprightGrid } from "../../map/grid.js";
@@ -280,7 +280,7 @@ export class PlanSection {
       this.useBtn.disabled = apply;
     } catch (err) {
       const reason = err.details && err.details.reason;
-      this._say("owner.map.refused", { why: reason === "not_an_image" ? t("owner.plan.notImage") : err.message });
+      this._say("owner.map.refused", { why: reason === "not_an_image" ? t("owner.plan.notImage") : describeError(err) });
       this.useBtn.disabled = !this.preview;
     } finally {
       this.checkBtn.disabled = false;
