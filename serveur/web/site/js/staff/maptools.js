@@ -20,6 +20,7 @@ import { WAYPOINT_COLOURS, ZONE_COLOURS, zoneState } from "../map/draw.js";
 import { onLangChange, t } from "../i18n.js";
 import { field, formDialog } from "./forms.js";
 import { leaseWords, releaseButtons } from "./leases.js";
+import { nearWords, spotWords } from "./near.js";
 
 // hint: a catalog key.
 const TOOLS = {
@@ -216,16 +217,12 @@ export class MapTools {
   showMark(mark) {
     if (mark && this.view.tool === "zone") {
       const count = this.view.draft ? this.view.draft.length : 0;
-      const where = t("map.zone.at", { x: mark.x.toFixed(2), y: mark.y.toFixed(2) });
+      const where = t("map.zone.at", { where: nearWords(this.live.waypoints.values(), mark.x, mark.y) });
       this.hint.textContent = `${t("map.zone.keysHint")} ${t("map.zone.cornersSoFar", { count })} ${where}`;
       return;
     }
     if (!mark || !TOOLS[this.view.tool]) return;
-    const where = t("map.where", {
-      x: mark.x.toFixed(2),
-      y: mark.y.toFixed(2),
-      heading: Math.round((mark.yaw * 180) / Math.PI),
-    });
+    const where = t("map.where", { where: spotWords(this.live.waypoints.values(), mark.x, mark.y, mark.yaw) });
     this.hint.textContent = `${t("map.hintFor", { robot: this.selection.name, hint: t("map.keysHint") })} ${where}`;
   }
 
@@ -331,11 +328,7 @@ export class MapTools {
     const msg = { clientmsg: "control", robot: name, action: tool, x: pose.x, y: pose.y, yaw };
     const reply = await act(null, () => this.conn.request(msg));
     if (!reply) return;
-    const where = t("map.where", {
-      x: pose.x.toFixed(2),
-      y: pose.y.toFixed(2),
-      heading: Math.round((yaw * 180) / Math.PI),
-    });
+    const where = spotWords(this.live.waypoints.values(), pose.x, pose.y, yaw);
     if (tool === "goal") {
       this.goals.set(name, { x: pose.x, y: pose.y, yaw });
       toast(t("map.moving", { robot: name, where }));

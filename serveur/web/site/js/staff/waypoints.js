@@ -101,7 +101,7 @@ export class WaypointsPanel {
     this.render();
     if (reply) {
       const w = reply.waypoint;
-      toast(t("wp.saved", { name: w.name, x: w.x.toFixed(2), y: w.y.toFixed(2) }));
+      toast(t("wp.saved", { name: w.name }));
       this.name.value = "";
     }
   }
