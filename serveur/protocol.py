@@ -125,6 +125,7 @@ from serveur.wire.owner import (
     StatsFigures,
     StatsForecast,
     StatsForecastCancel,
+    StatsLastService,
     StatsMessage,
     StatsTrips,
 )
@@ -232,6 +233,7 @@ __all__ = [
     "StatsFigures",
     "StatsForecast",
     "StatsForecastCancel",
+    "StatsLastService",
     "StatsMessage",
     "StatsTrips",
     "StopMsg",
@@ -718,7 +720,7 @@ _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
             "restore",
         ),
     ),
-    "stats": ("action", ("figures", "trips", "forecast", "forecast_cancel")),
+    "stats": ("action", ("figures", "trips", "forecast", "forecast_cancel", "last_service")),
 }
 
 _ACTIONS: Final[dict[type[BaseModel], Action]] = {

@@ -700,5 +700,6 @@ _SERVER_VERBS: dict[type, Callable[[Server, _Conn, Any], Awaitable[dict[str, Any
     P.StatsTrips: Server._stats,
     P.StatsForecast: Server._forecast,
     P.StatsForecastCancel: Server._forecast_cancel,
+    P.StatsLastService: Server._stats,
     **{cls: Server._account for cls in _members(P.AccountMessage)},
 }

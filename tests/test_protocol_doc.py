@@ -45,7 +45,7 @@ to that block. Its space-separated words:
   (the id the latest ``site`` ``upload`` answered, into ``upload``, ``yaml`` and ``image``),
   ``backup`` (the name of the backup the latest ``site`` ``backup_now`` made, into ``name``),
   ``day`` (the run's service day, at the request's ``utc_offset``: a ``stats`` ``forecast`` needs a
-  day with dishes).
+  day with dishes), ``before`` (the day after it: ``stats`` ``last_service`` names the run's).
 * ``token=ROLE:ROBOT``: replace the request's ``token`` by a fresh token of that role.
 * ``loose=a,b``: more volatile keys for this block. ``sample=k``: under key ``k`` the example
   lists some of the records (each must match one record the server sent; the real list may be
@@ -614,6 +614,11 @@ async def _fill(w: World, msg: dict[str, Any], fill: str, reply: Block | None) -
             tz = parse_offset(msg.get("utc_offset") or "+00:00")
             local = datetime.fromtimestamp(w.r.clock.epoch(), tz) - timedelta(hours=4)
             msg["day"] = local.date().isoformat()
+        elif name == "before":
+            # The day after the run's service day: its last service is the run's own.
+            tz = parse_offset(msg.get("utc_offset") or "+00:00")
+            local = datetime.fromtimestamp(w.r.clock.epoch(), tz) - timedelta(hours=4)
+            msg["before"] = (local.date() + timedelta(days=1)).isoformat()
         else:
             raise AssertionError(f"fill: unknown {name!r}")
 

@@ -10,7 +10,8 @@ hold a password). A store with no file (``:memory:``, tests) cannot be opened tw
 events are read here and computed in a worker thread.
 
 One computation at a time: a second request waits for the first (an owner pressing the
-button twice must not cost two cores during service).
+button twice must not cost two cores during service). ``last_service`` is no computation: one
+aggregate query of the orders, answered at once (the forecast's default day).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from typing import Any
 
 from serveur import protocol as P
 from serveur.errors import InvalidField, ServeurError
-from serveur.stats.periods import parse_offset, parse_when
+from serveur.stats.periods import parse_offset, parse_when, period_of
 from serveur.store.base import Store
 
 __all__ = ["StatsService", "when_range"]
@@ -69,7 +70,11 @@ class StatsService:
         self._db = None if _in_memory(db) else db
         self._one = asyncio.Lock()
 
-    async def handle(self, msg: P.StatsFigures | P.StatsTrips) -> dict[str, Any]:
+    async def handle(
+        self, msg: P.StatsFigures | P.StatsTrips | P.StatsLastService
+    ) -> dict[str, Any]:
+        if isinstance(msg, P.StatsLastService):
+            return await self.last_service(msg)
         tz, start, end = when_range(msg.utc_offset, msg.start, msg.end)
         if start is not None and end is not None and end <= start:
             raise InvalidField("end is not after start", field="end")
@@ -79,6 +84,14 @@ class StatsService:
             else:
                 doc = await self._child(msg)
         return {"stats": doc}
+
+    async def last_service(self, msg: P.StatsLastService) -> dict[str, Any]:
+        """The latest service day before ``msg.before`` whose dishes a forecast can replay
+        (None: the restaurant never had one), at the request's offset."""
+        tz, before, _ = when_range(msg.utc_offset, msg.before, None, ("before", "end"))
+        assert before is not None
+        ts = await self._store.orders.last_ready(before)
+        return {"last_service": None if ts is None else period_of(ts, "day", tz).label}
 
     async def _child(self, msg: P.StatsFigures | P.StatsTrips) -> dict[str, Any]:
         args = [sys.executable, "-m", "serveur.cli", "stats", "--json"]

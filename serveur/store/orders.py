@@ -102,6 +102,17 @@ class Orders:
         sql = f"{rows.ORDER} WHERE {' AND '.join(where)} ORDER BY id"
         return [Order(**r) for r in await self._db.transact(lambda tx: tx.all(sql, params), "auto")]
 
+    async def last_ready(self, before: float) -> float | None:
+        """When the latest dish first ready at the pass before ``before`` was ready (voided
+        dishes left out), or None: one aggregate, so the console can ask which day last had a
+        service without the server reading every order of a year (``list_orders`` would)."""
+        sql = "SELECT max(ready_at) AS t FROM orders WHERE ready_at < ? AND status <> ?"
+        row = await self._db.transact(
+            lambda tx: one(tx, sql, (before, OrderStatus.VOIDED.value)), "auto"
+        )
+        t = None if row is None else row["t"]
+        return None if t is None else float(t)
+
     async def cancel_order(self, order_id: int, *, now: float) -> Order:
         """Void a dish that has not left the pass (an order on a trip is a Conflict)."""
         return await self.step_order(order_id, DishAction.VOID, now=now)

@@ -301,6 +301,11 @@ class OkReply(_ServerModel):
     forecast: ForecastInfo | None = Field(
         default=None, description="stats forecast, forecast_cancel: the forecast"
     )
+    last_service: str | None = Field(
+        default=None,
+        description="stats last_service: the latest service day a forecast can replay (null:"
+        " none yet)",
+    )
     camera: CameraState | None = Field(default=None, description="camera: watching or not")
     upload: UploadInfo | None = Field(default=None, description="site upload, upload_part")
     map: MapInfo | None = Field(

@@ -43,6 +43,7 @@ __all__ = [
     "StatsFigures",
     "StatsForecast",
     "StatsForecastCancel",
+    "StatsLastService",
     "StatsMessage",
     "StatsTrips",
 ]
@@ -68,6 +69,8 @@ _Epoch = Annotated[float, Field(ge=0, le=1e11)]
 #: A day (``2026-11-24``: the service day starting at 04:00) or a time (``2026-11-24T19:30``).
 _When = Annotated[str, Field(pattern=r"^\d{4}-\d{2}-\d{2}(T\d{2}:\d{2}(:\d{2})?)?$")]
 _Offset = Annotated[str, Field(pattern=r"^[+-]\d{2}:\d{2}$")]
+#: A service day alone (``2026-11-24``: from 04:00 that day).
+_Day = Annotated[str, Field(pattern=r"^\d{4}-\d{2}-\d{2}$")]
 
 
 _Msg = ClientModel
@@ -266,13 +269,24 @@ class StatsTrips(_StatsMsg):
     action: Literal["trips"]
 
 
+class StatsLastService(_Msg):
+    """The latest service day before ``before`` whose dishes a forecast can replay (a dish was
+    ready at the pass that day, not voided): "How many robots do I need?" starts from it, since
+    the day before is often one the restaurant was closed."""
+
+    clientmsg: Literal["stats"]
+    action: Literal["last_service"]
+    before: _Day = Field(description="a service day (the asking device's today)")
+    utc_offset: _Offset | None = None
+
+
 class StatsForecast(_Msg):
     """Replay a recorded service day with other fleet sizes ("how many robots do I need?"):
     each fleet's waits arrive on the ``forecast`` topic as its replay finishes."""
 
     clientmsg: Literal["stats"]
     action: Literal["forecast"]
-    day: Annotated[str, Field(pattern=r"^\d{4}-\d{2}-\d{2}$")] = Field(
+    day: _Day = Field(
         description="the service day (from 04:00 local time) whose dishes are replayed"
     )
     robots: Annotated[list[Annotated[int, Field(ge=1, le=12)]], Field(min_length=1, max_length=6)]
@@ -294,6 +308,6 @@ class StatsForecastCancel(_Msg):
 
 
 StatsMessage: TypeAlias = Annotated[
-    StatsFigures | StatsTrips | StatsForecast | StatsForecastCancel,
+    StatsFigures | StatsTrips | StatsForecast | StatsForecastCancel | StatsLastService,
     Field(discriminator="action"),
 ]

@@ -124,6 +124,7 @@ MESSAGES: dict[str, dict[str, Any]] = {
         "robots": [2],
     },
     "stats forecast_cancel": {"clientmsg": "stats", "action": "forecast_cancel"},
+    "stats last_service": {"clientmsg": "stats", "action": "last_service", "before": "2026-11-24"},
 }
 #: The owner's console messages: never staff's, never a screen's.
 SITE = {k for k in MESSAGES if k.startswith("site ")}
