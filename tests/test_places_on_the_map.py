@@ -45,3 +45,28 @@ async def test_a_place_off_the_floor_is_refused_and_changes_nothing(tmp_path: Pa
         # Where a robot stands is saved as it is (it stood there).
         await c.status("r1", "Ready")
         await c.ok("create", type="waypoint", name="here", robot="r1", kind="other")
+
+
+async def test_moving_a_blocked_table_clears_its_block(tmp_path: Path) -> None:
+    """A table no robot could reach, moved by the owner: the block was about the old spot, so it
+    is cleared (its alert with it) and its dishes may leave the pass again. Moved to the same
+    spot, or another table moved, nothing is cleared."""
+    async with restaurant(tmp_path) as r:
+        c = await r.client()
+        await c.subscribe("waypoints", "blocks", "alerts")
+        assert r.app.core is not None
+        service = r.app.core.service
+        await service.block("T16", "r1: no way to T16", "r1")
+        await service.block("T5", "r1: no way to T5", "r1")
+        await c.until(lambda: "T16" in c.records.get("blocks", {}), what="T16 blocked")
+        t16 = c.records["waypoints"]["T16"]
+        same = {"x": t16["x"], "y": t16["y"], "yaw": t16["yaw"], "kind": "table"}
+        await c.ok("create", type="waypoint", name="T16", replace=True, **same)
+        assert "T16" in service.blocks  # not moved: still blocked
+        await c.ok(
+            "create", type="waypoint", name="T16", replace=True, **{**same, "x": t16["x"] + 0.2}
+        )
+        assert "T16" not in service.blocks and "T5" in service.blocks
+        await c.until(lambda: not c.records["blocks"]["T16"]["reason"], what="T16 unblocked")
+        blocked = await r.app.store.service.list_blocks()
+        assert [b.table for b in blocked] == ["T5"]

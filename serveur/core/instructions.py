@@ -128,7 +128,17 @@ class Instructions:
             x, y, yaw = msg.x, msg.y, msg.yaw
             self.places.check_spot(x, y)  # a robot's own pose is where a robot stood
         wp = WaypointRecord(name=msg.name, x=x, y=y, yaw=yaw, kind=WaypointKind(msg.kind))
-        return {"waypoint": await self.creation.waypoint(wp, replace=msg.replace)}
+        before = self.places.waypoints.get(msg.name)
+        made = await self.creation.waypoint(wp, replace=msg.replace)
+        if (
+            before is not None
+            and (before.x, before.y) != (x, y)
+            and msg.name in self.service.blocks
+        ):
+            # A table blocked because no robot could reach it, moved: the block was about the
+            # old spot. Robots may try the new one at once (its dishes leave the pass again).
+            await self.service.clear(msg.name, actor)
+        return {"waypoint": made}
 
     async def _create_robot(self, msg: P.CreateRobot, actor: str | None) -> dict[str, Any]:
         return await self.site.register_robot(msg)
