@@ -579,6 +579,7 @@ _SET_SETTINGS: dict[str, st.SearchStrategy[Any]] = {
     "auto_depart": st.booleans(),
     "languages": _LANGUAGES,
     "language": st.sampled_from(P.LANGUAGES),
+    "target_wait": st.floats(60, 3600),
 }
 
 

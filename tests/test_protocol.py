@@ -709,6 +709,9 @@ ZONE = {
         (SETTINGS | {"languages": None}, []),
         (SETTINGS | {"language": "EN"}, ["language"]),
         (SETTINGS | {"language": None}, []),
+        (SETTINGS | {"target_wait": 59}, ["target_wait"]),
+        (SETTINGS | {"target_wait": 3601}, ["target_wait"]),
+        (SETTINGS | {"target_wait": None}, []),
         # a language offered or not is the server's check (invalid_field with details.field)
         (SETTINGS | {"languages": ["en"], "language": "ms"}, None),
         (AUDIT | {"limit": 0}, ["limit"]),

@@ -84,6 +84,11 @@ class Settings(_ServerModel):
         description="the server's address for the restaurant's tablets; null: not set (links"
         " then use the address the owner's browser used)",
     )
+    target_wait: float = Field(
+        default=600.0,
+        description="seconds within which the owner wants 95 % of dishes at their table (the"
+        " forecast's target)",
+    )
 
 
 class Dependents(_ServerModel):

@@ -61,6 +61,7 @@ SETTINGS = (
     "cameras",
     "name",
     "public_url",
+    "target_wait",
 )
 #: The restaurant's address as its tablets reach it: scheme, host and port, nothing after.
 PublicUrl = Annotated[str, Field(max_length=200, pattern=r"^https?://[^\s/#?@]+$")]
@@ -189,12 +190,25 @@ class SiteSetSettings(_SiteMsg):
         description="the server's address as the restaurant's tablets reach it"
         " (http://192.168.1.20:8765): every screen's setup link and QR code uses it",
     )
+    target_wait: Annotated[float, Field(ge=60, le=3600)] | None = Field(
+        default=None,
+        description="seconds within which the owner wants 95 % of dishes at their table:"
+        " the forecast recommends the smallest fleet that meets it",
+    )
 
     @model_validator(mode="after")
     def _something(self) -> SiteSetSettings:
         if not self.changes():
             raise PydanticCustomError("nothing_to_set", "name at least one setting")
-        for key in ("trays", "auto_depart", "languages", "language", "cameras", "name"):
+        for key in (
+            "trays",
+            "auto_depart",
+            "languages",
+            "language",
+            "cameras",
+            "name",
+            "target_wait",
+        ):
             if key in self.model_fields_set and getattr(self, key) is None:
                 raise PydanticCustomError("not_null", f"{key} cannot be null")
         if self.languages is not None and len(set(self.languages)) != len(self.languages):

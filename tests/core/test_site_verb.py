@@ -146,10 +146,18 @@ async def test_settings_apply_at_once_and_survive_a_restart(tmp_path: Path) -> N
         ws = await _owner(app)
         before = await request(ws, _site("settings"))
         assert before["settings"]["table_timeout"] == 180.0
+        assert before["settings"]["target_wait"] == 600.0  # the default until the owner sets it
         await request(ws, {"clientmsg": "data", "topics": ["settings"]})
         changed = await request(
             ws,
-            _site("set_settings", table_timeout=60, trays=2, languages=["zh", "en"], language="zh"),
+            _site(
+                "set_settings",
+                table_timeout=60,
+                trays=2,
+                languages=["zh", "en"],
+                language="zh",
+                target_wait=480,
+            ),
         )
         assert changed["settings"] == {
             "table_timeout": 60.0,
@@ -160,6 +168,7 @@ async def test_settings_apply_at_once_and_survive_a_restart(tmp_path: Path) -> N
             "cameras": True,
             "name": "",
             "public_url": None,
+            "target_wait": 480.0,
         }
         assert app.core is not None and app.core.config.table_timeout == 60.0
         bad = await request(ws, _site("set_settings", languages=["en"], language="ms"))
@@ -176,6 +185,7 @@ async def test_settings_apply_at_once_and_survive_a_restart(tmp_path: Path) -> N
         assert app.core is not None
         assert (app.core.config.table_timeout, app.core.config.capacity) == (60.0, 2)
         assert app.core.settings()["language"] == "zh"
+        assert app.core.settings()["target_wait"] == 480.0
     finally:
         await app.close()
 

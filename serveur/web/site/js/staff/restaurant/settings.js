@@ -1,5 +1,6 @@
 // The Restaurant tab's site settings: time at a table (or for ever), trays per robot, leaving
-// without Go, the languages the pages offer and the default one (`site set_settings`). Its own
+// without Go, the cameras, the target wait (what the Statistics tab's forecast aims at), the
+// languages the pages offer and the default one (`site set_settings`). Its own
 // module so that the panel (restaurant.js) only lays the sections out; the form keeps the
 // owner's unsaved changes when the settings change elsewhere.
 
@@ -8,6 +9,7 @@ import { LANGS, t } from "../../i18n.js";
 import { field } from "../forms.js";
 
 export const MAX_TRAYS = 12;
+const TARGET_MINUTES = [1, 60]; // the target wait the server accepts (60-3600 s), in minutes
 
 export class SettingsSection {
   /** `onTrays()`: the site's trays changed (the robots' rows show them). */
@@ -21,6 +23,7 @@ export class SettingsSection {
     this.trays = el("input", { id: "set-trays", type: "number", min: 1, max: MAX_TRAYS, step: 1, inputmode: "numeric", required: true });
     this.autoDepart = el("input", { id: "set-auto", type: "checkbox" });
     this.cameras = el("input", { id: "set-cameras", type: "checkbox" });
+    this.target = el("input", { id: "set-target", type: "number", min: TARGET_MINUTES[0], max: TARGET_MINUTES[1], step: 1, inputmode: "numeric", required: true });
     this.langBoxes = Object.fromEntries(LANGS.map((l) => [l, el("input", { id: `set-lang-${l}`, type: "checkbox", value: l })]));
     this.language = el("select", { id: "set-language" });
     this.saveBtn = el("button", { type: "submit", class: "primary", "data-needs-online": true, "data-i18n": "owner.settings.save" });
@@ -35,6 +38,8 @@ export class SettingsSection {
       el("p", { class: "muted rest-hint", "data-i18n": "owner.settings.autoDepartNote" }),
       el("label", { class: "check" }, this.cameras, el("span", { "data-i18n": "owner.settings.cameras" })),
       el("p", { class: "muted rest-hint", "data-i18n": "owner.settings.camerasNote" }),
+      field("set-target", "owner.settings.target", this.target),
+      el("p", { class: "muted rest-hint", "data-i18n": "owner.settings.targetNote" }),
       el(
         "fieldset",
         { class: "rest-langs" },
@@ -81,6 +86,7 @@ export class SettingsSection {
     this.trays.value = String(settings.trays);
     this.autoDepart.checked = Boolean(settings.auto_depart);
     this.cameras.checked = settings.cameras !== false;
+    this.target.value = String(Math.round((settings.target_wait ?? 600) / 60));
     for (const l of LANGS) this.langBoxes[l].checked = settings.languages.includes(l);
     this.fillLanguage(settings.language);
     this._sync();
@@ -113,6 +119,7 @@ export class SettingsSection {
       trays: Number(this.trays.value),
       auto_depart: this.autoDepart.checked,
       cameras: this.cameras.checked,
+      target_wait: Number(this.target.value) * 60,
       languages,
       language: this.language.value,
     };
