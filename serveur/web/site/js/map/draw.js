@@ -19,10 +19,10 @@ export function zoneState(lease) {
 
 /**
  * The zones, under everything but the grid: each a translucent polygon tinted by its state
- * (`leases`: zone name -> lease row), its outline solid (dashed when free), its name to `labels`
- * at its middle. Returns {zone: state} of what was drawn.
+ * (`leases`: zone name -> lease row), its outline solid (dashed when free), its name to the
+ * scene's labels at its middle. Returns {zone: state} of what was drawn.
  */
-export function drawZones(ctx, view, zones, leases, labels) {
+export function drawZones(ctx, view, zones, leases, scene) {
   const drawn = {};
   ctx.save();
   for (const z of zones) {
@@ -45,7 +45,7 @@ export function drawZones(ctx, view, zones, leases, labels) {
     ctx.globalAlpha = 1;
     const cx = pts.reduce((a, p) => a + p[0], 0) / pts.length;
     const cy = pts.reduce((a, p) => a + p[1], 0) / pts.length;
-    labels.push({ text: z.name, x: cx, y: cy, r: 2, colour: darker(colour), font: "italic 12px system-ui, sans-serif", prio: 3 });
+    scene.labels.push({ key: `zone:${z.name}`, kind: "zone", of: z.name, text: z.name, x: cx, y: cy, r: 2, colour: darker(colour), size: 12, italic: true, prio: PRIO.zone });
     drawn[z.name] = state;
   }
   ctx.restore();
@@ -134,11 +134,24 @@ export function drawBackdrop(ctx, view, backdrop, image) {
   ctx.restore();
 }
 
-/** Waypoint markers; their names go to `labels` (placed by drawLabels). */
-export function drawWaypoints(ctx, view, waypoints, labels) {
+/**
+ * What the labels are placed around (labels.js), most important first: table names, then the
+ * selected robot, the other robots (each with where it is going), homes, the pass and other
+ * places, and last the zones' names.
+ */
+export const PRIO = { table: 0, selected: 1, robot: 2, place: 3, zone: 4 };
+
+/**
+ * A frame's labels and what they must not cover, filled by the draw functions below and
+ * placed by labels.js once everything is drawn (drawLabels draws them).
+ */
+export function newScene() {
+  return { labels: [], circles: [] };
+}
+
+/** Waypoint markers; their names go to the scene's labels (tables' first), the marks under them. */
+export function drawWaypoints(ctx, view, waypoints, scene) {
   ctx.save();
-  ctx.font = "12px system-ui, sans-serif";
-  ctx.textBaseline = "middle";
   for (const w of waypoints) {
     const [x, y] = view.toScreen(w.x, w.y);
     const r = 6;
@@ -153,52 +166,60 @@ export function drawWaypoints(ctx, view, waypoints, labels) {
     ctx.strokeStyle = "#fff";
     ctx.lineWidth = 1.5;
     ctx.stroke();
-    labels.push({ text: w.name, x, y, r: r + 2, colour: "#222", font: "12px system-ui, sans-serif", prio: 2 });
+    scene.circles.push({ x, y, r: r + 1 });
+    const table = w.kind === "table";
+    scene.labels.push({ key: `place:${w.name}`, kind: w.kind, of: w.name, text: w.name, x, y, r: r + 2, colour: "#222", size: 12, bold: table, keep: table, prio: table ? PRIO.table : PRIO.place });
   }
   ctx.restore();
 }
 
 /**
- * Place and draw every label so none overlaps another or a marker: highest priority first
- * (robots, then destinations, then waypoints), each at the first free spot around its anchor
- * (below, right, above, left, then further out); a label with no free spot near its anchor is
- * left out rather than drawn over another. Returns the placed boxes (for tests).
+ * The labels as labels.js placed them: first each leader line (from the anchor's edge to a label
+ * moved away from it), then the labels; a robot's is a tag in its status colour (its name and
+ * where it is going, white on the colour, as on the robot's badge in the list), every other one
+ * dark text on a white halo.
  */
-export function drawLabels(ctx, labels) {
-  const boxes = labels.map((l) => ({ x0: l.x - l.r, y0: l.y - l.r, x1: l.x + l.r, y1: l.y + l.r }));
-  const placed = [];
-  const sorted = labels.map((l, i) => [l, i]).sort((a, b) => a[0].prio - b[0].prio || a[1] - b[1]);
+export function drawLabels(ctx, placed) {
   ctx.save();
-  ctx.textBaseline = "top";
+  ctx.lineWidth = 1.5;
+  for (const l of placed) {
+    if (!l.leader) continue;
+    const [x0, y0, x1, y1] = l.leader;
+    ctx.strokeStyle = l.colour;
+    ctx.beginPath();
+    ctx.moveTo(x0, y0);
+    ctx.lineTo(x1, y1);
+    ctx.stroke();
+    ctx.beginPath();
+    ctx.arc(x0, y0, 2, 0, 2 * Math.PI);
+    ctx.fillStyle = l.colour;
+    ctx.fill();
+  }
+  ctx.textBaseline = "middle";
   ctx.textAlign = "left";
-  for (const [l, i] of sorted) {
+  for (const l of placed) {
     ctx.font = l.font;
-    const w = ctx.measureText(l.text).width;
-    const h = 14;
-    const spots = [];
-    for (const k of [1, 2]) {
-      const gap = 3 + (k - 1) * (h + 2);
-      spots.push(
-        [l.x - w / 2, l.y + l.r + gap], // below
-        [l.x + l.r + gap, l.y - h / 2], // right
-        [l.x - w / 2, l.y - l.r - gap - h], // above
-        [l.x - l.r - gap - w, l.y - h / 2], // left
-      );
+    const ty = (l.y0 + l.y1) / 2 + 0.5;
+    if (l.kind === "robot") {
+      ctx.beginPath();
+      if (ctx.roundRect) ctx.roundRect(l.x0, l.y0, l.x1 - l.x0, l.y1 - l.y0, 4);
+      else ctx.rect(l.x0, l.y0, l.x1 - l.x0, l.y1 - l.y0);
+      ctx.fillStyle = l.colour;
+      ctx.fill();
+      ctx.strokeStyle = "#fff";
+      ctx.lineWidth = 1;
+      ctx.stroke();
+      ctx.fillStyle = "#fff";
+      ctx.fillText(l.text, l.x0 + l.pad, ty);
+    } else {
+      ctx.lineWidth = 3;
+      ctx.strokeStyle = "rgba(255,255,255,0.85)";
+      ctx.strokeText(l.text, l.x0 + l.pad, ty);
+      ctx.fillStyle = l.colour;
+      ctx.fillText(l.text, l.x0 + l.pad, ty);
     }
-    const others = boxes.filter((_, j) => j !== i);
-    const spot = spots
-      .map(([x, y]) => ({ x0: x - 1, y0: y - 1, x1: x + w + 1, y1: y + h + 1 }))
-      .find((b) => !placed.some((p) => overlap(p, b)) && !others.some((p) => overlap(p, b)));
-    if (!spot) continue;
-    placed.push(spot);
-    labelAt(ctx, l.text, spot.x0 + 1, spot.y0 + 1, l.colour);
   }
   ctx.restore();
-  return placed;
-}
-
-function overlap(a, b) {
-  return a.x0 < b.x1 && b.x0 < a.x1 && a.y0 < b.y1 && b.y0 < a.y1;
 }
 
 /** A status colour made dark enough to read as text on the light map. */
@@ -208,14 +229,6 @@ function darker(hex) {
   const n = parseInt(m[1], 16);
   const c = [(n >> 16) & 255, (n >> 8) & 255, n & 255].map((v) => Math.round(v * 0.6));
   return `rgb(${c.join(",")})`;
-}
-
-function labelAt(ctx, text, x, y, colour) {
-  ctx.lineWidth = 3;
-  ctx.strokeStyle = "rgba(255,255,255,0.85)";
-  ctx.strokeText(text, x, y);
-  ctx.fillStyle = colour;
-  ctx.fillText(text, x, y);
 }
 
 /**
@@ -315,8 +328,11 @@ export function drawBlocked(ctx, view, wp) {
   ctx.restore();
 }
 
-/** A dashed line from the robot to where it is going, and that place ringed (tinted inside). */
-export function drawGoal(ctx, view, from, goal, colour, labels) {
+/**
+ * A dashed line from the robot to where it is going, and that place ringed (tinted inside). Its
+ * name is not written there (the table's own name is): the robot's label says where it goes.
+ */
+export function drawGoal(ctx, view, from, goal, colour, scene) {
   const [x0, y0] = view.toScreen(from.x, from.y);
   const [x1, y1] = view.toScreen(goal.x, goal.y);
   ctx.save();
@@ -337,7 +353,7 @@ export function drawGoal(ctx, view, from, goal, colour, labels) {
   ctx.lineWidth = 3;
   ctx.stroke();
   if (goal.yaw !== undefined && goal.yaw !== null) arrow(ctx, x1, y1, goal.yaw, 18, colour);
-  if (goal.label) labels.push({ text: goal.label, x: x1, y: y1, r: 12, colour, font: "bold 12px system-ui, sans-serif", prio: 1 });
+  scene.circles.push({ x: x1, y: y1, r: 12 });
   ctx.restore();
 }
 
@@ -363,7 +379,11 @@ export function arrow(ctx, x, y, yaw, length, colour) {
   ctx.restore();
 }
 
-export function drawRobot(ctx, view, name, pose, status, selected, labels) {
+/**
+ * A robot: a disc in its status colour, its heading a white wedge, ringed when selected; its
+ * label (`text`: its name, and where it is going) to the scene, placed beside it (labels.js).
+ */
+export function drawRobot(ctx, view, name, pose, status, selected, scene, text = name) {
   const [x, y] = view.toScreen(pose.x, pose.y);
   const r = Math.max(8, ROBOT_RADIUS_M * view.scale);
   const colour = statusColour(status);
@@ -392,7 +412,9 @@ export function drawRobot(ctx, view, name, pose, status, selected, labels) {
   ctx.closePath();
   ctx.fillStyle = "#fff";
   ctx.fill();
-  // Only the name: robots park side by side, and the status is the colour (and in the list).
-  labels.push({ text: name, x, y, r: r + (selected ? 5 : 1), colour: darker(colour), font: "bold 13px system-ui, sans-serif", prio: 0 });
+  // No status word: robots park side by side, and the status is the colour (and in the list).
+  const rim = r + (selected ? 6.5 : 1);
+  scene.circles.push({ x, y, r: rim });
+  scene.labels.push({ key: `robot:${name}`, kind: "robot", of: name, text, short: name, x, y, r: rim, colour, size: 12, bold: true, pad: 4, keep: true, prio: selected ? PRIO.selected : PRIO.robot });
   ctx.restore();
 }

@@ -30,8 +30,21 @@
 // from the keyboard, arrow keys move a cross, Enter adds a corner there, Enter again on the last
 // corner closes it (3 corners at least), Backspace takes the last corner back, Escape cancels.
 // The corners so far are published as data-draft; finishZone() closes the zone (Finish button).
+//
+// Labels (labels.js places them, draw.js draws them): none covers another, a place's marker, a
+// robot or a control laid over the map (an absolutely placed sibling of the canvas that takes
+// pointers: the legend), at any zoom and size; table names come first, then robots, then homes,
+// the pass and zones; a label that cannot go next to its mark goes a little further, on a leader
+// line, then smaller, and the least important is left out. A robot's label is its name and
+// where it is going ("r1 → T5"), a tag in its status colour beside the robot (on a line to it
+// when moved away): nothing is written at the destination but the table's own name, so no
+// destination can be read as the name of the table it lies next to, and a waiter reads who goes
+// where at a glance, on a phone too (no hover there). Placed once per frame drawn, so only when
+// something moved. labels() returns what was placed; data-labels publishes the boxes, and
+// data-label-info each label's text, kind, subject, box, anchor and leader (and those left out).
 
 import { decodeGrid } from "./grid.js";
+import { placeLabels } from "./labels.js";
 import {
   arrow,
   drawBlocked,
@@ -46,6 +59,7 @@ import {
   drawWaypoints,
   drawZoneDraft,
   drawZones,
+  newScene,
 } from "./draw.js";
 import { statusColour } from "../status.js";
 import { t } from "../i18n.js";
@@ -59,6 +73,7 @@ const KEY_STEP_M = 0.1; // a cursor step; Shift: five
 const KEY_TURN = Math.PI / 12; // 15 degrees
 const KEY_PAN_PX = 40;
 const CLOSE_PX = 14; // a click this near the first corner closes the zone
+const MEASURED_MAX = 2000; // text widths kept (font + text -> px): a frame measures none again
 
 export class MapView {
   /**
@@ -93,10 +108,55 @@ export class MapView {
     this._cursor = null; // the keyboard's pose cursor: {x, y, yaw}
     this.draft = null; // the zone tool's corners so far: [[x, y], ...]
     this.following = false; // keep the selected robot in the middle (setFollow)
+    this._placed = { placed: [], dropped: [], hidden: [] }; // the last frame's labels
+    this._labelPos = new Map(); // label key -> its position in the last frame (labels stay put)
+    this._widths = new Map();
     canvas.dataset.follow = "off";
     this._listen();
     new ResizeObserver(() => this._resize()).observe(canvas);
+    // Controls over the map (the legend opening) hide labels: place them again when they change.
+    const covers = new ResizeObserver(() => this.requestDraw());
+    for (const el of this._coverCandidates()) covers.observe(el);
     this._resize();
+  }
+
+  /** The labels of the last frame drawn: {placed, dropped, hidden} (labels.js placeLabels). */
+  labels() {
+    return this._placed;
+  }
+
+  _coverCandidates() {
+    const parent = this.canvas.parentElement;
+    return parent ? [...parent.children].filter((el) => el !== this.canvas) : [];
+  }
+
+  /** The boxes, in canvas pixels, of the controls laid over the map (a sibling of the canvas,
+   *  absolutely placed, shown and taking pointers: the legend; not a pointer-less marker). */
+  _covers() {
+    const c = this.canvas.getBoundingClientRect();
+    const left = c.left + this.canvas.clientLeft; // drawing starts inside the canvas's border
+    const top = c.top + this.canvas.clientTop;
+    const boxes = [];
+    for (const el of this._coverCandidates()) {
+      if (el.offsetParent === null) continue;
+      const style = getComputedStyle(el);
+      if (style.position !== "absolute" || style.pointerEvents === "none") continue;
+      const r = el.getBoundingClientRect();
+      if (r.width && r.height) boxes.push({ x0: r.left - left, y0: r.top - top, x1: r.right - left, y1: r.bottom - top });
+    }
+    return boxes;
+  }
+
+  _measure(font, text) {
+    const key = `${font}\n${text}`;
+    let w = this._widths.get(key);
+    if (w === undefined) {
+      if (this._widths.size >= MEASURED_MAX) this._widths.clear();
+      this.ctx.font = font;
+      w = this.ctx.measureText(text).width;
+      this._widths.set(key, w);
+    }
+    return w;
   }
 
   toScreen(x, y) {
@@ -320,11 +380,11 @@ export class MapView {
       ctx.font = "16px system-ui, sans-serif";
       ctx.fillText(t("map.none"), 20, 30);
     }
-    // Labels are placed last, robots' names first, so none covers another (draw.js).
-    const labels = [];
+    // Labels are placed last, once everything they must not cover is drawn (labels.js).
+    const scene = newScene();
     const zones = [...live.zones.values()].sort((a, b) => (a.name < b.name ? -1 : 1));
-    this.canvas.dataset.zones = JSON.stringify(drawZones(ctx, this, zones, live.leases, labels));
-    drawWaypoints(ctx, this, [...live.waypoints.values()], labels);
+    this.canvas.dataset.zones = JSON.stringify(drawZones(ctx, this, zones, live.leases, scene));
+    drawWaypoints(ctx, this, [...live.waypoints.values()], scene);
     const selected = this.opts.selected();
     const cloud = selected && live.clouds.get(selected);
     if (cloud) drawCloud(ctx, this, cloud);
@@ -336,6 +396,7 @@ export class MapView {
     this.canvas.dataset.blocked = JSON.stringify(blocked.sort());
     const goals = this.opts.goals();
     const routes = {};
+    const going = new Map(); // robot -> where it is going, as its label says it
     for (const [name, robot] of live.robots) {
       const pose = live.pose(name);
       if (!pose) continue;
@@ -344,18 +405,20 @@ export class MapView {
       if (stops.length) {
         const wps = stops.map((s) => live.waypoints.get(s));
         drawLaterStops(ctx, this, wps, colour);
-        drawGoal(ctx, this, pose, { ...wps[0], label: `${name} → ${stops[0]}` }, colour, labels);
+        drawGoal(ctx, this, pose, wps[0], colour, scene);
         routes[name] = stops;
+        going.set(name, stops[0]);
       } else if (goals.has(name)) {
-        const label = `${name} → ${t("map.goalLabel")}`;
-        drawGoal(ctx, this, pose, { ...goals.get(name), label }, CONSOLE_GOAL_COLOUR, labels);
+        drawGoal(ctx, this, pose, goals.get(name), CONSOLE_GOAL_COLOUR, scene);
         routes[name] = ["goal"];
+        going.set(name, t("map.goalLabel"));
       }
     }
     this.canvas.dataset.routes = JSON.stringify(routes);
     for (const [name, robot] of live.robots) {
       const pose = live.pose(name);
-      if (pose) drawRobot(ctx, this, name, pose, robot.status, name === selected, labels);
+      const text = going.has(name) ? `${name} → ${going.get(name)}` : name;
+      if (pose) drawRobot(ctx, this, name, pose, robot.status, name === selected, scene, text);
     }
     const g = this._gesture;
     const c = this._cursor;
@@ -369,8 +432,35 @@ export class MapView {
       ctx.fill();
       if (pick.yaw !== null) arrow(ctx, sx, sy, pick.yaw, 40, TOOL_COLOURS[this.tool]);
     }
-    const placed = drawLabels(ctx, labels);
-    this.canvas.dataset.labels = JSON.stringify(placed.map((b) => [b.x0, b.y0, b.x1, b.y1].map(Math.round)));
+    this._placeLabels(scene);
+  }
+
+  /** Place the frame's labels (labels.js), draw them and publish them. */
+  _placeLabels(scene) {
+    const { ctx, canvas } = this;
+    const found = placeLabels(
+      scene.labels,
+      { circles: scene.circles, rects: this._covers(), width: canvas.clientWidth, height: canvas.clientHeight },
+      (font, text) => this._measure(font, text),
+      this._labelPos,
+    );
+    this._placed = found;
+    this._labelPos = new Map(found.placed.map((l) => [l.key, l.pos]));
+    drawLabels(ctx, found.placed);
+    const px = (v) => Math.round(v * 10) / 10; // rounding keeps the boxes' order: apart stays apart
+    canvas.dataset.labels = JSON.stringify(found.placed.map((l) => [l.x0, l.y0, l.x1, l.y1].map(px)));
+    canvas.dataset.labelInfo = JSON.stringify({
+      placed: found.placed.map((l) => ({
+        text: l.text,
+        kind: l.kind,
+        of: l.of,
+        box: [l.x0, l.y0, l.x1, l.y1].map(px),
+        anchor: [px(l.ax), px(l.ay), px(l.ar)],
+        leader: l.leader ? l.leader.map(px) : null,
+      })),
+      dropped: found.dropped,
+      hidden: found.hidden,
+    });
   }
 
   /**
