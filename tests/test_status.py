@@ -62,12 +62,20 @@ def test_nav_failure_is_error_and_continue_retries() -> None:
     assert apply(st, Event.CANCEL).status is S.TRANSIT
 
 
-def test_manual_and_auto_exclude_each_other() -> None:
-    auto = run(Event.LINK_UP, Event.AUTO)
-    with pytest.raises(NotAllowedInStatus):
-        apply(auto, Event.MANUAL)
-    with pytest.raises(NotAllowedInStatus):
-        check_allowed(auto.status, Action.MANUAL)
+def test_control_is_taken_in_one_step_and_auto_is_not_from_manual() -> None:
+    # Taking control needs no "Pause deliveries" first (issue 30): from Free, on a trip, at a
+    # table or stopped, one `manual` makes the robot Manual, in mode manual.
+    for path in (
+        (Event.AUTO,),
+        (Event.AUTO, Event.DISPATCH),
+        (Event.AUTO, Event.DISPATCH, Event.ARRIVED),
+        (Event.AUTO, Event.DISPATCH, Event.STOP),
+        (Event.AUTO, Event.GO_HOME),
+    ):
+        st = run(Event.LINK_UP, *path)
+        check_allowed(st.status, Action.MANUAL)
+        taken = apply(st, Event.MANUAL)
+        assert (taken.status, taken.mode) == (S.MANUAL, RobotMode.MANUAL), path
     manual = run(Event.LINK_UP, Event.MANUAL)
     assert manual.mode is RobotMode.MANUAL
     with pytest.raises(NotAllowedInStatus):

@@ -96,8 +96,8 @@ async def test_real_refusals_are_worded_from_their_details(tmp_path: Path, brows
         moved = {"x": t1["x"] + 0.1, "y": t1["y"], "kind": "table"}
         await refused("create", "conflict", type="waypoint", name="T1", **moved)
         want_en = [
-            "That cannot be done while r1 is Paused: the screen is up to date now.",
-            "r1 has moved on since your screen showed it: it is Paused now."
+            "r1 now shows “Paused”, so that cannot be done. The screen is up to date.",
+            "r1 has moved on since your screen showed it: it now shows “Paused”."
             " Look again before pressing.",
             "That spot is outside the restaurant's map: choose a spot on the floor.",
             "That spot is in a wall or furniture: choose a spot on open floor.",
@@ -149,15 +149,15 @@ async def test_a_refusal_on_a_chinese_phone_is_in_chinese(tmp_path: Path, browse
 
         page = await screens.open("/?lang=zh", ws_route=relay, viewport=PHONE)
         await expect(page.locator("html")).to_have_attribute("data-lang", "zh")
-        take = page.get_by_role("button", name="接管 r1")
-        await expect(take).to_be_visible()
+        start = page.get_by_role("button", name="开始送餐 r1")
+        await expect(start).to_be_visible()
         held["on"] = True
-        await c.ok("control", robot="r1", action="auto")  # another tablet, unseen by this phone
-        await take.click()
+        await c.ok("control", robot="r1", action="manual")  # another tablet, unseen here
+        await start.click()
         alert = page.get_by_role("alert").filter(has_text="r1")
         await expect(alert).to_be_visible()
         text = await alert.inner_text()
-        assert CJK.search(text) and "空闲" in text, text  # r1 is Free now, in Chinese
-        assert "not_allowed" not in text and "Awaiting" not in text, text
+        assert CJK.search(text) and "员工操控" in text, text  # r1 is under staff control
+        assert "not_allowed" not in text and "Manual" not in text, text
         held["on"] = False
         screens.assert_no_errors()

@@ -295,8 +295,15 @@ async def test_stop_then_cancel_with_confirmation(tmp_path: Path, browser: Any) 
         # The console offers only what Stopped allows (skip: on a trip, leave this table).
         actions = staff.get_by_role("group", name="Actions for r1")
         await expect(actions.get_by_role("button")).to_have_text(
-            ["Continue", "Skip table", "Cancel trip"]
+            ["Continue", "Skip table", "Cancel trip", "Take control"]
         )
+        # Take control is one step, but with a trip under way it asks first.
+        await actions.get_by_role("button", name="Take control r1").click()
+        take = staff.get_by_role("dialog", name="Take control of r1?")
+        await expect(take).to_contain_text("the dishes for T16 not served yet go back")
+        await take.get_by_role("button", name="No, let it carry on").click()
+        await expect(take).to_have_count(0)
+        assert c.robot("r1")["status"] == "Stopped"
 
         # Cancel asks first; "No" keeps the trip.
         await staff.get_by_role("button", name="Cancel trip r1").click()
@@ -318,6 +325,12 @@ async def test_stop_then_cancel_with_confirmation(tmp_path: Path, browser: Any) 
         await c.until(lambda: c.order(oid).get("status") == "pending", what="order pending")
         await staff.get_by_role("tab", name="Send food").click()
         await expect(staff.get_by_role("button", name="Add to cart: Curry for T16")).to_be_visible()
+        # Free at home: Take control in one press, no "Pause deliveries" first, nothing asked.
+        await c.status("r1", "Awaiting")
+        await staff.get_by_role("tab", name="Map & robots").click()
+        await actions.get_by_role("button", name="Take control r1").click()
+        await c.status("r1", "Manual")
+        await expect(actions.get_by_role("button")).to_have_text(["Done driving"])
         screens.assert_no_errors()
 
 
@@ -526,22 +539,24 @@ async def test_server_refusals_are_shown_and_gaps_resync(tmp_path: Path, browser
             ws.on_message(server.send)
 
         staff = await screens.open("/", ws_route=relay)
-        take = staff.get_by_role("button", name="Take control r1")
-        await expect(take).to_be_visible()
+        start = staff.get_by_role("button", name="Start delivering r1")
+        await expect(start).to_be_visible()
         held["on"] = True
-        await c.ok("control", robot="r1", action="auto")  # another tablet, unseen by this page
-        await take.click()
-        # The server refuses (r1 is Awaiting now) and the person is told why.
-        # In words, from the error's details: the robot's name and its status as staff say it.
-        alert = staff.get_by_role("alert").filter(has_text="That cannot be done while r1 is Free")
+        await c.ok("control", robot="r1", action="manual")  # another tablet, unseen by this page
+        await start.click()
+        # The server refuses (r1 is under staff control now) and the person is told why,
+        # in words, from the error's details: the robot's name and its status as staff say it.
+        alert = staff.get_by_role("alert").filter(
+            has_text="r1 now shows “Staff control”, so that cannot be done."
+        )
         await expect(alert).to_be_visible()
         await expect(alert).not_to_contain_text("not_allowed_in_status")
         # Updates flow again; the next one (a new order) shows a seq gap, the page subscribes
         # again, and the fresh snapshot shows what the server has.
         held["on"] = False
         await c.ok("create", type="order", dish="Tea", table="T2")
-        await expect(staff.get_by_role("button", name="Pause deliveries r1")).to_be_visible()
-        await expect(take).to_have_count(0)
+        await expect(staff.get_by_role("button", name="Done driving r1")).to_be_visible()
+        await expect(start).to_have_count(0)
 
         # Saving a waypoint under a taken name asks before replacing it.
         await staff.get_by_label("Name", exact=True).fill("T1")

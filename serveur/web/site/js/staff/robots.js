@@ -10,15 +10,17 @@ import { technicalNote, troubleWords } from "./trouble.js";
 
 // [action, label key, request]. `ready` takes a robot out of Manual (staff are done driving it)
 // or out of Auto (it stops taking trips): its words depend on which (readyKey).
+// The robot's next action first (Food collected, Continue...); Take control, possible from
+// nearly every status in one step, last.
 const ACTIONS = [
   ["auto", "robots.auto", (r) => ({ clientmsg: "control", robot: r, action: "auto" })],
-  ["manual", "robots.manual", (r) => ({ clientmsg: "control", robot: r, action: "manual" })],
+  ["next", "robots.collected", (r, at) => ({ clientmsg: "next", robot: r, ...at })],
+  ["continue", "robots.continue", (r, at) => ({ clientmsg: "continue", robot: r, ...at })],
   ["ready", "robots.pause", (r) => ({ clientmsg: "ready", robot: r })],
   ["stop", "robots.stop", (r, at) => ({ clientmsg: "stop", robot: r, ...at })],
-  ["continue", "robots.continue", (r, at) => ({ clientmsg: "continue", robot: r, ...at })],
-  ["next", "robots.collected", (r, at) => ({ clientmsg: "next", robot: r, ...at })],
   ["skip", "robots.skip", (r, at) => ({ clientmsg: "skip", robot: r, ...at })],
   ["cancel", "robots.cancel", (r, at) => ({ clientmsg: "cancel", robot: r, ...at })],
+  ["manual", "robots.manual", (r) => ({ clientmsg: "control", robot: r, action: "manual" })],
 ];
 
 /** The `ready` button's words: "Done driving" under staff control, else "Pause deliveries". */
@@ -139,6 +141,14 @@ export class RobotsPanel {
     return el("div", { class: "last-error" }, words ? el("span", { class: "trouble" }, words) : null, technicalNote(robot.last_error));
   }
 
+  /** The tables of `name`'s trip not served yet, "T5, T7", or "". */
+  _tripTables(name) {
+    const robot = this.live.robots.get(name);
+    const task = robot && this.live.tasks.get(robot.current_task);
+    if (!task) return "";
+    return task.stops.slice(task.current_stop ?? 0).map((s) => s.table).join(", ");
+  }
+
   /** "Waiting for aisle (held by r2)": the zones a robot waits for and who is in them, or "". */
   _waiting(robot) {
     const zones = robot.waiting_for;
@@ -200,6 +210,16 @@ export class RobotsPanel {
       });
       if (!yes) return;
     }
+    if (action === "manual" && this.live.robots.get(name)?.current_task != null) {
+      // One step, but a trip under way is given up: asked first.
+      const tables = this._tripTables(name);
+      const yes = await confirmDialog(t("robots.takeQuestion", { name }), {
+        yes: t("robots.takeYes"),
+        no: t("robots.takeNo"),
+        detail: tables ? t("robots.takeDetail", { tables }) : t("robots.takeDetailAny"),
+      });
+      if (!yes) return;
+    }
     if (action === "cancel") {
       const yes = await confirmDialog(t("robots.cancelQuestion", { name }), {
         yes: t("robots.cancelYes"),
@@ -209,13 +229,28 @@ export class RobotsPanel {
       if (!yes) return;
     }
     this._acting = { name, action };
+    let reply = null;
     try {
-      await act(button, () => this.conn.request(msg));
+      reply = await act(button, () => this.conn.request(msg));
     } finally {
       this._acting = null;
     }
+    if (reply && action === "manual") this._showDriving(name);
     // Focus kept: on the button pressed if still there, else on the robot's row.
     if (!document.activeElement || document.activeElement === document.body) this._refocus(name, action);
+  }
+
+  /**
+   * Taken control on a phone, where the robots come above the map: select the robot and bring
+   * the joystick up from below, so the map and the pads share the screen while driving.
+   */
+  _showDriving(name) {
+    if (!window.matchMedia("(max-width: 600px)").matches) return;
+    if (this.selection.name !== name) this.selection.set(name);
+    requestAnimationFrame(() => {
+      const pad = document.querySelector("#teleop .pads");
+      if (pad) pad.scrollIntoView({ block: "end", behavior: "instant" });
+    });
   }
 
   /** Focus the row's control `key` (an action, "select"), or its first usable one (its name). */
