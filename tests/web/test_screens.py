@@ -32,7 +32,9 @@ SIZES = {
 }
 
 TOPBAR = """() => [...document.querySelectorAll(".topbar > *, .tabs > *")]
+  // Shown (not for screen readers only: a 1 px clipped box is not on screen to overlap).
   .filter((e) => e.offsetParent !== null && !e.classList.contains("tabs"))
+  .filter((e) => e.getBoundingClientRect().width > 1)
   .map((e) => {
     const r = e.getBoundingClientRect();
     return [e.textContent.trim().slice(0, 20), [r.left, r.top, r.right, r.bottom]];

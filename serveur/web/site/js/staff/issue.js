@@ -9,6 +9,7 @@ import { act, byName, el, formatDuration, KeyedList, newKey, toast } from "../ui
 import { onLangChange, t } from "../i18n.js";
 import { dishLabel, dishStep, editButtons, goButton, trayList, traySignature, voidDish } from "./dishes.js";
 import { blockWords, technicalNote } from "./trouble.js";
+import { keep, kept } from "./keep.js";
 
 function taskStatus(status) {
   return status === "queued" ? t("task.queued") : status === "active" ? t("task.active") : status;
@@ -18,10 +19,19 @@ export class IssuePanel {
   constructor(root, conn, live) {
     this.conn = conn;
     this.live = live;
-    this.cart = []; // order ids, in the order they were added
-    this.key = newKey("cart");
+    // Order ids, in the order they were added, and the cart's key: kept across a reload (a key
+    // names one cart's content, so a cart sent just before the reload is not sent twice).
+    const saved = kept("cart");
+    const ok = saved && Array.isArray(saved.ids) && saved.ids.every(Number.isInteger) && typeof saved.key === "string";
+    this.cart = ok ? saved.ids : [];
+    this.key = ok ? saved.key : newKey("cart");
+    this.ordersSeen = false; // the orders snapshot came: the cart can be checked against it
     this.sending = new Set(); // ids of a cart being sent: their leaving "pending" is expected
     this.pendingBody = el("tbody");
+    // One tap sends what is ready: everything, or one table's dishes (no cart on the way).
+    this.sendAllBtn = el("button", { class: "primary", "data-needs-online": true, onclick: (e) => this._sendNow(e.currentTarget, this._ready()) });
+    this.tableSends = el("div", { class: "send-tables", role: "group", "data-i18n-aria-label": "issue.sendTables" });
+    this.sendBar = el("div", { class: "send-ready" }, this.sendAllBtn, this.tableSends);
     this.cartList = el("ul", { class: "cart-list", "data-i18n-aria-label": "issue.cart" });
     this.sendBtn = el("button", { class: "primary big", "data-needs-online": true, onclick: () => this._send() });
     this.trips = el("ul", { class: "trips", "data-i18n-aria-label": "issue.trips" });
@@ -59,6 +69,7 @@ export class IssuePanel {
             "section",
             { class: "card", "aria-labelledby": "pending-title" },
             el("h2", { id: "pending-title", "data-i18n": "issue.pending" }),
+            this.sendBar,
             el(
               "table",
               { class: "pending", "aria-labelledby": "pending-title" },
@@ -95,6 +106,18 @@ export class IssuePanel {
       build: (o) => this._pendingRow(o),
       empty: () => el("tr", {}, el("td", { colspan: 4, class: "muted" }, this._pending().length ? t("issue.allInCart") : t("issue.noneWaiting"))),
     });
+    this.tableSendRows = new KeyedList(this.tableSends, {
+      key: ([table]) => table,
+      signature: ([, ids]) => ids.length,
+      build: ([table, ids]) =>
+        el("button", {
+          class: "secondary",
+          "data-needs-online": true,
+          "aria-label": t("issue.sendTableFor", { table, dishes: t("count.dishes", { count: ids.length }) }),
+          onclick: (e) => this._sendNow(e.currentTarget, this._ready().filter((id) => this.live.orders.get(id)?.table === table)),
+          text: t("issue.sendTable", { table, count: ids.length }),
+        }),
+    });
     this.loadingRows = new KeyedList(this.loadingList, {
       key: (r) => r.name,
       signature: (r) => [r.current_task, traySignature(this.live, r.current_task)],
@@ -124,12 +147,13 @@ export class IssuePanel {
       empty: () => el("li", { class: "muted" }, t("issue.noTrips")),
     });
     live.addEventListener("change", (e) => {
+      if (e.detail.topic === "orders") this.ordersSeen = true;
       if (["orders", "tasks", "robots", "blocks"].includes(e.detail.topic)) this.render();
     });
     // Waiting times tick; only their text changes.
     setInterval(() => this._tick(), 1000);
     onLangChange(() => {
-      for (const list of [this.pendingRows, this.loadingRows, this.returnedRows, this.blockedRows, this.cartRows, this.tripRows]) {
+      for (const list of [this.pendingRows, this.tableSendRows, this.loadingRows, this.returnedRows, this.blockedRows, this.cartRows, this.tripRows]) {
         list.invalidate();
       }
       this.render();
@@ -147,15 +171,17 @@ export class IssuePanel {
     const pending = this._pending();
     const pendingIds = new Set(pending.map((o) => o.id));
     // Dishes another tablet dispatched (or the kitchen withdrew) leave our cart.
-    const gone = this.cart.filter((id) => !pendingIds.has(id));
+    const gone = this.ordersSeen ? this.cart.filter((id) => !pendingIds.has(id)) : [];
     if (gone.length) {
       this.cart = this.cart.filter((id) => pendingIds.has(id));
       this.key = newKey("cart");
       const surprising = gone.filter((id) => !this.sending.has(id)).length;
       if (surprising) toast(t("issue.leftCart", { count: surprising }));
+      this._keepCart();
     }
     const inCart = new Set(this.cart);
     this.pendingRows.update(pending.filter((o) => !inCart.has(o.id)));
+    this._renderSendBar();
     const loading = [...this.live.robots.values()].filter((r) => r.status === "Loading").sort((a, b) => byName(a.name, b.name));
     this.loadingRows.update(loading);
     const returned = [...this.live.orders.values()]
@@ -214,7 +240,7 @@ export class IssuePanel {
         "data-needs-online": true,
         "aria-label": t("returned.againFor", { dish: label, table: o.table }),
         text: t("returned.again"),
-        onclick: (e) => dishStep(this.conn, e.currentTarget, o, "ready"),
+        onclick: (e) => this._sendAgain(e.currentTarget, o),
       }),
       el("button", {
         class: "danger",
@@ -240,6 +266,47 @@ export class IssuePanel {
         onclick: (e) => act(e.currentTarget, () => this.conn.request({ clientmsg: "clear", table: b.table })),
       }),
     );
+  }
+
+  /**
+   * "Send again" sends: the dish goes back to the pass (ready) and leaves on a trip in the same
+   * press. For a blocked table it stays at the pass, said by the server's refusal.
+   */
+  async _sendAgain(button, order) {
+    const back = await dishStep(this.conn, button, order, "ready");
+    if (!back) return;
+    if (this.live.blocks.has(order.table)) return; // waits at the pass, the row says why
+    await this._dispatch(button, [order.id], newKey("again"));
+  }
+
+  /** The dishes ready at the pass that a robot may take now (not for a blocked table). */
+  _ready() {
+    return this._pending()
+      .filter((o) => !this.live.blocks.has(o.table))
+      .map((o) => o.id);
+  }
+
+  _renderSendBar() {
+    const ready = this._ready();
+    const byTable = new Map();
+    for (const id of ready) {
+      const table = this.live.orders.get(id).table;
+      if (!byTable.has(table)) byTable.set(table, []);
+      byTable.get(table).push(id);
+    }
+    this.sendBar.hidden = !ready.length;
+    this.sendAllBtn.textContent = t("issue.sendAll", {
+      dishes: t("count.dishes", { count: ready.length }),
+      tables: t("count.tables", { count: byTable.size }),
+    });
+    // Per table only when there is more than one table (else it is the same as "all").
+    this.tableSendRows.update(byTable.size > 1 ? [...byTable].sort((a, b) => byName(a[0], b[0])) : []);
+  }
+
+  /** Send `orders` at once (one `create task`, its own key): what "Send" does with a cart. */
+  async _sendNow(button, orders) {
+    if (!orders.length) return;
+    await this._dispatch(button, orders, newKey("send"));
   }
 
   _renderCart() {
@@ -286,7 +353,12 @@ export class IssuePanel {
   _setCart(ids) {
     this.cart = ids;
     this.key = newKey("cart"); // new content, new key: a key names exactly one cart
+    this._keepCart();
     this.render();
+  }
+
+  _keepCart() {
+    keep("cart", this.cart.length ? { ids: this.cart, key: this.key } : null);
   }
 
   _clear() {
@@ -296,15 +368,21 @@ export class IssuePanel {
   async _send() {
     const orders = [...this.cart];
     if (!orders.length) return;
-    const msg = { clientmsg: "create", type: "task", orders, key: this.key };
-    orders.forEach((id) => this.sending.add(id));
-    const reply = await act(this.sendBtn, () => this.conn.request(msg, { resend: true }));
-    orders.forEach((id) => this.sending.delete(id));
+    const reply = await this._dispatch(this.sendBtn, orders, this.key);
     this._renderCart(); // act() re-enabled the button whatever the cart holds now
-    if (!reply) return;
+    if (reply && this.cart.join() === orders.join()) this._setCart([]);
+  }
+
+  /** One `create task` for `orders` under `key`; says which trips were made. The reply or null. */
+  async _dispatch(button, orders, key) {
+    const msg = { clientmsg: "create", type: "task", orders, key };
+    orders.forEach((id) => this.sending.add(id));
+    const reply = await act(button, () => this.conn.request(msg, { resend: true }));
+    orders.forEach((id) => this.sending.delete(id));
+    if (!reply) return null;
     const trips = reply.tasks.map((task) => task.stops.map((s) => s.table).join(", "));
     toast(t("issue.sent", { trips: t("count.trips", { count: reply.tasks.length }), tables: trips.join(" | ") }));
-    if (this.cart.join() === orders.join()) this._setCart([]);
+    return reply;
   }
 
   _waiting(readyAt) {

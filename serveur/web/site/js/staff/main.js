@@ -1,5 +1,6 @@
 // The staff console: wires the connection, the live state and the console's panels.
 
+import { keep, kept } from "./keep.js";
 import { Connection } from "../ws.js";
 import { Live } from "../live.js";
 import { el, guardOffline, showError, watchConnection } from "../ui.js";
@@ -43,6 +44,7 @@ const showWho = () => {
   }
   if (owner) accounts.refresh();
   openLinked();
+  restoreTab();
 };
 conn.addEventListener("session", showWho);
 onLangChange(showWho);
@@ -75,6 +77,7 @@ const selection = {
   },
 };
 
+let restored = false; // the kept tab was brought back (restoreTab): tabs opened now are kept
 const goals = new Map(); // robot -> the last goal this console sent, drawn until it is reached
 
 let tools = null; // the map's toolbar, made once the view exists
@@ -164,6 +167,17 @@ function openLinked() {
 }
 window.addEventListener("hashchange", openLinked);
 
+// The tab open before a reload comes back (once, when the session says which tabs this person
+// has), unless a link named one.
+function restoreTab() {
+  if (restored) return;
+  restored = true;
+  if (followed) return;
+  const id = kept("tab");
+  const tab = typeof id === "string" && /^tab-[a-z]+$/.test(id) ? document.getElementById(id) : null;
+  if (tab && !tab.hidden && tab.getAttribute("aria-selected") !== "true") tab.click();
+}
+
 function setupTabs() {
   const tabs = [...document.querySelectorAll('[role="tab"]')];
   const show = (tab) => {
@@ -177,6 +191,7 @@ function setupTabs() {
     streamScan();
     if (tab.id === "tab-accounts") accounts.refresh();
     if (ownerPanels[tab.id]) ownerPanels[tab.id].shown();
+    if (restored) keep("tab", tab.id);
     tab.scrollIntoView({ block: "nearest", inline: "nearest" }); // a phone's tab row scrolls
   };
   tabs.forEach((t) => t.addEventListener("click", () => show(t)));

@@ -6,13 +6,26 @@
 
 import { act, byName, el, KeyedList, newKey, toast } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
+import { keep, kept } from "./keep.js";
+
+/** A line read back from the kept draft, checked before use (storage is the device's). */
+function validLine(l) {
+  return (
+    l && typeof l.dish === "string" && l.dish.trim() && typeof l.table === "string" &&
+    Number.isInteger(l.quantity) && l.quantity >= 1 && l.quantity <= 99 &&
+    typeof l.note === "string" && typeof l.key === "string"
+  );
+}
 
 export class NewOrderPanel {
   constructor(root, conn, live) {
     this.conn = conn;
     this.live = live;
-    this.table = null;
-    this.lines = []; // {dish, table, quantity, note, key, qty}
+    // The draft (the table picked, the lines with their keys) is kept across a reload: a line
+    // sent just before it is not made twice (its key), and nothing typed is lost.
+    const draft = kept("order");
+    this.table = draft && typeof draft.table === "string" ? draft.table : null;
+    this.lines = draft && Array.isArray(draft.lines) ? draft.lines.filter(validLine) : []; // {dish, table, quantity, note, key, qty}
     this.tables = el("div", { class: "table-grid", role: "group", "data-i18n-aria-label": "order.table" });
     this.menu = el("div", { class: "menu", role: "group", "data-i18n-aria-label": "order.menu" });
     this.dish = el("input", {
@@ -134,8 +147,14 @@ export class NewOrderPanel {
     });
   }
 
+  _keep() {
+    const lines = this.lines.map(({ dish, table, quantity, note, key }) => ({ dish, table, quantity, note, key }));
+    keep("order", this.table || lines.length ? { table: this.table, lines } : null);
+  }
+
   _pick(name) {
     this.table = name;
+    this._keep();
     for (const b of this.tables.querySelectorAll("button")) {
       b.setAttribute("aria-pressed", String(b.textContent === name));
     }
@@ -153,6 +172,7 @@ export class NewOrderPanel {
     if (same && same.quantity < 99) {
       same.quantity += 1;
       this._showQuantity(same);
+      this._keep();
       return;
     }
     this.lines.push({ dish: d, table: this.table, quantity: 1, note: "", key: newKey("dish") });
@@ -167,6 +187,7 @@ export class NewOrderPanel {
     const change = (by) => {
       line.quantity = Math.min(99, Math.max(1, line.quantity + by));
       this._showQuantity(line);
+      this._keep();
     };
     line.qty = el("span", { class: "qty", "aria-live": "polite" });
     this._showQuantity(line);
@@ -181,6 +202,7 @@ export class NewOrderPanel {
     });
     note.addEventListener("input", () => {
       line.note = note.value;
+      this._keep();
     });
     return el(
       "li",
@@ -208,6 +230,7 @@ export class NewOrderPanel {
   }
 
   _renderLines() {
+    this._keep();
     this.lineRows.update(this.lines);
     this.sendBtn.disabled = !this.lines.length;
   }
