@@ -5,12 +5,21 @@
 // navigation error (that is shown only to staff logged in here). At the pass (Loading) it tells
 // staff which dishes go on which tray for which table, and Go sends the trip; at a table it
 // names the tray to take, "Food collected" goes on, and a small Skip is set apart for staff.
+// Arriving at a table it rings and says "Table T3, your food is here!" once (sound.js).
+//
+// Staff sign in on the screen itself ("Staff sign-in", the pages' login dialog): an idle robot
+// (Ready, Awaiting, or driven by staff) then offers "Send to a table" — a big button per table —
+// and, once it stands somewhere, "Go home", with the verbs the console uses (`ready`, `control`
+// `manual`, `goto`, `auto`: a robot-screen token may send none of them). The screen's own token
+// stays the one the device keeps; staff are signed out after sending the robot, after
+// STAFF_IDLE_MS without a touch, on "Sign out", and by a reload or a reconnect.
 
-import { Connection } from "./ws.js";
+import { Connection, loadToken, saveToken } from "./ws.js";
 import { Live } from "./live.js";
-import { act, confirmDialog, el, showError, watchConnection } from "./ui.js";
+import { act, byName, confirmDialog, el, showError, toast, watchConnection } from "./ui.js";
 import { statusColour } from "./status.js";
-import { applySiteLanguages, dishLabel, onLangChange, statusName, t } from "./i18n.js";
+import { applySiteLanguages, dishLabel, lang, onLangChange, statusName, t } from "./i18n.js";
+import { Announcer, muteButton, soundPrompt } from "./sound.js";
 
 const name = robotName();
 const conn = new Connection();
@@ -23,6 +32,22 @@ let cart = []; // the dishes for the current stop, from `order` {robot}
 let cartFor = ""; // which stop the cart belongs to
 let shown = "";
 let loaded = false; // a robots snapshot came: "no robot named" can be said
+
+// The arrival chime and words; "Tap here to turn the sound on" above the screen while the
+// browser holds sound back; the mute is the staff's (in their bar, below).
+const announcer = new Announcer("robot");
+screen.before(soundPrompt(announcer));
+announcer.onChange(() => render()); // an arrival held back sounds once the sound is on
+const mute = muteButton(announcer);
+const staffBar = document.getElementById("staff-bar");
+let staffShown = "";
+
+// Staff signed in on this screen (see the top): the device's own token, kept to come back to.
+const STAFF_IDLE_MS = 120_000;
+let turn = null; // {device: the screen's token, leaving: signing out} while staff sign in here
+let idleTimer = null;
+// Where an idle robot may be sent from its screen: not while it carries food or is driven home.
+const SEND_FROM = new Set(["Ready", "Awaiting", "Manual"]);
 
 function robotName() {
   const parts = window.location.pathname.split("/").filter(Boolean);
@@ -54,7 +79,83 @@ async function cancelTrip(button) {
 
 /** Staff are logged in on this screen (not the robot's own token): they may see more. */
 function staffHere() {
-  return Boolean(conn.session && conn.session.scopes.includes("control"));
+  return Boolean(conn.session && conn.session.scopes.includes("control") && !turn?.leaving);
+}
+
+/** "Staff sign-in": the pages' login dialog (ui.js), for a person, on this connection. */
+function staffSignIn() {
+  if (!conn.session || conn.session.role !== "robot-screen") return;
+  turn = { device: loadToken(), leaving: false };
+  conn.dispatchEvent(new CustomEvent("login", { detail: { error: null } })); // ui.js opens its form
+  const dialog = document.querySelector(".login-dialog");
+  if (!dialog) return;
+  if (!dialog.dataset.staffSignIn) {
+    // Once: the device's own login cannot be skipped, a staff sign-in can (Cancel, Escape).
+    dialog.dataset.staffSignIn = "1";
+    dialog.addEventListener("cancel", cancelSignIn);
+    dialog.addEventListener("close", () => dialog.querySelector(".login-cancel")?.remove());
+  }
+  if (dialog.querySelector(".login-cancel")) return;
+  dialog.querySelector("form").append(
+    el("button", { type: "button", class: "secondary login-cancel", onclick: cancelSignIn, text: t("guest.robot.staffCancel") }),
+  );
+}
+
+/** The staff sign-in left before it succeeded: the robot's screen stays as it was. */
+function cancelSignIn() {
+  if (!turn || staffHere()) return;
+  turn = null;
+  document.querySelector(".login-dialog")?.close();
+}
+
+/** Back to the robot's own screen: the person's session ends, the device's token logs in. */
+async function signOut() {
+  if (!turn || turn.leaving) return;
+  turn.leaving = true;
+  clearTimeout(idleTimer);
+  render();
+  conn.unsubscribe(["waypoints"]); // a robot screen may not read them
+  try {
+    await conn.request({ clientmsg: "logout" });
+  } catch {
+    /* offline: the reconnect logs in with the device's token anyway */
+  }
+  if (turn?.device) conn.login({ token: turn.device });
+}
+
+function stillHere() {
+  clearTimeout(idleTimer);
+  if (turn && !turn.leaving && staffHere()) idleTimer = setTimeout(signOut, STAFF_IDLE_MS);
+}
+
+/** Run `steps` (requests for this robot) in order; the last reply, or null after an error. */
+function steps(button, ...msgs) {
+  return act(button, async () => {
+    let reply = null;
+    for (const msg of msgs) reply = await request(msg);
+    return reply;
+  });
+}
+
+/** Send the idle robot to `table`: out of deliveries, under staff control, then go-to. */
+async function sendTo(button, table) {
+  const status = live.robots.get(name)?.status;
+  const msgs = [];
+  if (status === "Awaiting") msgs.push({ clientmsg: "ready" });
+  if (status === "Awaiting" || status === "Ready") msgs.push({ clientmsg: "control", action: "manual" });
+  msgs.push({ clientmsg: "control", action: "goto", waypoint: table });
+  if (await steps(button, ...msgs)) {
+    toast(t("guest.robot.sentTo", { table }));
+    signOut(); // the robot leaves the staff who sent it: the screen is the guests' again
+  }
+}
+
+/** Home, and taking deliveries again (`auto` drives a robot away from home back to it). */
+async function goHome(button) {
+  if (await steps(button, { clientmsg: "ready" }, { clientmsg: "control", action: "auto" })) {
+    toast(t("guest.robot.goingHome"));
+    signOut();
+  }
 }
 
 /** What the screen shows, as plain data: drawn again only when it changes. */
@@ -82,7 +183,34 @@ function model(robot) {
             }))
         : [],
     cart: robot.status === "Delivered" ? cart.map(dishLabel) : [],
+    // Staff here and the robot idle: where it may be sent.
+    tables:
+      staff && SEND_FROM.has(robot.status)
+        ? [...live.waypoints.values()].filter((w) => w.kind === "table").map((w) => w.name).sort(byName)
+        : null,
   };
+}
+
+/** "Send to a table" (a button per table) and "Go home", for staff at an idle robot. */
+function sendPanel(m) {
+  if (!m.tables) return null;
+  return el(
+    "section",
+    { class: "send", "aria-labelledby": "send-title" },
+    // First, where a phone shows it without scrolling. Ready: "Activate" above goes home too;
+    // Awaiting: it is at home.
+    m.status === "Manual" ? bigButton(t("guest.robot.goHome"), (b) => goHome(b), "secondary") : null,
+    el("h2", { id: "send-title" }, t("guest.robot.sendTitle")),
+    m.tables.length
+      ? el(
+          "div",
+          { class: "table-grid" },
+          m.tables.map((table) =>
+            el("button", { type: "button", class: "table-button", onclick: (e) => sendTo(e.currentTarget, table), text: table }),
+          ),
+        )
+      : el("p", { class: "sub" }, t("guest.robot.noTables")),
+  );
 }
 
 function dishItems(labels) {
@@ -129,9 +257,10 @@ function view(m) {
               el("p", { class: "sub" }, t("robot.activateSub")),
             ]
           : [el("p", { class: "sub" }, t("robot.staffActivate"))]),
+        sendPanel(m),
       ];
     case "Awaiting":
-      return [el("p", { class: "hello" }, t("robot.hello", { name })), el("h1", {}, t("robot.awaiting"))];
+      return [el("p", { class: "hello" }, t("robot.hello", { name })), el("h1", {}, t("robot.awaiting")), sendPanel(m)];
     case "Loading":
       // Staff at the pass: which dishes go on which tray for which table, then Go.
       return [
@@ -203,7 +332,7 @@ function view(m) {
         staffControls(smallButton(t("guest.robot.skip"), (b) => skipTable(b, dest))),
       ];
     case "Manual":
-      return [el("h1", {}, t("robot.manual")), el("p", { class: "sub" }, t("robot.keepClear"))];
+      return [el("h1", {}, t("robot.manual")), el("p", { class: "sub" }, t("robot.keepClear")), sendPanel(m)];
     default:
       return [el("h1", {}, t("robot.offline")), el("p", { class: "sub" }, t("robot.offlineSub"))];
   }
@@ -236,13 +365,48 @@ async function refreshCart(robot) {
   }
 }
 
+/** At a table with food: ring and say so, once per stop (sound.js keeps which on the device). */
+function announceArrival(robot) {
+  // The site's settings choose the language a screen starts in: wait for them to speak it.
+  if (robot.status !== "Delivered" || robot.current_task === null || !live.settings) return;
+  const task = live.tasks.get(robot.current_task);
+  const stop = task ? task.stops[task.current_stop] : null;
+  if (!stop) return;
+  const words = t("guest.arrival.spokenAt", { table: stop.table, tray: stop.seq + 1 });
+  announcer.announce(`${name}:${task.id}:${stop.seq}`, words, lang());
+}
+
+/** The footer's staff corner: "Staff sign-in" for a guest's screen; the mute and "Sign out" for staff. */
+function renderStaffBar() {
+  const role = conn.session ? conn.session.role : null;
+  const staff = staffHere();
+  const signature = JSON.stringify([role, staff, Boolean(turn), lang()]);
+  if (signature === staffShown) return;
+  staffShown = signature;
+  if (staff) {
+    staffBar.replaceChildren(
+      el("span", { class: "staff-label" }, t("guest.robot.forStaff")),
+      mute,
+      turn ? el("button", { type: "button", class: "secondary small", onclick: () => signOut(), text: t("guest.robot.staffDone") }) : null,
+    );
+  } else if (role === "robot-screen") {
+    staffBar.replaceChildren(
+      el("button", { type: "button", class: "secondary small", onclick: () => staffSignIn(), text: t("guest.robot.staffSignIn") }),
+    );
+  } else {
+    staffBar.replaceChildren();
+  }
+}
+
 function render() {
+  renderStaffBar();
   const robot = live.robots.get(name);
   if (!robot) {
     screen.replaceChildren(el("h1", {}, name ? t("robot.unknown", { name }) : t("robot.noName")));
     return;
   }
   refreshCart(robot);
+  announceArrival(robot);
   const m = model(robot);
   const signature = JSON.stringify(m);
   document.body.dataset.status = robot.status;
@@ -257,9 +421,30 @@ function render() {
 live.addEventListener("change", (e) => {
   if (e.detail.topic === "orders") cartFor = ""; // a dish changed: ask again for this stop
   if (e.detail.topic === "robots") loaded = true;
-  if (["robots", "tasks", "orders"].includes(e.detail.topic)) render();
+  if (["robots", "tasks", "orders", "waypoints"].includes(e.detail.topic)) render();
 });
-conn.addEventListener("session", () => render()); // what this screen may do depends on who it is
+// What this screen may do depends on who it is.
+conn.addEventListener("session", (e) => {
+  const session = e.detail.session;
+  if (turn?.device) saveToken(turn.device); // the device keeps its own token, never a person's
+  if (session.scopes.includes("control")) {
+    conn.subscribe(["waypoints"]); // the tables to send the robot to
+    stillHere();
+  } else {
+    // The robot's own screen again (signed out, or a reconnect with the device's token).
+    turn = null;
+    clearTimeout(idleTimer);
+    conn.topics.delete("waypoints"); // not asked for: a robot screen may not read them
+    live.waypoints.clear();
+  }
+  render();
+});
+conn.addEventListener("login", () => {
+  if (turn?.device) saveToken(turn.device); // a staff sign-in that failed leaves the device's token
+});
+// A touch or a key keeps staff signed in; STAFF_IDLE_MS without one signs them out.
+window.addEventListener("pointerdown", stillHere, { capture: true });
+window.addEventListener("keydown", stillHere, { capture: true });
 onLangChange(() => {
   document.title = t("robot.docTitle", { name: name || t("robot.docTitleNone") });
   shown = ""; // same robot, new words: draw again
@@ -270,7 +455,9 @@ if (!name) render();
 // The site's languages (the owner's settings): the picker offers them, and a screen with no
 // choice of its own starts in the site's.
 live.addEventListener("change", (e) => {
-  if (e.detail.topic === "settings") applySiteLanguages(live.settings);
+  if (e.detail.topic !== "settings") return;
+  applySiteLanguages(live.settings);
+  if (loaded) render(); // an arrival waits for the site's language to be said in
 });
 conn.subscribe(["robots", "tasks", "orders", "settings"]);
 conn.start();

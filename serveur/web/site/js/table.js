@@ -2,12 +2,15 @@
 // "Food collected"), then the table's virtual cart — dishes on a robot and served
 // (`order` {table}), plus the ones ready at the pass (the `orders` topic). The `tasks` topic
 // brings only the trips with a stop at this table. URL: /table/<name> or ?table=<name>.
-// Refreshed whenever an order or a trip of this table changes.
+// Refreshed whenever an order or a trip of this table changes. A robot arriving here with food
+// rings and says "Your food is here! Please take tray 1" once (sound.js); the footer's sound
+// button mutes this screen.
 
 import { Connection } from "./ws.js";
 import { Live } from "./live.js";
 import { act, el, KeyedList, showError, toast, watchConnection } from "./ui.js";
-import { applySiteLanguages, dishLabel, onLangChange, t } from "./i18n.js";
+import { applySiteLanguages, dishLabel, lang, onLangChange, t } from "./i18n.js";
+import { Announcer, muteButton, soundPrompt } from "./sound.js";
 
 const table = tableName();
 const conn = new Connection();
@@ -27,6 +30,15 @@ onLangChange(() => {
 let cart = [];
 let asking = null;
 let loaded = false; // the orders came: "nothing ..." can be said
+
+// The arrival chime and words: "Tap here to turn the sound on" first on the page while the
+// browser holds sound back, the mute beside the language.
+const announcer = new Announcer("table");
+document.querySelector(".table-main").prepend(soundPrompt(announcer));
+document.querySelector(".table-footer").append(muteButton(announcer));
+announcer.onChange(() => {
+  if (loaded) render(); // an arrival held back sounds once the sound is on
+});
 
 // Each robot here, drawn again only when what it shows changed, so a redraw does not replace a
 // button being pressed; and the three lists of dishes, one row per dish.
@@ -123,10 +135,20 @@ function herePanel(here) {
   );
 }
 
+/** Each robot standing here with food: ring and say so, once per stop on this device. */
+function announce(here) {
+  if (!live.settings) return; // the site's settings choose the language: wait to speak it
+  for (const h of here) {
+    const words = t("guest.arrival.spoken", { tray: h.stop + 1 });
+    announcer.announce(`${table}:${h.robot}:${h.task}:${h.stop}`, words, lang());
+  }
+}
+
 function render() {
   const here = arrivals();
   const onTray = new Set(here.flatMap((h) => h.orders));
   herePanels.update(here);
+  announce(here);
   // On the way: on a robot, except the dishes of a robot already here (shown above).
   coming.update(cart.filter((o) => o.status === "assigned" && !onTray.has(o.id)));
   served.update(cart.filter((o) => o.status === "delivered"));
@@ -147,7 +169,9 @@ live.addEventListener("change", (e) => {
 // The site's languages (the owner's settings): the picker offers them, and a screen with no
 // choice of its own starts in the site's.
 live.addEventListener("change", (e) => {
-  if (e.detail.topic === "settings") applySiteLanguages(live.settings);
+  if (e.detail.topic !== "settings") return;
+  applySiteLanguages(live.settings);
+  if (loaded) render(); // an arrival waits for the site's language to be said in
 });
 conn.subscribe(["orders", "tasks", "settings"]);
 conn.start();
