@@ -7,11 +7,13 @@ demo map (2023-11-14 22:13 UTC, i.e. the service day 2023-11-15 in Kuala Lumpur,
 time zone: the request must name the browser's UTC offset). The site has two robots (never
 reachable: the frozen clock keeps them quietly Offline), so the fleet now is 2.
 
-The owner opens Statistics; the fleet sizes offered by default are 1..4 (the fleet -1, same,
+The owner opens Statistics; the day offered is the recorded day (the last with a service, not
+yesterday: issue 30), the fleet sizes offered by default are 1..4 (the fleet -1, same,
 +1, +2) with 2 marked "now". A day without dishes is refused in plain words; then the recorded
 day with 1 and 2 robots: each fleet's step shows while the real ``serveur replay`` children
 run, and at the end both rows of the table hold the server's forecast record's numbers, the
-sentences say them in words and the bar chart has two bars, the current fleet's marked. Axe
+sentences say them in words and the bar chart has two bars, the current fleet's marked; below,
+that the record has no delivered dish to compare with (the robots were never reachable). Axe
 finds nothing serious on the results; on a 390 px phone nothing scrolls sideways and every
 control is a 44 px target. In Chinese the words change and the numbers stay; last, a
 forecast cancelled while it runs.
@@ -91,8 +93,10 @@ async def test_the_owner_asks_how_many_robots_a_recorded_day_needed(
                 await expect(box).not_to_be_checked()
         await expect(boxes[2]).to_have_accessible_name(re.compile(r"^2\s*now$"))
 
-        # A day without a dish: refused, in words.
+        # The day offered: the last one with a service.
         day = section.get_by_label("Service day", exact=True)
+        await expect(day).to_have_value(DAY)
+        # A day without a dish: refused, in words.
         await day.fill(EMPTY_DAY)
         await section.get_by_role("button", name="Start").click()
         await expect(section.get_by_role("status")).to_have_text(
@@ -158,6 +162,11 @@ async def test_the_owner_asks_how_many_robots_a_recorded_day_needed(
             f" 2 robots: {minutes(record['fleets'][1]['wait_p95'])}."
         )
         await expect(section.get_by_role("button", name="Start")).to_be_enabled()
+        # Nothing was delivered that day: no recorded wait to set beside the replay's.
+        await expect(section.locator(".fc-why .fc-recorded")).to_have_text(
+            "No dish was recorded as delivered on Wed, Nov 15: there is no recorded wait to"
+            " compare with."
+        )
 
         await section.screenshot(path=str(SHOTS / "forecast-tablet.png"))
         # In Chinese: the words change at once, the numbers stay the server's.

@@ -3,15 +3,31 @@
 // the fleet sizes ticked; each fleet's step and result arrive on the `forecast` topic, shown as
 // words, a table and a bar chart of the 95 % wait, the fleet the site has now marked. Its own
 // module: it has its own form, its own state and its own topic, apart from the figures above it.
+//
+// The day offered is the last one the restaurant had a service (`stats` `last_service`: the
+// day before is often a day it was closed); with none yet, it says so and offers no Start. Once
+// fleets are replayed, one sentence recommends the smallest fleet that meets the site's target
+// wait (the `target_wait` setting; the rule is `recommend`, pure), and a note compares the
+// replay with what that day's record says (`stats` `figures` for the day) and says why they
+// differ: what the replay simulates instead of the day's people and robots (`REPLAY_MODEL`).
 
 import { el, showError } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { fleetChart } from "./charts.js";
-import { addDays, count, DASH, dateWords, fmt, isoDate, locale, minutes, offsetAt, offsetText, serviceToday } from "./format.js";
+import { addDays, count, DASH, dateWords, duration, fmt, isoDate, locale, minutes, offsetAt, offsetText, serviceToday } from "./format.js";
 import { tableHead } from "./tables.js";
 
 const STATS_TIMEOUT_MS = 130_000; // the server gives a computation up to 120 s
 const FLEET_SIZES = [1, 2, 3, 4, 5, 6]; // the fleet sizes an owner may try in a forecast
+const TARGET_WAIT = 600; // the server's target wait until the owner sets one (s)
+// Two 95 % waits closer than this are the same: which robot happens to be free first moves a
+// replay's waits by seconds, and a guest does not tell half a minute apart.
+export const SAME_WAIT_S = 30;
+// What the replay simulates instead of the day's people and robots: serveur/replay/model.py's
+// ReplayOptions defaults and dish_dwell, which a forecast does not change (seconds; guests
+// mostly take dwellMin..dwellMax, a few up to dwellLongest; awayPer100 parties are away).
+// tests/replay/test_forecast_words.py checks these against the replay's own numbers.
+export const REPLAY_MODEL = { loadFixed: 10, loadPerPlate: 4, dwellMin: 6, dwellMax: 20, dwellLongest: 40, awayPer100: 3 };
 // A forecast's fleet states, in the order they go through (a record never goes back).
 const FLEET_STEP = { waiting: 0, running: 1, done: 2, failed: 2, cancelled: 2 };
 const FLEET_PROGRESS = {
@@ -21,6 +37,11 @@ const FLEET_PROGRESS = {
   failed: "stats.fc.progress.failed",
   cancelled: "stats.fc.progress.cancelled",
 };
+
+/** Set a node's text only when it changed (a screen reader is not told the same words again). */
+function setText(node, text) {
+  if (node.textContent !== text) node.textContent = text;
+}
 
 /** How far a forecast record has got: each fleet's step, and the forecast's end. */
 function fcStep(fc) {
@@ -38,6 +59,69 @@ function fcStateText(fc) {
   return fc.error ? t("stats.fc.state.failedWhy", { error: fc.error }) : t("stats.fc.state.failed");
 }
 
+/**
+ * The fleets replayed, judged against the target wait (s): which fleet to recommend. Pure.
+ *
+ * A fleet meets the target when it delivered every dish and 95 % within the target. The
+ * smallest that does is recommended (`enough: true`), with: `faster`, the larger fleet tried
+ * that is fastest by more than SAME_WAIT_S (null: none is, or `tried` larger is false: none was
+ * tried); `untried`, the fleet just below it when that one was not tried and might also do
+ * (null otherwise). When none meets it (`enough: false`): the largest fleet tried (`robots`,
+ * `p95`, `undelivered`), and `plateau`, the smallest fleet no larger one beats by more than
+ * SAME_WAIT_S (more robots do not make it faster from there; null when that is the largest
+ * one tried: more might). Null when no fleet has finished.
+ */
+export function recommend(fleets, target) {
+  const done = fleets.filter((f) => f.state === "done" && typeof f.wait_p95 === "number").sort((a, b) => a.robots - b.robots);
+  if (!done.length || !(target > 0)) return null;
+  const meets = (f) => !f.undelivered && f.wait_p95 <= target;
+  const beats = (f, g) => !f.undelivered && f.wait_p95 < g.wait_p95 - SAME_WAIT_S;
+  const pick = done.find(meets);
+  if (pick) {
+    const larger = done.filter((f) => f.robots > pick.robots);
+    const quicker = larger.filter((f) => beats(f, pick));
+    const best = quicker.reduce((a, f) => (a === null || f.wait_p95 < a.wait_p95 - SAME_WAIT_S ? f : a), null);
+    const below = done.filter((f) => f.robots < pick.robots); // all of them miss the target
+    const highestMiss = below.length ? below[below.length - 1].robots : 0;
+    return {
+      enough: true,
+      robots: pick.robots,
+      p95: pick.wait_p95,
+      tried: larger.length > 0,
+      faster: best && { robots: best.robots, p95: best.wait_p95 },
+      untried: pick.robots - 1 > highestMiss ? pick.robots - 1 : null,
+    };
+  }
+  const last = done[done.length - 1];
+  const plateau = done.find((f) => !f.undelivered && !done.some((g) => g.robots > f.robots && beats(g, f)));
+  return {
+    enough: false,
+    robots: last.robots,
+    p95: last.wait_p95,
+    undelivered: last.undelivered || 0,
+    plateau: plateau && plateau.robots < last.robots ? plateau.robots : null,
+  };
+}
+
+/** `recommend`'s verdict as the sentence the owner reads. */
+export function adviceText(rec, target) {
+  const goal = minutes(target);
+  if (rec.enough) {
+    const words = [t("stats.fc.advice.enough", { count: rec.robots, p95: minutes(rec.p95), target: goal })];
+    if (rec.faster) words.push(t("stats.fc.advice.faster", { count: rec.faster.robots, p95: minutes(rec.faster.p95) }));
+    else if (rec.tried) words.push(t("stats.fc.advice.noFaster"));
+    if (rec.untried) words.push(t("stats.fc.advice.untried", { count: rec.untried }));
+    return words.join(" ");
+  }
+  const words = [
+    rec.undelivered
+      ? t("stats.fc.advice.shortUndelivered", { count: rec.robots, target: goal })
+      : t("stats.fc.advice.short", { count: rec.robots, p95: minutes(rec.p95), target: goal }),
+  ];
+  if (rec.plateau) words.push(t("stats.fc.advice.plateau", { count: rec.plateau }));
+  return words.join(" ");
+}
+
 export class ForecastSection {
   /** `id(name)`: a page-unique element id (the panel's). */
   constructor(conn, live, id) {
@@ -49,8 +133,16 @@ export class ForecastSection {
     this.fleetsTouched = false; // the owner chose the fleet sizes: no more defaults
     this.dayTouched = false; // the owner chose the day: the range no longer sets it
     this.drawnWidth = 0; // the chart's box width when it was last drawn
+    // The last day with a service before today (`stats` `last_service`): undefined until the
+    // server says, null when the restaurant has had none.
+    this.lastService = undefined;
+    this.askingSince = null; // the today a last_service request under way was sent for
+    this.rangeDay = null; // the past day the figures above show, if they show one day
+    // What the record says of the forecast's day (`stats` `figures`), read once per forecast:
+    // {key} while it is read, then {key, total} or {key, failed}; key: "<forecast id>/<day>".
+    this.recorded = null;
     const today = isoDate(serviceToday());
-    this.day = el("input", { id: id("fc-day"), name: "forecast-day", type: "date", value: isoDate(addDays(serviceToday(), -1)), max: today, required: true });
+    this.day = el("input", { id: id("fc-day"), name: "forecast-day", type: "date", value: "", max: today, required: true });
     this.day.addEventListener("input", () => {
       this.dayTouched = true;
     });
@@ -78,18 +170,37 @@ export class ForecastSection {
     });
     this.message = el("p", { class: "fc-message", role: "status", "aria-live": "polite" });
     this.heading = el("h3", { class: "fc-heading" });
+    this.adviceWords = el("strong");
+    this.advice = el("p", { class: "fc-advice", hidden: true }, this.adviceWords);
     this.progress = el("ol", { class: "fc-progress" });
     this.sentences = el("ul", { class: "fc-sentences" });
     this.table = el("div", { class: "table-scroll", tabindex: "0", role: "region", "data-i18n-aria-label": "stats.fc.caption" });
     this.chartBox = el("div", { class: "chart-box fc-chart" });
     const chartTitle = id("fc-chart-title");
+    this.recordedLine = el("p", { class: "fc-recorded" });
+    this.replayedLine = el("p", { class: "fc-replayed" });
+    this.countsLine = el("p", { class: "fc-counts" });
+    this.modelLine = el("p", { class: "muted fc-model" });
+    this.passLine = el("p", { class: "fc-pass" });
+    this.why = el(
+      "div",
+      { class: "fc-why", hidden: true },
+      el("h4", { "data-i18n": "stats.fc.why.title" }),
+      this.recordedLine,
+      this.replayedLine,
+      this.countsLine,
+      this.modelLine,
+      this.passLine,
+    );
     this.result = el(
       "div",
       { class: "fc-result", hidden: true },
       this.heading,
+      this.advice,
       this.progress,
       this.sentences,
       el("div", { class: "fc-side" }, this.table, el("div", { class: "fc-chart-wrap" }, el("h4", { id: chartTitle, "data-i18n": "stats.fc.chart" }), this.chartBox)),
+      this.why,
     );
     const title = id("fc-title");
     this.section = el(
@@ -111,6 +222,7 @@ export class ForecastSection {
     if (live) {
       live.addEventListener("change", (e) => {
         if (e.detail.topic === "robots") this._defaults();
+        if (e.detail.topic === "settings" && this.record) this.render(); // the target changed
       });
     }
     this._defaults();
@@ -129,7 +241,33 @@ export class ForecastSection {
    *  reconnections (the owner's alone: scope stats). */
   opened(today) {
     this.day.max = today; // the console may have stayed open overnight
-    this.conn.subscribe(["forecast"]);
+    this.conn.subscribe(["forecast", "settings"]); // settings: the target wait
+    this._askLastService(today);
+  }
+
+  /** Ask the server which day last had a service before `today` (a new service may have been
+   *  recorded since the tab was last opened); the day offered follows it until the owner picks. */
+  async _askLastService(today) {
+    if (this.askingSince === today) return;
+    this.askingSince = today;
+    try {
+      const reply = await this.conn.request({ clientmsg: "stats", action: "last_service", before: today, utc_offset: offsetText(offsetAt(today)) }, { resend: true });
+      this.lastService = reply.last_service ?? null;
+    } catch (err) {
+      showError(err);
+    } finally {
+      if (this.askingSince === today) this.askingSince = null;
+    }
+    this._offerDay();
+    this.render();
+  }
+
+  /** The day offered until the owner picks one: the past day the figures above show, else the
+   *  last day with a service (yesterday while the server has not said; none if it had none). */
+  _offerDay() {
+    if (this.dayTouched) return;
+    const yesterday = isoDate(addDays(serviceToday(), -1));
+    this.day.value = this.rangeDay || (this.lastService === undefined ? yesterday : this.lastService || "");
   }
 
   /** The robots the site has now (registered, whatever their state): the fleet to compare. */
@@ -149,11 +287,13 @@ export class ForecastSection {
     if (this.record) this.render();
   }
 
-  /** The day to replay follows the range `asked` while it is one past day; else yesterday. */
+  /** The day to replay follows the range `asked` while it is one past day; else the last day
+   *  with a service. */
   dayFromRange(asked) {
-    if (this.dayTouched || !asked) return;
+    if (!asked) return;
     const today = isoDate(serviceToday());
-    this.day.value = asked.start === asked.end && asked.start < today ? asked.start : isoDate(addDays(serviceToday(), -1));
+    this.rangeDay = asked.start === asked.end && asked.start < today ? asked.start : null;
+    this._offerDay();
   }
 
   /** A forecast record from the topic or a reply. Within one forecast a record that is behind
@@ -224,13 +364,22 @@ export class ForecastSection {
     const running = Boolean(fc && fc.state === "running");
     this.startBtn.disabled = running || this.starting;
     this.cancelBtn.hidden = !running;
+    // No service recorded yet, and no forecast of this server run: nothing to replay, no Start.
+    const never = this.lastService === null && !fc;
+    this.form.hidden = never;
     if (this.error) this._say(this.error, true);
     else if (this.starting) this._say(t("stats.fc.starting"));
+    else if (never) this._say(t("stats.fc.noService"));
     else this._say(fc ? fcStateText(fc) : "");
     this.result.hidden = !fc;
     if (!fc) return;
     const current = this._fleetNow();
     this.heading.textContent = t("stats.fc.heading", { day: dateWords(fc.day), count: fc.dishes });
+    // The recommendation, once every fleet asked for has ended; with the site's target known.
+    const target = this.live && this.live.settings ? (this.live.settings.target_wait ?? TARGET_WAIT) : null;
+    const rec = running || target === null ? null : recommend(fc.fleets, target);
+    setText(this.adviceWords, rec ? adviceText(rec, target) : "");
+    this.advice.hidden = !rec;
     // Each fleet's step while it runs; after, only if one did not finish.
     const unfinished = fc.fleets.some((f) => f.state !== "done");
     this.progress.hidden = !running && !unfinished;
@@ -278,6 +427,72 @@ export class ForecastSection {
       ),
     );
     this.chart();
+    this._why(fc, done);
+  }
+
+  /** What the day's record says beside the replay, and why they differ. */
+  _why(fc, done) {
+    this.why.hidden = !done.length;
+    if (!done.length) return;
+    const key = `${fc.id}/${fc.day}`;
+    if (!this.recorded || this.recorded.key !== key) this._readRecord(fc, key);
+    const rec = this.recorded;
+    const total = rec.total || null;
+    let recorded = "";
+    let same = null; // the replayed fleet the size of the day's own
+    if (rec.failed) recorded = t("stats.fc.why.unread");
+    else if (!total) recorded = t("stats.fc.why.reading");
+    else if (!total.delivered) recorded = t("stats.fc.why.none", { day: dateWords(fc.day) });
+    else {
+      const robots = total.robots.filter((r) => r.trips > 0).length;
+      const figures = { count: total.delivered, mean: minutes(total.wait_mean), p95: minutes(total.wait_p95) };
+      recorded = robots ? t("stats.fc.why.recorded", { ...figures, robots: t("stats.fc.fleet", { count: robots }) }) : t("stats.fc.why.recordedNoRobot", figures);
+      same = done.find((f) => f.robots === robots) || null;
+    }
+    setText(this.recordedLine, recorded);
+    setText(this.replayedLine, same ? t("stats.fc.why.replayed", { count: same.robots, mean: minutes(same.wait_mean), p95: minutes(same.wait_p95) }) : "");
+    this.replayedLine.hidden = !same;
+    const counts = total && total.delivered && total.delivered !== fc.dishes;
+    setText(this.countsLine, counts ? t("stats.fc.why.counts", { recorded: count(total.delivered), replayed: count(fc.dishes) }) : "");
+    this.countsLine.hidden = !counts;
+    const m = REPLAY_MODEL;
+    setText(
+      this.modelLine,
+      t("stats.fc.why.model", {
+        loadFixed: duration(m.loadFixed),
+        loadPerPlate: duration(m.loadPerPlate),
+        dwellMin: duration(m.dwellMin),
+        dwellMax: duration(m.dwellMax),
+        dwellLongest: duration(m.dwellLongest),
+        away: fmt(m.awayPer100),
+      }),
+    );
+    // Where the day's own time went that the replay simulates: the pass and the loading.
+    const facts = [];
+    if (total && total.delivered && total.pass_mean !== null) facts.push(t("stats.fc.why.pass", { pass: duration(total.pass_mean) }));
+    if (total && total.trips && total.loading_per_trip !== null && total.dishes_per_trip !== null) {
+      const assumed = duration(m.loadFixed + m.loadPerPlate * total.dishes_per_trip);
+      facts.push(total.loading_per_trip > 0 ? t("stats.fc.why.loading", { loading: duration(total.loading_per_trip), assumed }) : t("stats.fc.why.noLoading", { assumed }));
+    }
+    setText(this.passLine, facts.join(" "));
+    this.passLine.hidden = !facts.length;
+  }
+
+  /** Read the figures the record holds for the forecast's day (the same `stats` `figures` the
+   *  tab above shows), once per forecast. */
+  async _readRecord(fc, key) {
+    this.recorded = { key };
+    try {
+      const reply = await this.conn.request(
+        { clientmsg: "stats", action: "figures", by: "day", start: fc.day, end: fc.day, utc_offset: offsetText(offsetAt(fc.day)) },
+        { resend: true, timeout: STATS_TIMEOUT_MS },
+      );
+      if (this.recorded.key === key) this.recorded = { key, total: reply.stats.total };
+    } catch (err) {
+      if (this.recorded.key === key) this.recorded = { key, failed: true };
+      showError(err);
+    }
+    if (this.record && this.recorded.key === key) this.render();
   }
 
   /** The bar chart of the 95 % wait per fleet size, drawn to the box's width. */
