@@ -10,6 +10,7 @@ whole, and an armed tool's instruction on screen on a touch device; no visible t
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -100,8 +101,13 @@ async def test_robots_first_tools_whole_nothing_clipped(
         await c.status("r1", "Ready")
         await c.status("r2", "Ready")
         assert r.app.core is not None
-        # An alert up: the banner must not push the robots off a phone's screen.
-        await r.app.core.service.block("T5", "r1: no way to T5", "r1")
+        # Alerts up: the banner must not push the robots off a phone's screen.
+        for table in ("T5", "T7", "T9"):
+            await r.app.core.service.block(table, f"r1: no way to {table}", "r1")
+        # A long dish name and note, in the lists at the pass: wrapped, never cut.
+        long = "Nasi lemak ayam goreng berempah with extra sambal and telur"
+        await c.ok("create", type="order", dish=long, table="T2", note="no peanuts " * 8)
+        await c.ok("create", type="order", dish="Teh tarik", table="T3")
         context = await browser.new_context(
             viewport=view, has_touch=True, is_mobile=size == "phone"
         )
@@ -111,7 +117,7 @@ async def test_robots_first_tools_whole_nothing_clipped(
         await page.goto(f"{http_base(r)}/")
         await log_in(page, "owner", r.app.first_owner_password or "")
         await expect(page.locator("body")).to_have_attribute("data-connection", "online")
-        await expect(page.get_by_role("region", name="Alerts")).to_contain_text("T5")
+        await expect(page.get_by_role("region", name="Alerts")).to_contain_text("T9")
         await expect(page.get_by_role("tab", name="Activity")).to_be_visible()
 
         # Every tab whole on screen: none hidden in a scrolled row.
@@ -145,7 +151,7 @@ async def test_robots_first_tools_whole_nothing_clipped(
         assert await clipped(page, "#tool-hint") == []
         # Driving on a phone: the map and the joystick on screen together.
         await expect(page.locator(".pad.joystick")).to_be_visible()
-        if size == "phone":
+        if size in ("phone", "portrait"):
             canvas = await page.locator("#map").bounding_box()
             pad = await page.locator(".pad.joystick").bounding_box()
             assert canvas is not None and pad is not None
@@ -157,6 +163,9 @@ async def test_robots_first_tools_whole_nothing_clipped(
             await page.get_by_role("tab", name=name, exact=True).tap()
             panel = page.locator("[role=tabpanel]:visible")
             await expect(panel).to_have_count(1)
+            if name == "Send food":
+                await page.get_by_role("button", name=re.compile(f"^Add to cart: {long}")).tap()
+                await expect(page.get_by_role("list", name="Cart")).to_contain_text(long)
             assert await clipped(page) == [], (size, name)
             assert (await sideways(page))[0] <= view["width"], (size, name)
         assert errors == []

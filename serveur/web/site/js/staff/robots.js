@@ -241,11 +241,11 @@ export class RobotsPanel {
   }
 
   /**
-   * Taken control on a phone, where the robots come above the map: select the robot and bring
+   * Taken control on a phone or a portrait tablet, where the robots come above the map: select the robot and bring
    * the joystick up from below, so the map and the pads share the screen while driving.
    */
   _showDriving(name) {
-    if (!window.matchMedia("(max-width: 600px)").matches) return;
+    if (!window.matchMedia("(max-width: 900px)").matches) return;
     if (this.selection.name !== name) this.selection.set(name);
     requestAnimationFrame(() => {
       const pad = document.querySelector("#teleop .pads");
