@@ -208,7 +208,11 @@ async def test_a_whole_delivery_by_clicking(tmp_path: Path, browser: Any) -> Non
         table = await screens.open(
             "/table/T3", token=await r.app.issue_token("table-screen", table="T3")
         )
-        await expect(robot.get_by_text("Staff can activate me from the console.")).to_be_visible()
+        await expect(
+            robot.get_by_text(
+                "Not taking deliveries. Staff start me from their phones, or sign in here."
+            )
+        ).to_be_visible()
         await expect(table.get_by_role("list", name="Ready in the kitchen")).to_have_text(
             "Teh tarik"
         )
@@ -597,7 +601,11 @@ async def test_logging_in_and_out_and_screen_setup_links(tmp_path: Path, browser
         screens.token = await r.app.issue_token("robot-screen", robot="r1")
         robot = await screens.open("/robot/r1")
         assert "token" not in robot.url
-        await expect(robot.get_by_text("Staff can activate me from the console.")).to_be_visible()
+        await expect(
+            robot.get_by_text(
+                "Not taking deliveries. Staff start me from their phones, or sign in here."
+            )
+        ).to_be_visible()
         await expect(robot.get_by_role("button", name="Activate this robot")).to_have_count(0)
         screens.token = await r.app.issue_token("table-screen", table="T3")
         table = await screens.open("/table/T3")
