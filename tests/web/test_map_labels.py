@@ -4,11 +4,11 @@ lay over table T1, which then read as T5; labels overlapped tables and homes).
 A crowded dining room on the real server and simulator: tables 0.6 m apart (one each side of T1
 and of T5), robots parked on tables (T18, T19, T2), r1 on a trip to T5 standing next to T1 (as
 loaded, not yet gone). On a phone, a portrait and a landscape tablet and a desktop, at the map's
-whole view and zoomed in on T1: no two labels overlap, none covers a place's marker, a robot or
-the ring of r1's destination, every table in view is named (its name beside its own marker), and
-each robot's label — its name and where it goes, "r1 → T5" — is beside that robot or on a line
-from it; no label but T5's own reads "T5". The canvas publishes what it placed as
-data-label-info (js/map/view.js).
+whole view and zoomed in on T1: no two labels overlap, none covers a place's marker, a robot,
+the ring of r1's destination or the legend over the map, every table in view is named (its name
+beside its own marker), and each robot's label — its name and where it goes, "r1 → T5" — is
+beside that robot or on a line from it; no label but T5's own reads "T5". The canvas publishes
+what it placed as data-label-info (js/map/view.js).
 
 The placer itself (js/map/labels.js) is tested on plain values under Node
 (tests/node/map_labels.mjs).
@@ -125,8 +125,11 @@ def check(state: dict[str, Any], places: dict[str, tuple[float, float, str]], wh
     for box, label in zip(boxes, placed, strict=True):
         for x, y, r, name in marks:
             assert not covers_circle(box, x, y, r), f"{where}: {label['text']!r} covers {name}"
-    # Every table in view named, beside its own marker; no other label reads as a table's name.
+    # None under the legend laid over the map's corner.
     legend = state["legend"]
+    for label in placed:
+        assert apart(label["box"], legend), f"{where}: {label['text']!r} is under the legend"
+    # Every table in view named, beside its own marker; no other label reads as a table's name.
     for name, (x, y, kind) in places.items():
         sx, sy = screen(x, y)
         seen = 0 <= sx <= state["width"] and 0 <= sy <= state["height"]

@@ -32,8 +32,8 @@
 // The corners so far are published as data-draft; finishZone() closes the zone (Finish button).
 //
 // Labels (labels.js places them, draw.js draws them): none covers another, a place's marker, a
-// robot or a control laid over the map (an absolutely placed sibling of the canvas that takes
-// pointers: the legend), at any zoom and size; table names come first, then robots, then homes,
+// robot or a control or message laid over the map (the legend, an armed tool's instruction: see
+// _covers), at any zoom and size; table names come first, then robots, then homes,
 // the pass and zones; a label that cannot go next to its mark goes a little further, on a leader
 // line, then smaller, and the least important is left out. A robot's label is its name and
 // where it is going ("r1 → T5"), a tag in its status colour beside the robot (on a line to it
@@ -114,7 +114,8 @@ export class MapView {
     canvas.dataset.follow = "off";
     this._listen();
     new ResizeObserver(() => this._resize()).observe(canvas);
-    // Controls over the map (the legend opening) hide labels: place them again when they change.
+    // Controls over the map (the legend opening, a tool's instruction) hide labels: place them
+    // again when they change.
     const covers = new ResizeObserver(() => this.requestDraw());
     for (const el of this._coverCandidates()) covers.observe(el);
     this._resize();
@@ -130,8 +131,9 @@ export class MapView {
     return parent ? [...parent.children].filter((el) => el !== this.canvas) : [];
   }
 
-  /** The boxes, in canvas pixels, of the controls laid over the map (a sibling of the canvas,
-   *  absolutely placed, shown and taking pointers: the legend; not a pointer-less marker). */
+  /** The boxes, in canvas pixels, of the controls and messages laid over the map: a shown
+   *  sibling of the canvas over it that takes pointers (the legend) or has words (an armed tool's
+   *  instruction); not a mark without words that lets pointers through (the setup page's pin). */
   _covers() {
     const c = this.canvas.getBoundingClientRect();
     const left = c.left + this.canvas.clientLeft; // drawing starts inside the canvas's border
@@ -139,10 +141,10 @@ export class MapView {
     const boxes = [];
     for (const el of this._coverCandidates()) {
       if (el.offsetParent === null) continue;
-      const style = getComputedStyle(el);
-      if (style.position !== "absolute" || style.pointerEvents === "none") continue;
       const r = el.getBoundingClientRect();
-      if (r.width && r.height) boxes.push({ x0: r.left - left, y0: r.top - top, x1: r.right - left, y1: r.bottom - top });
+      if (!r.width || !r.height || r.right <= c.left || r.left >= c.right || r.bottom <= c.top || r.top >= c.bottom) continue;
+      if (getComputedStyle(el).pointerEvents === "none" && !el.textContent.trim()) continue;
+      boxes.push({ x0: r.left - left, y0: r.top - top, x1: r.right - left, y1: r.bottom - top });
     }
     return boxes;
   }
