@@ -6,6 +6,7 @@
 import { act, el, formatTime, KeyedList } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
 import { blockWords, troubleWords } from "./trouble.js";
+import { Chime } from "../sound.js";
 
 const MUTE_KEY = "serveur.alertsMuted";
 
@@ -47,46 +48,6 @@ function whoSaw(actor) {
   return actor;
 }
 
-/** Two short tones; browsers allow sound once the person has touched the page. */
-class Chime {
-  constructor() {
-    this.ctx = null;
-    const wake = () => {
-      try {
-        if (!this.ctx) this.ctx = new AudioContext();
-        if (this.ctx.state === "suspended") this.ctx.resume();
-      } catch {
-        /* no WebAudio: the banner still shows */
-      }
-    };
-    window.addEventListener("pointerdown", wake, { capture: true });
-    window.addEventListener("keydown", wake, { capture: true });
-  }
-
-  play() {
-    try {
-      if (!this.ctx) this.ctx = new AudioContext();
-      const ctx = this.ctx;
-      const start = ctx.currentTime + 0.01;
-      [880, 660].forEach((freq, i) => {
-        const osc = ctx.createOscillator();
-        const gain = ctx.createGain();
-        const at = start + i * 0.22;
-        osc.type = "sine";
-        osc.frequency.value = freq;
-        gain.gain.setValueAtTime(0.0001, at);
-        gain.gain.exponentialRampToValueAtTime(0.4, at + 0.02);
-        gain.gain.exponentialRampToValueAtTime(0.0001, at + 0.2);
-        osc.connect(gain).connect(ctx.destination);
-        osc.start(at);
-        osc.stop(at + 0.21);
-      });
-    } catch {
-      /* no WebAudio */
-    }
-  }
-}
-
 export class AlertsPanel {
   constructor({ banner, badge, mute }, conn, live) {
     this.banner = banner;
@@ -95,7 +56,12 @@ export class AlertsPanel {
     this.conn = conn;
     this.live = live;
     this.muted = loadMuted();
-    this.chime = new Chime();
+    // Two short tones (sound.js, as the robot and table screens ring); browsers allow sound
+    // once the person has touched the page, so each touch or key lets it run.
+    this.chime = new Chime([880, 660]);
+    const wake = () => this.chime.unlock();
+    window.addEventListener("pointerdown", wake, { capture: true });
+    window.addEventListener("keydown", wake, { capture: true });
     this.chimes = 0; // how many were sounded (banner's data-chimes: what a test can read)
     this.heard = new Set(); // alert ids already seen by this page: a chime once per alert
     this.list = el("ul", { class: "alert-list" });
