@@ -298,16 +298,13 @@ class Site:
     def write_site(self, folder: Path) -> tuple[Path, float | None, int]:
         """The site's map and waypoints as ``serveur replay --map`` reads them, written into
         ``folder``; returns the map YAML's path, the table timeout and the trays."""
-        import numpy as np
-
-        from serveur.maps.mapio import OccupancyMap, Waypoint, save_map, save_waypoints
+        from serveur.maps.mapio import Waypoint, save_map_cells, save_waypoints
 
         m = self.places.map
         if m is None:
             raise Conflict("the server has no map yet: a replay needs the restaurant's map")
-        grid = np.frombuffer(m.data, dtype=np.int8).reshape(m.height, m.width)
         yaml_path = folder / "site.yaml"
-        save_map(OccupancyMap(grid, m.resolution, m.origin), yaml_path)
+        save_map_cells(m.data, m.width, m.height, m.resolution, m.origin, yaml_path)
         wps = {
             w.name: Waypoint(w.name, w.x, w.y, w.yaw, w.kind.value)
             for w in self.places.waypoints.values()

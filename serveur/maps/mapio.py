@@ -40,6 +40,7 @@ __all__ = [
     "load_map",
     "load_waypoints",
     "save_map",
+    "save_map_cells",
     "save_waypoints",
 ]
 
@@ -313,6 +314,38 @@ def _write_atomic(path: Path, data: bytes) -> None:
         raise
 
 
+def _saver_pixel(cell: int) -> int:
+    """One cell (-1 unknown, 0..100 occupancy) as map_saver writes it (see :func:`save_map`)."""
+    if 0 <= cell <= _SAVER_FREE_MAX:
+        return _FREE_PX
+    if cell >= _SAVER_OCC_MIN:
+        return _OCC_PX
+    return _UNKNOWN_PX
+
+
+#: The signed byte of a cell (as the ``map`` topic carries it) -> its PGM pixel.
+_PIXELS = bytes(_saver_pixel(b - 256 if b >= 128 else b) for b in range(256))
+
+
+def save_map_cells(
+    cells: bytes,
+    width: int,
+    height: int,
+    resolution: float,
+    origin: tuple[float, float, float],
+    yaml_path: str | Path,
+) -> None:
+    """:func:`save_map` as PGM from the cells' bytes (int8, row 0 at the map's bottom), without
+    numpy: the server writes the site for a forecast's replay in its own process, which must
+    not load numpy (a child or a CLI reads it back with :func:`load_map`)."""
+    if len(cells) != width * height:
+        raise MapError(f"map data has {len(cells)} cells, expected {width}x{height}")
+    pixels = cells.translate(_PIXELS)
+    rows = [pixels[r * width : (r + 1) * width] for r in range(height - 1, -1, -1)]
+    header = f"P5\n# CREATOR: serveur {resolution:.3f} m/pix\n{width} {height}\n255\n"
+    _write_map(Path(yaml_path), "pgm", header.encode("ascii") + b"".join(rows), resolution, origin)
+
+
 def save_map(m: OccupancyMap, yaml_path: str | Path, image_format: str = "pgm") -> None:
     """Write ``m`` as map_saver does: YAML + image (``<yaml stem>.pgm`` or ``.png``).
 
@@ -321,14 +354,12 @@ def save_map(m: OccupancyMap, yaml_path: str | Path, image_format: str = "pgm") 
     are thresholded like map_saver: <= 25 free, >= 65 occupied, else unknown.
     """
     import numpy as np
-    import yaml
     from PIL import Image
 
     yaml_path = Path(yaml_path)
     fmt = image_format.lower()
     if fmt not in ("pgm", "png"):
         raise MapError(f"image_format must be 'pgm' or 'png', got {image_format!r}")
-    image_path = yaml_path.with_suffix(f".{fmt}")
     g = m.grid
     pixels = np.full(g.shape, _UNKNOWN_PX, dtype=np.uint8)
     pixels[(g >= 0) & (g <= _SAVER_FREE_MAX)] = _FREE_PX
@@ -341,10 +372,24 @@ def save_map(m: OccupancyMap, yaml_path: str | Path, image_format: str = "pgm") 
         buf = io.BytesIO()
         Image.fromarray(pixels, mode="L").save(buf, format="PNG")
         image_bytes = buf.getvalue()
+    _write_map(yaml_path, fmt, image_bytes, m.resolution, m.origin)
+
+
+def _write_map(
+    yaml_path: Path,
+    fmt: str,
+    image_bytes: bytes,
+    resolution: float,
+    origin: tuple[float, float, float],
+) -> None:
+    """The image beside its YAML, each written whole (a reader never sees half a map)."""
+    import yaml
+
+    image_path = yaml_path.with_suffix(f".{fmt}")
     meta = {
         "image": image_path.name,
-        "resolution": m.resolution,
-        "origin": [m.origin[0], m.origin[1], m.origin[2]],
+        "resolution": resolution,
+        "origin": [origin[0], origin[1], origin[2]],
         "negate": 0,
         "occupied_thresh": _SAVE_OCC_THRESH,
         "free_thresh": _SAVE_FREE_THRESH,

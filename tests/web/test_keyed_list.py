@@ -167,7 +167,8 @@ async def test_a_rebuilt_row_keeps_the_keyboards_place(browser: Any) -> None:
 # A new list a live update changes is drawn with KeyedList, not added here.
 REPLACED = {
     "i18n.js": 1,  # the language picker's options (a new language)
-    "robot.js": 2,  # the robot screen: one view, drawn again when its model changed
+    "robot.js": 5,  # the robot screen: one view, drawn again when its model changed; the staff
+    # bar (signed in or not), drawn on signing in and out
     "setup.js": 1,  # the default language's options (the languages ticked), not live data
     "staff/accounts.js": 5,  # the role and kind options; a password or the codes just made
     "staff/log.js": 3,  # the filters' options; the people the server names on a search
