@@ -159,7 +159,8 @@ async def test_robots_first_tools_whole_nothing_clipped(
         await page.screenshot(path=str(SHOTS / f"phone-first-{size}-driving.png"))
 
         # The other tabs: whole, nothing clipped; where robots are shown, the first one first.
-        for name in ("Send food", "New order", "Kitchen", "Menu", "Accounts", "Restaurant"):
+        tabs = ("Send food", "New order", "Kitchen", "Menu", "Accounts", "Restaurant", "Statistics")
+        for name in (*tabs, "Activity"):
             await page.get_by_role("tab", name=name, exact=True).tap()
             panel = page.locator("[role=tabpanel]:visible")
             await expect(panel).to_have_count(1)
