@@ -228,7 +228,12 @@ async def test_a_stuck_robot_asks_for_staff_in_the_guests_words(
         await expect(
             staffed.get_by_text("I need help from the staff — please wait")
         ).to_be_visible()
-        await expect(staffed.locator(".detail")).to_have_text(f"Error: {err['last_error']}")
+        # In staff's words; the robot's own under "For the technician", opened on demand.
+        detail = staffed.locator(".detail")
+        await expect(detail).to_contain_text("Could not get to T12: check nothing blocks the way")
+        await expect(detail).not_to_contain_text(err["last_error"], use_inner_text=True)
+        await detail.get_by_text("For the technician").click()
+        await expect(detail).to_contain_text(err["last_error"], use_inner_text=True)
 
         # Staff leave the table from the screen: Skip asks first, the dish goes back to the pass.
         r.sim.robots[0].block_path(False)

@@ -157,6 +157,11 @@ async def test_robots_first_tools_whole_nothing_clipped(
             assert canvas is not None and pad is not None
             assert canvas["y"] + canvas["height"] * 0.5 >= 0 and on_screen(pad, view), (canvas, pad)
         await page.screenshot(path=str(SHOTS / f"phone-first-{size}-driving.png"))
+        # The way out is beside the pads; after it the robots come first again.
+        await page.get_by_role("button", name="Finish driving r1").tap()
+        await c.status("r1", "Ready")
+        await expect(page.locator("body")).to_have_attribute("data-driving", "false")
+        await expect(first.get_by_role("button", name="Take control r1")).to_be_visible()
 
         # The other tabs: whole, nothing clipped; where robots are shown, the first one first.
         tabs = ("Send food", "New order", "Kitchen", "Menu", "Accounts", "Restaurant", "Statistics")

@@ -20,6 +20,7 @@ import { act, byName, confirmDialog, el, showError, toast, watchConnection } fro
 import { statusColour } from "./status.js";
 import { applySiteLanguages, dishLabel, lang, onLangChange, statusName, t } from "./i18n.js";
 import { Announcer, muteButton, soundPrompt } from "./sound.js";
+import { technicalNote } from "./staff/trouble.js";
 
 const name = robotName();
 const conn = new Connection();
@@ -299,8 +300,11 @@ function view(m) {
       return [
         el("h1", {}, m.status === "Stopped" ? t("robot.stopped") : t("robot.stuck")),
         m.status === "Error" ? el("p", { class: "help" }, t("guest.robot.needHelp")) : null,
-        // What went wrong, in the robot's own words: only for staff logged in on this screen.
-        m.error ? el("p", { class: "sub detail" }, t("robot.lastError", { message: m.error })) : null,
+        // What went wrong, for staff logged in on this screen: in their words, the robot's own
+        // folded under "For the technician" (staff/trouble.js, as on the console's cards).
+        m.error
+          ? el("div", { class: "sub detail" }, dest ? t("trouble.stuckGoing", { place: dest }) : t("trouble.stuck"), technicalNote(m.error))
+          : null,
         el(
           "p",
           { class: "sub" },

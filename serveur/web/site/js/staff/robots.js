@@ -241,16 +241,14 @@ export class RobotsPanel {
   }
 
   /**
-   * Taken control on a phone or a portrait tablet, where the robots come above the map: select the robot and bring
-   * the joystick up from below, so the map and the pads share the screen while driving.
+   * Taken control on a phone or a portrait tablet: the robot is selected, the page shows the
+   * map and the pads first (staff.css, body[data-driving]), scrolled to the map's tools.
    */
   _showDriving(name) {
     if (!window.matchMedia("(max-width: 900px)").matches) return;
     if (this.selection.name !== name) this.selection.set(name);
-    requestAnimationFrame(() => {
-      const pad = document.querySelector("#teleop .pads");
-      if (pad) pad.scrollIntoView({ block: "end", behavior: "instant" });
-    });
+    // The map (its tools on top) and the pads under it fill the screen.
+    requestAnimationFrame(() => document.querySelector(".map-area")?.scrollIntoView({ block: "start", behavior: "instant" }));
   }
 
   /** Focus the row's control `key` (an action, "select"), or its first usable one (its name). */

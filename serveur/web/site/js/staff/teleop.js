@@ -3,7 +3,7 @@
 // re-sent at 5 Hz (the robot stops by itself when commands stop coming); on release one zero
 // command is sent so it stops at once.
 
-import { el, showError } from "../ui.js";
+import { act, el, showError } from "../ui.js";
 import { allowed } from "../status.js";
 import { onLangChange, t } from "../i18n.js";
 
@@ -35,6 +35,15 @@ export class Teleop {
     this.note = el("p", { class: "muted teleop-note" });
     this.joystick = pad("teleop.joystick", "joystick");
     this.rotor = pad("teleop.rotor", "rotor");
+    // The way out beside the pads: on a phone the robot's card is below the map while driving.
+    this.done = el("button", {
+      class: "secondary teleop-done",
+      type: "button",
+      "data-needs-online": true,
+      "data-i18n": "teleop.done",
+      hidden: true,
+      onclick: (e) => act(e.currentTarget, () => this.conn.request({ clientmsg: "ready", robot: this.selection.name })),
+    });
     root.append(
       el(
         "section",
@@ -43,6 +52,7 @@ export class Teleop {
         this.note,
         el("div", { class: "drive" }, camera.node, el("div", { class: "pads" }, this.joystick.node, this.rotor.node)),
         el("p", { class: "hint", "data-i18n": "teleop.keys" }),
+        this.done,
       ),
     );
     dragPad(this.joystick, (x, y) => this._input(() => (this.stick = [x, y])));
@@ -81,6 +91,10 @@ export class Teleop {
     const on = this._enabled();
     for (const p of [this.joystick, this.rotor]) p.node.setAttribute("aria-disabled", String(!on));
     this.note.textContent = on ? t("teleop.driving", { robot: this.selection.name }) : t("teleop.needManual");
+    this.done.hidden = !on;
+    if (on) this.done.setAttribute("aria-label", t("teleop.doneFor", { robot: this.selection.name }));
+    // A phone or a portrait tablet puts the map and these pads first while a robot is driven.
+    document.body.dataset.driving = String(on);
     if (!on && this.timer) this._releaseAll();
   }
 
