@@ -375,8 +375,15 @@ def check_password_strength(password: str) -> None:
 
 
 def new_password() -> str:
-    """A random password for first-run and demo accounts (~96 bits, easy to type)."""
-    return secrets.token_urlsafe(12)
+    """A random password for first-run and demo accounts (~96 bits, easy to type).
+
+    Never starting with "-": one in 64 did, and ``first_trip.py --password -x...`` (the README's
+    command) then read it as an option and stopped (a CI run hit it).
+    """
+    while True:
+        password = secrets.token_urlsafe(12)
+        if not password.startswith("-"):
+            return password
 
 
 def new_token() -> str:

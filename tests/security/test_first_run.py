@@ -10,6 +10,7 @@ import re
 import sys
 from pathlib import Path
 
+import pytest
 from websockets.asyncio.client import connect
 
 from serveur.app import App
@@ -114,3 +115,15 @@ async def test_serveur_run_prints_the_link_and_its_qr_code_not_a_password(tmp_pa
     finally:
         proc.terminate()
         await proc.wait()
+
+
+def test_a_generated_password_never_starts_with_a_dash(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A password starting with "-" was read as an option by the README's
+    ``first_trip.py --password PASSWORD`` (one in 64 generated did)."""
+    import secrets
+
+    from serveur.security import auth
+
+    drawn = iter(["-dash-first", "_fine", "ok-later"])
+    monkeypatch.setattr(secrets, "token_urlsafe", lambda n: next(drawn))
+    assert auth.new_password() == "_fine"
