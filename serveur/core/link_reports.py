@@ -49,7 +49,15 @@ from serveur.robots.driver import GoalLoss
 from serveur.robots.sensing import Cloud
 from serveur.scheduler import MIN_BATTERY
 
-__all__ = ["HANDOVER_GRACE", "ODOMETER_JUMP", "ODOMETER_STEP", "LinkReports", "ReportHandler"]
+__all__ = [
+    "HANDOVER_GRACE",
+    "ODOMETER_JUMP",
+    "ODOMETER_STEP",
+    "SAVE_TURN",
+    "LinkReports",
+    "ReportHandler",
+    "worth_saving",
+]
 
 log = logging.getLogger(__name__)
 
@@ -62,6 +70,8 @@ ODOMETER_JUMP = 1.0
 #: Pose noise of a parked robot stays within this (m) of where it stopped (AMCL's jitter is
 #: centimetres): the odometer counts nothing smaller.
 ODOMETER_STEP = 0.1
+#: A parked robot turned this far (rad) from its stored heading is stored again.
+SAVE_TURN = math.radians(5.0)
 #: Wall seconds between tries of a report the store could not write (disk full, I/O error),
 #: doubling from the first to the last.
 STORE_RETRY = (0.5, 10.0)
@@ -102,6 +112,28 @@ def _odometer(rt: Runtime, x: float, y: float) -> tuple[float, float]:
     if step < ODOMETER_JUMP:
         rt.odometer += step
     return (x, y)
+
+
+def worth_saving(
+    saved: tuple[float, float, float, float | None] | None,
+    now: tuple[float, float, float, float | None],
+) -> bool:
+    """Whether the store's copy of a robot's pose and battery (``saved``) is worth replacing
+    by ``now``: it moved past AMCL's noise (:data:`ODOMETER_STEP`, :data:`SAVE_TURN`) or its
+    battery by a percent (what staff see). A parked robot's AMCL pose wanders by centimetres
+    and its battery by less than a percent in minutes: writing it again every period cost an
+    idle server ten SQLite writes, and their thread hand-overs, every five seconds, for a row
+    that says the same thing."""
+    if saved is None:
+        return True
+    x, y, yaw, battery = now
+    sx, sy, syaw, sbattery = saved
+    turned = abs(math.remainder(yaw - syaw, math.tau))
+    if math.hypot(x - sx, y - sy) >= ODOMETER_STEP or turned >= SAVE_TURN:
+        return True
+    if (battery is None) != (sbattery is None):
+        return True
+    return battery is not None and sbattery is not None and abs(battery - sbattery) >= 0.01
 
 
 class LinkReports:
@@ -246,9 +278,13 @@ class LinkReports:
         self._handler.moved(robot, x, y)
         if self._hub.watched(f"pose:{robot}"):
             self._poses.offer(robot, rt.pose, stamp)
-        if self._clock.now() - rt.pose_saved_at > self._config.pose_persist_period:
-            rt.pose_saved_at = self._clock.now()
-            self.post(robot, PersistPose())
+        now = self._clock.now()
+        if now - rt.pose_saved_at > self._config.pose_persist_period:
+            rt.pose_saved_at = now
+            saving = (x, y, yaw, rt.battery)
+            if worth_saving(rt.pose_saved, saving):
+                rt.pose_saved = saving
+                self.post(robot, PersistPose())
 
     def _publish_pose(self, robot: str, pose: Pose, stamp: float) -> None:
         topic = f"pose:{robot}"

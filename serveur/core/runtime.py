@@ -96,6 +96,9 @@ class Runtime:
     pose: tuple[float, float, float] | None = None
     battery: float | None = None
     pose_saved_at: float = -1e9
+    #: (x, y, yaw, battery) the store was last asked to keep: a parked robot's is not
+    #: written again every period (serveur.core.link_reports.worth_saving).
+    pose_saved: tuple[float, float, float, float | None] | None = None
     handover: asyncio.Task[None] | None = None  # the hand-over timer while Offline with a trip
     offline_since: float | None = None  # epoch (clock) the robot was last seen, while Offline
     link_started: float | None = None  # epoch (clock) its link was last (re)started

@@ -291,6 +291,18 @@ class LinkTracker:
             ]
         return self._check_goal(now, pose)
 
+    def quiet_until(self, timeout: float) -> float | None:
+        """The earliest time :meth:`check` with ``timeout`` could say anything, whatever
+        proofs come meanwhile (they only push it later): the silence limit from the last
+        proof and, before the link is up, from the session's start. None while a goal is
+        tracked: its acknowledgement and progress are judged as the paced proofs come."""
+        if self.goal is not None:
+            return None
+        until = self._alive_at + timeout
+        if not self.up:
+            until = min(until, self._started + timeout)
+        return until
+
     def _why(self) -> tuple[str, DownCause]:
         """Why the robot is silent, in words that do not change from one time to the next."""
         refusal = self._refusal

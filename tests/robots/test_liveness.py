@@ -358,3 +358,25 @@ def test_a_stop_forgets_the_goal_and_names_every_id_to_cancel() -> None:
     t.new_goal(0.0, 10.0, 2.0, 0.0)
     t.new_goal(1.0, 1.0, 2.0, 0.0)
     assert t.cancelled() == ("g1", "g2") and t.goal is None
+
+
+def test_nothing_can_be_judged_before_the_silence_limit_unless_a_goal_is_out() -> None:
+    """What lets a parked robot's watchdog sleep for seconds instead of polling 8 times per
+    timeout (issue 31: an idle server's wake-ups): :meth:`LinkTracker.quiet_until` is never
+    later than the first time :meth:`LinkTracker.check` says something."""
+    t = ros1()
+    t.start(10.0)
+    assert t.quiet_until(TIMEOUT) == 12.0  # before up: the session's start
+    t.proof(10.5, "status")
+    assert t.quiet_until(TIMEOUT) == 12.0  # still not up: not ready by 12.0 either
+    t.proof(10.6, "pose")
+    assert t.up and t.quiet_until(TIMEOUT) == 12.6
+    for now in (11.0, 12.0, 12.6):
+        assert t.check(now, TIMEOUT) == []  # nothing before it...
+    assert isinstance(t.check(12.61, TIMEOUT)[-1], LinkDown)  # ...and the limit is the limit
+    t = ros1()
+    t.start(0.0)
+    t.proof(0.1, "status")
+    t.proof(0.1, "pose")
+    t.new_goal(0.2, 1.0, 2.0, 0.0)
+    assert t.quiet_until(TIMEOUT) is None  # a goal's ack is judged as proofs come

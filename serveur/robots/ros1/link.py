@@ -75,7 +75,7 @@ from serveur.robots.liveness import (
     TrackedGoal,
 )
 from serveur.robots.names import RosNames
-from serveur.robots.reconnect import Reconnecting, open_rosbridge
+from serveur.robots.reconnect import Nap, Reconnecting, open_rosbridge
 from serveur.robots.sensor_reports import SensorReports, Streams
 
 __all__ = ["LinkListener", "RobotLink"]
@@ -197,6 +197,7 @@ class RobotLink(Reconnecting):
         self._idle_status_ms = max(status_ms, min(IDLE_STATUS_MS, int(heartbeat * 500)))
         self._status_sub_ms: int | None = None  # ... and of our /move_base/status one
         self._jobs: set[asyncio.Task[None]] = set()
+        self._nap = Nap()  # the watchdog's, while nothing can be judged for a while
         self.connects = 0
         #: Why the last attempt to connect failed ("" once connected): for the console.
         self.last_failure = ""
@@ -282,11 +283,20 @@ class RobotLink(Reconnecting):
     async def _watchdog(self, ws: ClientConnection) -> None:
         while True:
             timeout = self.heartbeat_timeout()
-            # Checked eight times per timeout: a silent robot is Offline at most an eighth
-            # late; a goal's ack every eighth of the ack timeout.
+            # Judged an eighth of a timeout after it could first say something: a silent
+            # robot is Offline at most an eighth late; a goal's ack every eighth of the ack
+            # timeout. With no goal, nothing can be said before the silence limit, so the
+            # watchdog naps until then (a parked robot's link wakes every few seconds, not 8
+            # times per timeout); a goal sent or a faster heartbeat wakes it (``_nap``).
             tick = min(timeout, self._ack_timeout) / 8 if self._track.goal else timeout / 8
-            due = self._clock.now() + tick
-            await self._clock.sleep(tick)
+            now = self._clock.now()
+            quiet = self._track.quiet_until(timeout)
+            wait = tick if quiet is None else max(tick, quiet - now)
+            due = now + wait
+            if wait > tick:
+                await self._nap.sleep(self._clock, wait)
+            else:
+                await self._clock.sleep(tick)
             now = self._clock.now()
             if now - due > tick:
                 # Our own event loop was starved: the robot's status frames may be sitting
@@ -456,6 +466,7 @@ class RobotLink(Reconnecting):
         A new goal preempts the one under way on move_base's side (SimpleActionServer).
         """
         goal, _ = self._track.new_goal(self._clock.now(), x, y, yaw)
+        self._nap.wake()  # its acknowledgement is judged from now on
         await self._update_rates()  # full rates before the robot starts to move
         await self._send(self._pub("/move_base/goal", self._goal_msg(goal)))
         return goal.handle
@@ -537,6 +548,7 @@ class RobotLink(Reconnecting):
             for topic, ms, attr in rates:
                 if getattr(self, attr) != ms:
                     setattr(self, attr, ms)
+                    self._nap.wake()  # the heartbeat timeout follows the status rate
                     # A queue of one: rosbridge then delays a pose that comes within the
                     # throttle of the last instead of dropping it — AMCL publishes only after
                     # motion, so a dropped pose (a robot that just lost its localisation, or
