@@ -22,6 +22,8 @@ __all__ = ["Publisher"]
 
 #: Task -> robot entries kept for screens' views; a night has hundreds, bound it anyway.
 _TASK_ROBOTS_MAX = 10_000
+#: Events read back per query when flushing the feed.
+_EVENTS_BATCH = 500
 
 
 class Publisher:
@@ -70,12 +72,15 @@ class Publisher:
         """
         async with self._events_lock:
             while batch := await self._store.events.list_events(
-                since_id=self._last_event, limit=500
+                since_id=self._last_event, limit=_EVENTS_BATCH
             ):
                 self._last_event = batch[-1].id
                 if self._hub.watched("events"):
                     for ev in batch:
                         self._hub.publish("events", P.dump(ev))
+                if len(batch) < _EVENTS_BATCH:
+                    # All of them: asking again would only find none (a query per request).
+                    break
 
     async def events_snapshot(self) -> list[EventRecord]:
         """The ``events`` topic's snapshot: the last hundred or so events, flushed first."""

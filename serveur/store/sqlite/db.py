@@ -71,31 +71,93 @@ def _has_code(sql: str) -> bool:
 
 
 class _SQLiteTx:
-    """:class:`~serveur.store.sql.Tx` over the connection: rows as dicts."""
+    """:class:`~serveur.store.sql.Tx` over the connection: rows as dicts.
 
-    def __init__(self, conn: aiosqlite.Connection) -> None:
+    Each statement is **one** trip to aiosqlite's thread and back: the statement, its rows
+    (made dicts there), its row count or new id, and the cursor closed, all in one function
+    run on that thread; and a transaction's ``BEGIN`` goes with its first statement. Every
+    trip is two thread wake-ups (the worker's, then the event loop's), and on a loaded CPU
+    each waits its turn: a staff request of some fifteen statements paid for thirty-odd trips
+    before (execute, then close; BEGIN alone), and its reply time grew with the host's load
+    (bench/bench_pi.py, docs/performance.md "The Pi budget"). aiosqlite runs what it is given
+    on its thread through ``Connection._execute`` (what its own ``execute_fetchall`` uses);
+    a newer aiosqlite without it fails every store test at once.
+    """
+
+    def __init__(self, conn: aiosqlite.Connection, begin: str | None = None) -> None:
         self._conn = conn
+        self._begin = begin  # sent with the first statement; None once sent (or ``auto``)
+        self.begun = False
 
     @property
     def dialect(self) -> Dialect:
         return SQLITE
 
+    async def _on_thread(self, fn: Callable[..., T], *args: Any) -> T:
+        begin, self._begin = self._begin, None
+        if begin is not None:
+            self.begun = True
+        # aiosqlite's own way onto its thread (untyped).
+        result: T = await self._conn._execute(  # type: ignore[no-untyped-call]
+            _with_begin, self._conn, begin, fn, *args
+        )
+        return result
+
     async def all(self, sql: str, params: Sequence[Any] = ()) -> list[dict[str, Any]]:
-        return [dict(r) for r in await self._conn.execute_fetchall(sql, params)]
+        return await self._on_thread(_rows, sql, params)
 
     async def run(self, sql: str, params: Sequence[Any] = ()) -> int:
-        async with self._conn.execute(sql, params) as cur:
-            return cur.rowcount
+        return await self._on_thread(_rowcount, sql, params)
 
     async def insert(self, sql: str, params: Sequence[Any]) -> int:
-        async with self._conn.execute(sql, params) as cur:
-            rowid = cur.lastrowid
+        rowid = await self._on_thread(_lastrowid, sql, params)
         if rowid is None:  # pragma: no cover - an INSERT always sets it
             raise StoreError("INSERT returned no row id")
         return rowid
 
     async def many(self, sql: str, rows: Sequence[Sequence[Any]]) -> None:
-        await self._conn.executemany(sql, rows)
+        await self._on_thread(_executemany, sql, rows)
+
+
+# What one statement does on aiosqlite's thread (``_SQLiteTx``): ``conn`` is its sqlite3
+# connection, used there only.
+
+
+def _with_begin(
+    conn: aiosqlite.Connection, begin: str | None, fn: Callable[..., T], *args: Any
+) -> T:
+    raw: sqlite3.Connection = conn._conn
+    if begin is not None:
+        raw.execute(begin).close()
+    return fn(raw, *args)
+
+
+def _rows(raw: sqlite3.Connection, sql: str, params: Sequence[Any]) -> list[dict[str, Any]]:
+    cur = raw.execute(sql, params)
+    try:
+        return [dict(r) for r in cur.fetchall()]
+    finally:
+        cur.close()
+
+
+def _rowcount(raw: sqlite3.Connection, sql: str, params: Sequence[Any]) -> int:
+    cur = raw.execute(sql, params)
+    try:
+        return cur.rowcount
+    finally:
+        cur.close()
+
+
+def _lastrowid(raw: sqlite3.Connection, sql: str, params: Sequence[Any]) -> int | None:
+    cur = raw.execute(sql, params)
+    try:
+        return cur.lastrowid
+    finally:
+        cur.close()
+
+
+def _executemany(raw: sqlite3.Connection, sql: str, rows: Sequence[Sequence[Any]]) -> None:
+    raw.executemany(sql, rows).close()
 
 
 class SQLiteDb:
@@ -232,10 +294,12 @@ class SQLiteDb:
                 raise StoreError("store is not open")
             try:
                 try:
-                    if mode != "auto":
-                        await db.execute("BEGIN IMMEDIATE" if mode == "write" else "BEGIN")
-                    result = await work(_SQLiteTx(db))
-                    if mode != "auto":
+                    # BEGIN goes with the first statement (one trip to the thread fewer); a
+                    # unit of work that sent none has no transaction to commit.
+                    begin = {"write": "BEGIN IMMEDIATE", "read": "BEGIN"}.get(mode)
+                    tx = _SQLiteTx(db, begin)
+                    result = await work(tx)
+                    if tx.begun:
                         await db.commit()
                     return result
                 except BaseException:
