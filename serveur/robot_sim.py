@@ -18,8 +18,8 @@ Structure:
   and never blocks the robot or grows memory.
 * :class:`Simulation` — the robots of a fleet, one physics loop stepping all of them at a fixed
   20 Hz of *simulated* time (so results do not depend on ``time_scale``), and the fault hooks.
-  With ``robots_see_each_other`` (``serveur sim --robots-see-each-other``; off by default)
-  the robots are obstacles to each other, in their scans and in motion, and can deadlock
+  With ``robots_see_each_other`` (the default; ``serveur sim --robots-pass-through`` turns it
+  off) the robots are obstacles to each other, in their scans and in motion, and can deadlock
   (:meth:`SimRobot.share_floor <serveur.sim.robot.SimRobot.share_floor>`).
 
 All time goes through a :class:`~serveur.clock.Clock`: motion, publish rates, ``throttle_rate``,
@@ -107,7 +107,7 @@ class Simulation:
         clock: Clock,
         *,
         spread: bool = False,
-        robots_see_each_other: bool = False,
+        robots_see_each_other: bool = True,
         blocked_patience: float = ROBOT_PATIENCE,
         video: Sequence[VideoServer] = (),
     ) -> None:
@@ -357,7 +357,7 @@ async def start_simulation(
     twist_stamped: bool | None = None,
     humble_queue: bool | None = None,
     rosbridge_fix: bool = False,
-    robots_see_each_other: bool = False,
+    robots_see_each_other: bool = True,
     blocked_patience: float = ROBOT_PATIENCE,
     video_port: int | None = None,
 ) -> Simulation:
@@ -573,10 +573,19 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--robots-see-each-other",
+        dest="robots_see_each_other",
         action="store_true",
-        help="each robot's footprint is an obstacle to the others (scans, motion): robots stop "
-        "short of each other, go around one standing still, abort a goal blocked too long; "
-        "they can deadlock (default: robots pass through each other)",
+        default=True,
+        help="the default: each robot's footprint is an obstacle to the others (scans, motion): "
+        "robots keep clear of each other, stop short, go around one standing still, abort a "
+        "goal blocked too long, as real robots do",
+    )
+    parser.add_argument(
+        "--robots-pass-through",
+        dest="robots_see_each_other",
+        action="store_false",
+        help="robots do not see each other and drive through each other (ghosts: only for "
+        "measuring something else)",
     )
     parser.add_argument(
         "--blocked-patience",
@@ -626,7 +635,7 @@ async def run_sim(
     twist_stamped: bool | None = None,
     humble_queue: bool | None = None,
     rosbridge_fix: bool = False,
-    robots_see_each_other: bool = False,
+    robots_see_each_other: bool = True,
     blocked_patience: float = ROBOT_PATIENCE,
     video_port: int | None = None,
 ) -> int:
@@ -732,7 +741,7 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
         twist_stamped=getattr(ns, "twist_stamped", None),
         humble_queue=getattr(ns, "humble_queue", None),
         rosbridge_fix=getattr(ns, "rosbridge_fix", False),
-        robots_see_each_other=getattr(ns, "robots_see_each_other", False),
+        robots_see_each_other=getattr(ns, "robots_see_each_other", True),
         blocked_patience=getattr(ns, "blocked_patience", ROBOT_PATIENCE),
         video_port=getattr(ns, "video_port", None),
     )

@@ -198,9 +198,18 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     p.add_argument(
         "--robots-see-each-other",
+        dest="robots_see_each_other",
         action="store_true",
-        help="robots' footprints are obstacles to each other in the simulator: they stop "
-        "short, wait, plan around and abort after a patience (default: they pass through)",
+        default=True,
+        help="the default: robots' footprints are obstacles to each other in the simulator: "
+        "they keep clear, stop short, wait, plan around and abort after a patience",
+    )
+    p.add_argument(
+        "--robots-pass-through",
+        dest="robots_see_each_other",
+        action="store_false",
+        help="robots drive through each other (ghosts: aisles of unlimited width; only to "
+        "compare with figures measured that way)",
     )
     p.add_argument(
         "--zones",

@@ -79,7 +79,7 @@ class ReplayOptions:
     progress: bool = True
     # Traffic (issue 21, serveur.replay.traffic). Robots' footprints are obstacles to each
     # other in the simulator (off: robots drive through each other, as before).
-    robots_see_each_other: bool = False
+    robots_see_each_other: bool = True
     #: Zones file the replay creates before the service opens; None: ``<map stem>_zones.json``
     #: beside the map if there is one; "": no zones.
     zones: str | None = None

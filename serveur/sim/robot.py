@@ -42,7 +42,7 @@ A robot made with ``ros=2`` is a ROS 2 robot running Nav2 behind rosbridge 2.x
   ``{error_code, error_msg}`` with Nav2's codes: 208 no valid path, 105 no progress, 9000).
 
 Other robots are not obstacles unless the fleet says so (:meth:`SimRobot.share_floor`, the
-fleet's ``robots_see_each_other``; off by default): :mod:`serveur.sim.floor`.
+fleet's ``robots_see_each_other``; on by default): :mod:`serveur.sim.floor`.
 
 The robot is :class:`SimRobot`, composed of one part per concern: it owns a
 :class:`~serveur.sim.state.RobotState` (what the parts share: settings, clock, body, time) and

@@ -56,7 +56,14 @@ def test_phases_are_whole_ticks_then_a_fraction() -> None:
     from serveur.clock import ScaledClock
     from serveur.robot_sim import Simulation
 
-    sim = Simulation([object()] * 10, [], ScaledClock(1.0), spread=True)  # type: ignore[list-item]
+    # Placeholders: this is about the phases, not the floor (no robot to share it).
+    sim = Simulation(
+        [object()] * 10,  # type: ignore[list-item]
+        [],
+        ScaledClock(1.0),
+        spread=True,
+        robots_see_each_other=False,
+    )
     ticks = [t * TICK + off for t, off in sim.phases()]
     assert ticks == pytest.approx([i * PERIOD / 10 for i in range(10)])
     assert all(0.0 <= off < TICK for _, off in sim.phases())
