@@ -7,7 +7,8 @@ Three processes on loopback, every one stopped by this script:
 * this process — ``--clients`` watchers subscribed to ``robots``, ``orders`` and ``tasks``
   (every fiftieth also to one robot's ``pose:`` stream), plus one staff client that sends a
   seeded stream of carts (1-4 dishes at random tables) for ``--duration`` wall seconds,
-  presses "food collected" at every table and "continue" on any robot in Error.
+  presses Go on every robot Loading at the pass (the server runs without ``--auto-depart``,
+  as sites do), "food collected" at every table and "continue" on any robot in Error.
 
 After the load it stops sending, lets the robots finish (``--drain`` seconds at most), then
 judges every watcher that was not disconnected: its ``seq`` numbers must have no gap, and
@@ -143,7 +144,9 @@ async def staff_loop(
             next_cart = now + ns.cart_every
         for name in robots:
             status = staff.records["robots"].get(name, {}).get("status")
-            verb = {"Delivered": "next", "Error": "continue"}.get(status or "")
+            # Trips wait at the pass (Loading) until staff press Go, as on a site without
+            # --auto-depart (the server's default).
+            verb = {"Loading": "go", "Delivered": "next", "Error": "continue"}.get(status or "")
             if verb == "continue":
                 reason = staff.records["robots"][name].get("last_error") or "?"
                 stats["error_reasons"][reason] = stats["error_reasons"].get(reason, 0) + 1
@@ -151,7 +154,7 @@ async def staff_loop(
                 rep = await staff.call(verb, robot=name)
                 if rep["servermsg"] == "ok":
                     staff.records["robots"][name] = rep["robot"]
-                    stats["continues" if verb == "continue" else "served"] += 1
+                    stats[{"go": "departures", "next": "served"}.get(verb, "continues")] += 1
                 elif rep["code"] != "not_allowed_in_status":
                     stats["errors"].append(rep)
         await staff.until(lambda: True, 0)  # yield
@@ -268,6 +271,7 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
             stats: dict[str, Any] = {
                 "orders": 0,
                 "served": 0,
+                "departures": 0,
                 "continues": 0,
                 "errors": [],
                 "error_reasons": {},
@@ -321,6 +325,7 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                 orders=stats["orders"],
                 orders_delivered=sum(s == "delivered" for s in truth_orders.values()),
                 trips=len(truth_tasks),
+                departures=stats["departures"],
                 stops_served=stats["served"],
                 continues_after_error=stats["continues"],
                 robot_error_reasons=stats["error_reasons"],
