@@ -22,7 +22,8 @@ For each phase it reports, per wall second:
 Run it on the code to measure: ``python3 bench/bench_console.py`` (about a minute); for an
 older commit, from a worktree of it: ``git worktree add /tmp/before COMMIT && cd /tmp/before &&
 PYTHONPATH=. python3 /path/to/bench/bench_console.py --label before``. ``--json FILE`` writes
-the figures. docs/performance.md has the results.
+the figures. docs/performance.md has the results. Exit code 1 when the parked phase misses its
+goal (at most 5 % of a core and 10 KiB/s: ``PARKED_TARGETS``).
 """
 
 from __future__ import annotations
@@ -234,6 +235,11 @@ async def run(ns: argparse.Namespace) -> dict[str, Any]:
     }
 
 
+#: The goal for a console with every robot parked (docs/performance.md): what the tablet
+#: pays while nothing moves. The exit code is 1 when one is exceeded.
+PARKED_TARGETS = {"renderer_cpu_pct": 5.0, "ws_kib_s": 10.0}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--robots", type=int, default=10)
@@ -249,7 +255,14 @@ def main() -> int:
     print(text)
     if ns.json:
         Path(ns.json).write_text(text + "\n")
-    return 0
+    parked = result["phases"]["parked"]
+    failed = [
+        f"{key} {parked[key]} > {limit}"
+        for key, limit in PARKED_TARGETS.items()
+        if parked[key] > limit
+    ]
+    print("targets (parked):", "all met" if not failed else "NOT met: " + "; ".join(failed))
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
