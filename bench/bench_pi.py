@@ -40,16 +40,24 @@ What is measured over ``--duration`` seconds (120 by default) after ``--warmup``
 * the server's **CPU** (/proc, % of one core), **RSS** (end and peak), and the quota's
   throttling from the group's ``cpu.stat`` (periods throttled, time throttled) — proof the
   quota was applied;
+* how long the server's event loop waited, runnable, for a CPU (/proc/PID/schedstat: the
+  host's other work and the quota), and for the slowest requests what the loop thread did
+  meanwhile (its CPU, its wait, the group's throttling: :class:`Sampler`);
 * how busy the service was: dishes ordered, ready, delivered; trips; robot-time away from
   home.
+
+The server's group gets the CPU weight of the deployed unit's ``Nice=-5`` (``--shares``,
+3121; 1024 is nice 0): in a cgroup of its own, the weight is what its nice value would
+otherwise do against the host's other work.
 
 Each quota gets a fresh simulator, server and database. The result is a markdown table.
 Exit 0 when, at 25 % of a core, request p99 <= 50 ms, no robot was wrongly declared Offline
 and nothing was lost; non-zero otherwise, saying which target failed.
 
-Run: ``flock /tmp/bench.lock python3 bench/bench_pi.py`` (about 7.5 minutes with the
-defaults; ``--quota 0.25 --duration 60`` for a quick look; ``--json FILE`` writes
-everything). Loopback only; every wait is bounded; everything it started stops with it.
+Run: ``flock /tmp/bench.lock python3 bench/bench_pi.py`` (about 8 minutes with the
+defaults, 6.5 with ``--duration 90``; ``--quota 0.25 --duration 60`` for a quick look;
+``--json FILE`` writes everything; ``--profile DIR`` py-spies the server). Loopback only;
+every wait is bounded; everything it started stops with it.
 """
 
 from __future__ import annotations
@@ -755,11 +763,14 @@ async def one_quota(ns: argparse.Namespace, quota: float, tmp: Path) -> dict[str
         sched0 = _sched(server.pid)
         sampler = Sampler(server.pid)
         if ns.profile:
-            # py-spy samples from outside the quota without stopping the server (--nonblocking).
+            # py-spy samples from outside the quota without stopping the server (--nonblocking);
+            # idle samples too, so that sample i of a thread is at about i / 250 s: what the
+            # loop did while a slow request waited can be found (speedscope's JSON).
             spy = await asyncio.create_subprocess_exec(
-                *("py-spy", "record", "--nonblocking", "--rate", "250", "--format", "raw"),
+                *("py-spy", "record", "--nonblocking", "--idle", "--threads", "--rate", "250"),
+                *("--format", "speedscope"),
                 *("--duration", str(int(ns.duration)), "--pid", str(server.pid)),
-                *("-o", str(Path(ns.profile) / f"pi-{quota:g}.txt")),
+                *("-o", str(Path(ns.profile) / f"pi-{quota:g}.json")),
                 stdout=asyncio.subprocess.DEVNULL,
                 stderr=asyncio.subprocess.DEVNULL,
             )
@@ -985,5 +996,5 @@ if __name__ == "__main__":
         help="the server's cgroup cpu.shares (default 3121: the deployed Nice=-5; 1024: nice 0)",
     )
     ap.add_argument("--json")
-    ap.add_argument("--profile", metavar="DIR", help="py-spy the server (raw stacks) into DIR")
+    ap.add_argument("--profile", metavar="DIR", help="py-spy the server into DIR (speedscope)")
     sys.exit(asyncio.run(main(ap.parse_args())))
