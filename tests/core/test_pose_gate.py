@@ -10,10 +10,13 @@ from __future__ import annotations
 
 import asyncio
 import time
+import types
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+from serveur.core import pose_rate
 from serveur.core.pose_rate import MAX_RATE, SCAN_RATE_PARKED, PoseGate
 from tests.conftest import Client, restaurant
 from tests.test_e2e import activate, new_orders, staff
@@ -100,3 +103,36 @@ async def test_a_parked_robots_scan_is_sent_once_a_second(tmp_path: Path) -> Non
         got = sum(f.get("topic") == "scan:r1" for f in c.frames) - n0
         # Parked: ~1 a second (the simulator sends 50 a wall second at this time scale).
         assert 1 <= got <= (time.monotonic() - t0) * SCAN_RATE_PARKED + 2, got
+
+
+async def test_a_late_loop_does_not_make_the_gate_slip_behind_the_robot(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A robot at 10 Hz, its poses each a hair early, and the loop running each held pose's
+    callback 5 ms late (a busy Pi): every pose waits about that long, not a hold that grows by
+    5 ms a beat until it reaches the whole interval."""
+    loop = asyncio.get_running_loop()
+
+    class LateLoop:
+        """The gate's view of the loop: the real clock, its timers run 5 ms late."""
+
+        def time(self) -> float:
+            return loop.time()
+
+        def call_at(self, when: float, callback: Any, *args: Any) -> asyncio.TimerHandle:
+            return loop.call_at(when + 0.005, callback, *args)
+
+    late = types.SimpleNamespace(get_running_loop=LateLoop)
+    monkeypatch.setattr(pose_rate, "asyncio", late)
+    offered: dict[float, float] = {}
+    waits: list[float] = []
+    gate = PoseGate(lambda robot, pose, stamp: waits.append(loop.time() - offered[stamp]))
+    t0 = loop.time()
+    for i in range(40):  # 4 s of a robot driving at 10 Hz
+        await asyncio.sleep(max(0.0, t0 + i * 0.1 - 0.001 - loop.time()))
+        offered[float(i)] = loop.time()
+        gate.offer("r1", (i * 0.1, 0.0, 0.0), float(i))
+    await asyncio.sleep(0.2)
+    gate.close()
+    assert len(waits) >= 38
+    assert max(waits[5:]) < 0.02, waits  # the loop's lateness, not a slipping beat
