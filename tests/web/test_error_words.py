@@ -19,6 +19,7 @@ from tests.web.test_ui import (
     Screens,
     expect,
     http_base,
+    lagging,
     pytestmark,  # noqa: F401
     staff_client,
     ui_restaurant,
@@ -133,21 +134,8 @@ async def test_a_refusal_on_a_chinese_phone_is_in_chinese(tmp_path: Path, browse
         c = await staff_client(r)
         await c.status("r1", "Ready")
         screens = Screens(browser, http_base(r), r.token)
-        held = {"on": False}
-
-        def relay(ws: Any) -> None:
-            # A lagging phone: updates from the server are held back while "on".
-            server = ws.connect_to_server()
-
-            def down(frame: str | bytes) -> None:
-                if held["on"] and json.loads(frame).get("servermsg") == "update":
-                    return
-                ws.send(frame)
-
-            server.on_message(down)
-            ws.on_message(server.send)
-
-        page = await screens.open("/?lang=zh", ws_route=relay, viewport=PHONE)
+        held = {"on": False}  # a lagging phone: the server's updates held back while "on"
+        page = await screens.open("/?lang=zh", ws_route=lagging(held), viewport=PHONE)
         await expect(page.locator("html")).to_have_attribute("data-lang", "zh")
         start = page.get_by_role("button", name="开始送餐 r1")
         await expect(start).to_be_visible()

@@ -17,7 +17,7 @@ import math
 import os
 import re
 import tempfile
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 from typing import Any
 
@@ -186,6 +186,24 @@ async def owner_tab(
         yield page, errors
     finally:
         await context.close()
+
+
+def lagging(held: dict[str, bool]) -> Callable[[Any], None]:
+    """A websocket route for a lagging tablet: the server's updates are dropped on their way to
+    the page while ``held["on"]`` (its requests and their replies still pass)."""
+
+    def relay(ws: Any) -> None:
+        server = ws.connect_to_server()
+
+        def down(frame: str | bytes) -> None:
+            if held["on"] and json.loads(frame).get("servermsg") == "update":
+                return
+            ws.send(frame)
+
+        server.on_message(down)
+        ws.on_message(server.send)
+
+    return relay
 
 
 async def dismiss_toasts(page: Any) -> None:
@@ -530,19 +548,7 @@ async def test_server_refusals_are_shown_and_gaps_resync(tmp_path: Path, browser
         screens = Screens(browser, http_base(r), r.token)
         # A lagging tablet: the page's websocket goes through a relay that can drop updates.
         held = {"on": False}
-
-        def relay(ws: Any) -> None:
-            server = ws.connect_to_server()
-
-            def down(frame: str | bytes) -> None:
-                if held["on"] and json.loads(frame).get("servermsg") == "update":
-                    return
-                ws.send(frame)
-
-            server.on_message(down)
-            ws.on_message(server.send)
-
-        staff = await screens.open("/", ws_route=relay)
+        staff = await screens.open("/", ws_route=lagging(held))
         start = staff.get_by_role("button", name="Start delivering r1")
         await expect(start).to_be_visible()
         held["on"] = True
