@@ -31,6 +31,7 @@
 // own, which could be this module's Chime.
 
 import { el } from "./ui.js";
+import { keep, kept } from "./keep.js";
 import { onLangChange, t } from "./i18n.js";
 
 /** A rising "ding-ding-ding": news for a guest (the console's alert chime falls instead). */
@@ -39,21 +40,6 @@ const NOTE_S = 0.22;
 const SPEAK_AFTER_MS = 800; // the words come once the chime has rung
 const HEARD_KEPT = 50; // arrivals remembered per screen: far more than stand at a table at once
 
-function stored(key) {
-  try {
-    return window.localStorage.getItem(key);
-  } catch {
-    return null; // storage disabled: the page forgets on reload
-  }
-}
-
-function store(key, value) {
-  try {
-    window.localStorage.setItem(key, value);
-  } catch {
-    /* storage disabled: the choice lasts until the page is reloaded */
-  }
-}
 
 /**
  * Short tones made with Web Audio. The AudioContext is made at once: a browser that blocks
@@ -138,7 +124,7 @@ function say(text, voice) {
 export class Announcer {
   constructor(page) {
     this.keys = { muted: `serveur.sound.muted.${page}`, heard: `serveur.sound.heard.${page}` };
-    this.muted = stored(this.keys.muted) === "1";
+    this.muted = kept(this.keys.muted) === 1; // "1" or "0": storage disabled, until a reload
     this.heard = this._loadHeard();
     this.chime = new Chime();
     this.listeners = [];
@@ -164,7 +150,7 @@ export class Announcer {
 
   setMuted(muted) {
     this.muted = muted;
-    store(this.keys.muted, muted ? "1" : "0");
+    keep(this.keys.muted, muted ? 1 : 0);
     if (muted) window.speechSynthesis?.cancel();
     this._update(true);
   }
@@ -207,17 +193,13 @@ export class Announcer {
   }
 
   _loadHeard() {
-    try {
-      const list = JSON.parse(stored(this.keys.heard) || "[]");
-      return Array.isArray(list) ? list.map(String) : [];
-    } catch {
-      return [];
-    }
+    const list = kept(this.keys.heard, []);
+    return Array.isArray(list) ? list.map(String) : [];
   }
 
   _remember(key) {
     this.heard = [...this.heard.filter((k) => k !== key), key].slice(-HEARD_KEPT);
-    store(this.keys.heard, JSON.stringify(this.heard));
+    keep(this.keys.heard, this.heard);
   }
 
   _state() {

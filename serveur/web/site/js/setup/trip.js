@@ -11,6 +11,7 @@
 
 import { describeError, el, formatDuration, KeyedList, newKey } from "../ui.js";
 import { onLangChange, statusName, t } from "../i18n.js";
+import { keep, kept } from "../keep.js";
 import { placesState } from "./places.js";
 import { say, show } from "./steps.js";
 
@@ -23,22 +24,9 @@ function limitWords(seconds) {
   return seconds % 60 === 0 ? t("setup.trip.minutes", { count: seconds / 60 }) : formatDuration(seconds);
 }
 
-function load() {
-  try {
-    return JSON.parse(window.localStorage.getItem(KEY) || "null");
-  } catch {
-    return null;
-  }
-}
-
-function store(trip) {
-  try {
-    if (trip) window.localStorage.setItem(KEY, JSON.stringify(trip));
-    else window.localStorage.removeItem(KEY);
-  } catch {
-    /* storage disabled: followed until the page is left */
-  }
-}
+// Storage disabled: the trip is followed until the page is left.
+const load = () => kept(KEY);
+const store = (trip) => keep(KEY, trip || null);
 
 export class TripStep {
   constructor(conn, live) {

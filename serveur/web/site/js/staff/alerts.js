@@ -7,6 +7,7 @@ import { act, el, formatTime, KeyedList } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
 import { blockWords, troubleWords } from "./trouble.js";
 import { Chime } from "../sound.js";
+import { keep, kept } from "../keep.js";
 
 const MUTE_KEY = "serveur.alertsMuted";
 
@@ -24,21 +25,9 @@ const KINDS = {
   robot_lost: "alerts.kind.robotLost",
 };
 
-function loadMuted() {
-  try {
-    return window.localStorage.getItem(MUTE_KEY) === "1";
-  } catch {
-    return false;
-  }
-}
-
-function saveMuted(muted) {
-  try {
-    window.localStorage.setItem(MUTE_KEY, muted ? "1" : "0");
-  } catch {
-    /* storage disabled: the choice lasts until the page is reloaded */
-  }
-}
+// Kept as "1" or "0" (keep.js writes 1 as "1"); storage disabled: until the page is reloaded.
+const loadMuted = () => kept(MUTE_KEY) === 1;
+const saveMuted = (muted) => keep(MUTE_KEY, muted ? 1 : 0);
 
 /** Who acknowledged: a person's name, or the device token's number. */
 function whoSaw(actor) {

@@ -9,7 +9,9 @@ import { act, byName, el, formatDuration, KeyedList, newKey, toast } from "../ui
 import { onLangChange, t } from "../i18n.js";
 import { dishLabel, dishStep, editButtons, goButton, trayList, traySignature, voidDish } from "./dishes.js";
 import { blockWords, technicalNote } from "./trouble.js";
-import { keep, kept } from "./keep.js";
+import { keep, kept } from "../keep.js";
+
+const CART_KEY = "serveur.keep.cart"; // the cart and its key, kept across a reload (keep.js)
 
 function taskStatus(status) {
   return status === "queued" ? t("task.queued") : status === "active" ? t("task.active") : status;
@@ -21,7 +23,7 @@ export class IssuePanel {
     this.live = live;
     // Order ids, in the order they were added, and the cart's key: kept across a reload (a key
     // names one cart's content, so a cart sent just before the reload is not sent twice).
-    const saved = kept("cart");
+    const saved = kept(CART_KEY);
     const ok = saved && Array.isArray(saved.ids) && saved.ids.every(Number.isInteger) && typeof saved.key === "string";
     this.cart = ok ? saved.ids : [];
     this.key = ok ? saved.key : newKey("cart");
@@ -29,7 +31,7 @@ export class IssuePanel {
     this.sending = new Set(); // ids of a cart being sent: their leaving "pending" is expected
     this.pendingBody = el("tbody");
     // One tap sends what is ready: everything, or one table's dishes (no cart on the way).
-    this.sendAllBtn = el("button", { class: "primary", "data-needs-online": true, onclick: (e) => this._sendNow(e.currentTarget, this._ready()) });
+    this.sendAllBtn = el("button", { class: "primary", "data-needs-online": true, onclick: (e) => this._sendNow(e.currentTarget, this._ready(this._pending())) });
     this.tableSends = el("div", { class: "send-tables", role: "group", "data-i18n-aria-label": "issue.sendTables" });
     this.sendBar = el("div", { class: "send-ready" }, this.sendAllBtn, this.tableSends);
     this.cartList = el("ul", { class: "cart-list", "data-i18n-aria-label": "issue.cart" });
@@ -114,7 +116,7 @@ export class IssuePanel {
           class: "secondary",
           "data-needs-online": true,
           "aria-label": t("issue.sendTableFor", { table, dishes: t("count.dishes", { count: ids.length }) }),
-          onclick: (e) => this._sendNow(e.currentTarget, this._ready().filter((id) => this.live.orders.get(id)?.table === table)),
+          onclick: (e) => this._sendNow(e.currentTarget, this._ready(this._pending().filter((o) => o.table === table))),
           text: t("issue.sendTable", { table, count: ids.length }),
         }),
     });
@@ -181,7 +183,7 @@ export class IssuePanel {
     }
     const inCart = new Set(this.cart);
     this.pendingRows.update(pending.filter((o) => !inCart.has(o.id)));
-    this._renderSendBar();
+    this._renderSendBar(pending);
     const loading = [...this.live.robots.values()].filter((r) => r.status === "Loading").sort((a, b) => byName(a.name, b.name));
     this.loadingRows.update(loading);
     const returned = [...this.live.orders.values()]
@@ -279,20 +281,19 @@ export class IssuePanel {
     await this._dispatch(button, [order.id], newKey("again"));
   }
 
-  /** The dishes ready at the pass that a robot may take now (not for a blocked table). */
-  _ready() {
-    return this._pending()
-      .filter((o) => !this.live.blocks.has(o.table))
-      .map((o) => o.id);
+  /** The ids of `pending`'s dishes a robot may take now (not for a blocked table). */
+  _ready(pending) {
+    return pending.filter((o) => !this.live.blocks.has(o.table)).map((o) => o.id);
   }
 
-  _renderSendBar() {
-    const ready = this._ready();
+  /** "Send all ready" and one button per table, from the dishes `render` found pending. */
+  _renderSendBar(pending) {
+    const ready = this._ready(pending);
     const byTable = new Map();
-    for (const id of ready) {
-      const table = this.live.orders.get(id).table;
-      if (!byTable.has(table)) byTable.set(table, []);
-      byTable.get(table).push(id);
+    for (const o of pending) {
+      if (this.live.blocks.has(o.table)) continue;
+      if (!byTable.has(o.table)) byTable.set(o.table, []);
+      byTable.get(o.table).push(o.id);
     }
     this.sendBar.hidden = !ready.length;
     this.sendAllBtn.textContent = t("issue.sendAll", {
@@ -358,7 +359,7 @@ export class IssuePanel {
   }
 
   _keepCart() {
-    keep("cart", this.cart.length ? { ids: this.cart, key: this.key } : null);
+    keep(CART_KEY, this.cart.length ? { ids: this.cart, key: this.key } : null);
   }
 
   _clear() {

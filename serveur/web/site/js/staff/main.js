@@ -1,6 +1,6 @@
 // The staff console: wires the connection, the live state and the console's panels.
 
-import { keep, kept } from "./keep.js";
+import { keep, kept } from "../keep.js";
 import { Connection } from "../ws.js";
 import { Live } from "../live.js";
 import { el, guardOffline, showError, watchConnection } from "../ui.js";
@@ -77,6 +77,7 @@ const selection = {
   },
 };
 
+const TAB_KEY = "serveur.keep.tab"; // the tab open, kept across a reload (keep.js)
 let restored = false; // the kept tab was brought back (restoreTab): tabs opened now are kept
 const goals = new Map(); // robot -> the last goal this console sent, drawn until it is reached
 
@@ -173,7 +174,7 @@ function restoreTab() {
   if (restored) return;
   restored = true;
   if (followed) return;
-  const id = kept("tab");
+  const id = kept(TAB_KEY);
   const tab = typeof id === "string" && /^tab-[a-z]+$/.test(id) ? document.getElementById(id) : null;
   if (tab && !tab.hidden && tab.getAttribute("aria-selected") !== "true") tab.click();
 }
@@ -191,7 +192,7 @@ function setupTabs() {
     streamScan();
     if (tab.id === "tab-accounts") accounts.refresh();
     if (ownerPanels[tab.id]) ownerPanels[tab.id].shown();
-    if (restored) keep("tab", tab.id);
+    if (restored) keep(TAB_KEY, tab.id);
     tab.scrollIntoView({ block: "nearest", inline: "nearest" }); // a phone's tab row scrolls
   };
   tabs.forEach((t) => t.addEventListener("click", () => show(t)));

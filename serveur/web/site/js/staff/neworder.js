@@ -6,7 +6,9 @@
 
 import { act, byName, el, KeyedList, newKey, toast } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
-import { keep, kept } from "./keep.js";
+import { keep, kept } from "../keep.js";
+
+const DRAFT_KEY = "serveur.keep.order"; // the new order's draft, kept across a reload
 
 /** A line read back from the kept draft, checked before use (storage is the device's). */
 function validLine(l) {
@@ -23,7 +25,7 @@ export class NewOrderPanel {
     this.live = live;
     // The draft (the table picked, the lines with their keys) is kept across a reload: a line
     // sent just before it is not made twice (its key), and nothing typed is lost.
-    const draft = kept("order");
+    const draft = kept(DRAFT_KEY);
     this.table = draft && typeof draft.table === "string" ? draft.table : null;
     this.lines = draft && Array.isArray(draft.lines) ? draft.lines.filter(validLine) : []; // {dish, table, quantity, note, key, qty}
     this.tables = el("div", { class: "table-grid", role: "group", "data-i18n-aria-label": "order.table" });
@@ -149,7 +151,7 @@ export class NewOrderPanel {
 
   _keep() {
     const lines = this.lines.map(({ dish, table, quantity, note, key }) => ({ dish, table, quantity, note, key }));
-    keep("order", this.table || lines.length ? { table: this.table, lines } : null);
+    keep(DRAFT_KEY, this.table || lines.length ? { table: this.table, lines } : null);
   }
 
   _pick(name) {
