@@ -361,9 +361,9 @@ def save_map(m: OccupancyMap, yaml_path: str | Path, image_format: str = "pgm") 
     if fmt not in ("pgm", "png"):
         raise MapError(f"image_format must be 'pgm' or 'png', got {image_format!r}")
     g = m.grid
-    pixels = np.full(g.shape, _UNKNOWN_PX, dtype=np.uint8)
-    pixels[(g >= 0) & (g <= _SAVER_FREE_MAX)] = _FREE_PX
-    pixels[g >= _SAVER_OCC_MIN] = _OCC_PX
+    # The same byte table as save_map_cells: one rule for what each cell is written as.
+    cells = np.ascontiguousarray(g, dtype=np.int8).tobytes()
+    pixels = np.frombuffer(cells.translate(_PIXELS), dtype=np.uint8).reshape(g.shape)
     pixels = np.ascontiguousarray(np.flipud(pixels))
     if fmt == "pgm":
         header = f"P5\n# CREATOR: serveur {m.resolution:.3f} m/pix\n{m.width} {m.height}\n255\n"
