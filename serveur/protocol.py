@@ -398,7 +398,8 @@ class CreateDish(_ClientMsg):
 
 
 class CreateTask(_ClientMsg):
-    """The confirmed virtual cart: dispatch these pending orders (split into trips)."""
+    """The confirmed virtual cart: dispatch these pending orders (split into trips), or put
+    them on a trip still being loaded (``task``)."""
 
     clientmsg: Literal["create"]
     type: Literal["task"]
@@ -408,6 +409,10 @@ class CreateTask(_ClientMsg):
         AfterValidator(unique_orders),
     ]
     key: Name | None = Field(default=None, description="Client-chosen idempotency key")
+    task: OrderId | None = Field(
+        default=None,
+        description="Put the dishes on this trip, still at the pass, at their tables' stops",
+    )
 
 
 class CreateRobot(_ClientMsg):

@@ -111,6 +111,20 @@ class Creation:
         self._kick()
         return tasks
 
+    async def add(self, task_id: int, order_ids: list[int], key: str | None) -> Task:
+        """Put pending dishes on trip ``task_id``, still at the pass, at their tables' stops.
+
+        The caller holds the trip's robot's lock, so Go cannot land between the store's check
+        that the robot is still Loading and the dishes going aboard.
+        """
+        fp = _fingerprint({"orders": sorted(order_ids), "task": task_id})
+        task = await self._store.tasks.add_to_task(
+            task_id, order_ids, key=key, fingerprint=fp, now=self._clock.epoch()
+        )
+        self._publisher.pub_task(task)
+        await self._publisher.pub_orders(order_ids)
+        return task
+
     async def waypoint(self, wp: WaypointRecord, *, replace: bool) -> WaypointRecord:
         """Store a waypoint (``replace`` to move one); its path distances are then planned."""
         wp = await self._store.waypoints.put_waypoint(wp, replace=replace, now=self._clock.epoch())

@@ -113,7 +113,14 @@ class Instructions:
         return {"dish": await self.service.put_dish(item, actor)}
 
     async def _create_task(self, msg: P.CreateTask, actor: str | None) -> dict[str, Any]:
-        return {"tasks": await self.creation.tasks(list(msg.orders), msg.key)}
+        if msg.task is None:
+            return {"tasks": await self.creation.tasks(list(msg.orders), msg.key)}
+        # Onto a trip at the pass: under its robot's lock, so that Go waits for the dishes.
+        robot = (await self.store.tasks.get_task(msg.task)).robot
+        if robot is None:
+            return {"tasks": [await self.creation.add(msg.task, list(msg.orders), msg.key)]}
+        async with self.fleet.controller(robot).rt.lock:
+            return {"tasks": [await self.creation.add(msg.task, list(msg.orders), msg.key)]}
 
     async def _create_waypoint(self, msg: P.CreateWaypoint, actor: str | None) -> dict[str, Any]:
         if msg.robot:

@@ -68,6 +68,7 @@ def _replay_command(ns: argparse.Namespace) -> int:
         hold=ns.hold,
         hold_max=ns.hold_max,
         rank=ns.rank,
+        join=not ns.no_join,
         load_fixed=ns.load_fixed,
         load_per_dish=ns.load_per_dish,
         load_spread=ns.load_spread,
@@ -160,6 +161,11 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
         default="best",
         help="serveur staff: tables first-ready, by plates per robot-second, or the better "
         "(default best)",
+    )
+    p.add_argument(
+        "--no-join",
+        action="store_true",
+        help="serveur staff: never put a dish on its table's trip still loading at the pass",
     )
     d = ReplayOptions()
     p.add_argument(

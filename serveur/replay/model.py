@@ -68,6 +68,7 @@ class ReplayOptions:
     hold: float = 10.0  # serveur staff: wait this long at most for a table's next dish ...
     hold_max: float = 60.0  # ... growing to this as tables queue (scheduler.adaptive_hold)
     rank: str = "best"  # serveur staff: how tables are ranked (scheduler.RANKS)
+    join: bool = True  # serveur staff: a dish goes on its table's trip still at the pass
     lookahead: float = 60.0  # the kitchen display shows dishes this far ahead of ready
     # Loading at the pass (loading_time): fixed s a trip + s a plate, times a seeded spread.
     load_fixed: float = 10.0
@@ -187,10 +188,12 @@ class ServiceEvents:
     ``loading``: robot -> seconds it spent ``Loading`` at the pass; ``timeouts``: stops the
     server skipped because nobody collected (``stop.skipped`` with no person behind it);
     ``skips``: stops staff skipped; ``returned`` / ``resent``: order id -> how many times the
-    dish came back to the pass / was sent again (``order.ready`` from ``returned``).
+    dish came back to the pass / was sent again (``order.ready`` from ``returned``);
+    ``joined``: dishes put on a trip still at the pass (``task.dishes_added``).
     """
 
     loading: dict[str, float] = field(default_factory=dict)
+    joined: int = 0
     timeouts: int = 0
     skips: int = 0
     returned: dict[int, int] = field(default_factory=dict)
@@ -216,6 +219,8 @@ def service_events(events: Sequence[dict[str, Any]], end: float) -> ServiceEvent
                 out.skips += 1
             for oid in data.get("orders", []):
                 out.returned[oid] = out.returned.get(oid, 0) + 1
+        elif kind == "task.dishes_added":
+            out.joined += len(data.get("orders", []))
         elif kind == "order.ready" and data.get("from") == "returned":
             oid = e["order_id"]
             out.resent[oid] = out.resent.get(oid, 0) + 1
@@ -245,6 +250,7 @@ class PolicyResult:
     staff_skips: int = 0
     returned: int = 0
     resent: int = 0
+    joined: int = 0
     #: What the replay's players did, to check the event log against: Go pressed, loading
     #: seconds staff took, dishes sent again, stops the guests were back too late for.
     players: dict[str, Any] = field(default_factory=dict)
@@ -291,6 +297,7 @@ class PolicyResult:
             "staff_skips": self.staff_skips,
             "returned": self.returned,
             "resent": self.resent,
+            "joined": self.joined,
             "resent_delivered": sum(
                 1 for o in self.orders if o.get("resent") and o["wait"] is not None
             ),

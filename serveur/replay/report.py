@@ -317,6 +317,10 @@ def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOpti
                 for n in names
             ],
         ),
+        (
+            "dishes put on a trip still loading",
+            [str(stats[n].get("joined", 0)) for n in names],
+        ),
         ("table timeouts", [str(stats[n]["table_timeouts"]) for n in names]),
         (
             "dishes returned / re-sent",

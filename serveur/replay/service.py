@@ -508,11 +508,13 @@ class _Service:
         result.staff_skips = ev.skips
         result.returned = sum(ev.returned.values())
         result.resent = sum(ev.resent.values())
+        result.joined = ev.joined
         staff = self.staff
         result.players = {
             "go_pressed": len(staff.loaded),
             "loading_s": sum(staff.loaded.values()),
             "resent": staff.resent,
+            "joined": staff.joined,
             "tables_cleared": staff.cleared,
             "guests_missed": len(self.guests.missed),
             "parties_away": sum(len(a) for a in self.guests.away.values()),

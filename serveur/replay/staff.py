@@ -81,6 +81,7 @@ class Staff:
         self.retries: dict[str, int] = {}
         self.recoveries = 0
         self.cleared = 0  # blocked tables staff cleared (a robot gave up on one)
+        self.joined = 0  # dishes put on a trip still at the pass
         self.wake = asyncio.Event()
 
     # what the service tells the staff ----------------------------------------------------
@@ -150,13 +151,23 @@ class Staff:
                 self.returned.setdefault(robot, []).append(oid)
 
     async def _load(self, robot: str, task_id: int) -> None:
-        """Load the trip's plates (:func:`loading_time`), then press Go for it."""
+        """Load the trip's plates (:func:`loading_time`), then press Go for it. A plate put
+        on the trip while it loads (:meth:`_join`) takes its own :func:`loading_time` share."""
         c = self.console
         await c.until(lambda: task_id in c.tasks and c.tasks[task_id]["stops"], f"trip {task_id}")
+
+        def plates() -> int:
+            return sum(len(s["orders"]) for s in c.tasks[task_id]["stops"])
+
         orders = [oid for s in c.tasks[task_id]["stops"] for oid in s["orders"]]
         key = min((self.line_of.get(o, 0) for o in orders), default=0)
-        secs = loading_time(self.opts, key, len(orders))
-        await c.clock.sleep(secs)
+        secs, counted = 0.0, 0
+        while (n := plates()) > counted:
+            more = loading_time(self.opts, key, n)
+            if counted:
+                more -= loading_time(self.opts, key, counted)
+            await c.clock.sleep(more)
+            secs, counted = secs + more, n
         try:
             await c.call("go", robot=robot, task=task_id)
         except ReplayError as exc:
@@ -196,6 +207,8 @@ class Staff:
             if nxt <= t:
                 await self._create_due(t)
                 t = max(nxt, self.log[self.created - 1].ready_at)
+            if self.policy == "serveur" and self.opts.join:
+                await self._join()
             for cart in self.carts(t):
                 for oid in cart:
                     del self.pending[oid]
@@ -204,6 +217,36 @@ class Staff:
                     reply = await self._send_cart(cart[i : i + MAX_CART])
                     for task in reply["tasks"]:
                         c.tasks.setdefault(task["id"], task)
+
+    async def _join(self) -> None:
+        """Dishes for a table whose trip is still at the pass go on that trip: the robot
+        would otherwise be back before a second one may stand at the table."""
+        c = self.console
+        trip_of: dict[str, int] = {}
+        for t in c.tasks.values():
+            robot = c.robots.get(t.get("robot") or "", {})
+            if t["status"] == "queued" or (
+                t["status"] == "active" and robot.get("status") == "Loading"
+            ):
+                for stop in t["stops"]:
+                    trip_of.setdefault(stop["table"], t["id"])
+        joins: dict[int, list[int]] = {}
+        for d in self.pending.values():
+            if d.table in trip_of:
+                joins.setdefault(trip_of[d.table], []).append(d.id)
+        for task_id, orders in joins.items():
+            try:
+                reply = await c.call("create", type="task", task=task_id, orders=orders)
+            except ReplayError as exc:
+                if exc.code != "stale":  # it left meanwhile: the dishes wait for a cart
+                    raise
+                continue
+            for oid in orders:
+                del self.pending[oid]
+                self.carted.add(oid)
+            for task in reply["tasks"]:
+                c.tasks[task["id"]] = task
+            self.joined += len(orders)
 
     async def _send_cart(self, orders: list[int]) -> dict[str, Any]:
         """``create task``; a table the server blocked after a robot gave up on it (in the

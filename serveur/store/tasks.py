@@ -16,7 +16,8 @@ from collections.abc import Collection, Sequence
 from typing import Any
 
 from serveur.domain import Stop, StopStatus, Task, TaskStatus
-from serveur.errors import Conflict, InvalidField, NotFound
+from serveur.errors import Conflict, InvalidField, NotFound, Stale
+from serveur.status import RobotStatus
 from serveur.store import rows
 from serveur.store.checks import (
     check_trips,
@@ -115,6 +116,89 @@ class Tasks:
         stops = [{"table": table, "orders": stop_ids} for table, stop_ids in trip]
         await rows.add_event(tx, "task.created", now, task_id=task_id, data={"stops": stops})
         return task_id
+
+    async def add_to_task(
+        self,
+        task_id: int,
+        orders: Sequence[int],
+        *,
+        key: str | None = None,
+        fingerprint: str,
+        now: float,
+    ) -> Task:
+        """Put pending dishes on a trip still at the pass, each at its table's stop.
+
+        The plate that comes out while its table's robot is being loaded goes on that robot,
+        as a waiter would put it: otherwise it waits for the robot to come back, since two
+        robots cannot stand at one table. The trip must not have left: ``queued``, or taken by
+        a robot still ``Loading`` (the caller holds that robot's lock; its persisted status is
+        checked again here) — else :class:`Stale`, with the trip and where it is. Every dish
+        must be pending (``Conflict``) and for a table the trip already serves
+        (``InvalidField``): stops, trays and their order do not change. All or nothing; a
+        keyed resend gets the trip as it is now.
+        """
+        if key is not None:
+            self._db.dialect.check_name(key, "key")
+
+        async def work(tx: Tx) -> Task:
+            if key is not None:
+                done = await rows.replayed(tx, key, "tasks", fingerprint)
+                if done is not None:
+                    return await rows.get_task(tx, done["task_ids"][0])
+            task = await rows.get_task(tx, task_id, lock=True)
+            where = task.status.value
+            at_pass = task.status is TaskStatus.QUEUED
+            if task.status is TaskStatus.ACTIVE and task.robot is not None:
+                robot = await rows.get_robot(tx, task.robot, lock=True)
+                where = robot.status.value
+                first = task.stops[0].status if task.stops else None
+                at_pass = robot.status is RobotStatus.LOADING and first is StopStatus.PENDING
+            if not at_pass:
+                raise Stale(
+                    f"trip {task_id} has left the pass ({where})",
+                    task=task_id,
+                    robot=task.robot,
+                    status=where,
+                )
+            wanted = sorted(set(orders))
+            locked = await tx.all(
+                f"SELECT id, res_table, status FROM orders WHERE {sql_in('id', wanted)}"
+                " ORDER BY id" + tx.dialect.for_update,
+                wanted,
+            )
+            found = {r["id"]: r for r in locked}
+            missing = sorted(set(wanted) - set(found))
+            if missing:
+                raise NotFound(f"no order(s) {missing}", orders=missing)
+            tables = sorted({s.table for s in task.stops})
+            elsewhere = [oid for oid in wanted if found[oid]["res_table"] not in tables]
+            if elsewhere:
+                raise InvalidField(
+                    f"order(s) {elsewhere} are for a table trip {task_id} does not serve",
+                    field="orders",
+                    orders=elsewhere,
+                    tables=tables,
+                )
+            taken = [oid for oid in wanted if found[oid]["status"] != "pending"]
+            if taken:
+                raise Conflict(f"order(s) {taken} are not pending", orders=taken)
+            started = now if task.status is TaskStatus.ACTIVE else None
+            changed = await tx.run(
+                f"UPDATE orders SET status = 'assigned', task_num = ?, dispatched_at = ?"
+                f" WHERE {sql_in('id', wanted)} AND status = 'pending'",
+                (task_id, started, *wanted),
+            )
+            if changed != len(wanted):  # pragma: no cover - locked and checked in this tx
+                raise Conflict("an order was assigned concurrently", orders=wanted)
+            data = {"orders": wanted}
+            await rows.add_event(
+                tx, "task.dishes_added", now, robot=task.robot, task_id=task_id, data=data
+            )
+            if key is not None:
+                await rows.remember(tx, key, "tasks", fingerprint, {"task_ids": [task_id]}, now)
+            return await rows.get_task(tx, task_id)
+
+        return await self._db.transact(work, "write")
 
     async def get_task(self, task_id: int) -> Task:
         """A task with its stops and each stop's order ids."""

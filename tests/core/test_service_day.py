@@ -5,6 +5,7 @@ raised, acknowledged and cleared."""
 
 from __future__ import annotations
 
+import asyncio
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
@@ -70,6 +71,32 @@ async def test_a_trip_waits_at_the_pass_until_staff_press_go(pass_site: Restaura
     await c.ok("go", robot="r1", task=task["id"])
     await c.status("r1", "Delivering")
     await c.error("go", "not_allowed_in_status", robot="r1", task=task["id"])
+
+
+async def test_a_plate_ready_while_loading_rides_with_its_table_until_go(
+    pass_site: Restaurant,
+) -> None:
+    """The next plate for T1 goes on r1 while it loads, to T1's tray; a Go pressed at the same
+    moment waits for it. Once r1 has left, the trip is stale and the plate stays pending."""
+    c = await staff(pass_site)
+    task = await loaded_trip(c, ("Laksa", "T1"), ("Satay", "T12"))
+    (more, other) = await new_orders(c, ("Teh tarik", "T1"), ("Roti", "T5"))
+    err = await c.error("create", "invalid_field", type="task", task=task["id"], orders=[other])
+    assert err["details"] == {"field": "orders", "orders": [other], "tables": ["T1", "T12"]}
+    # The join and a Go sent together: the join lands first (under r1's lock), then Go.
+    join, go = await asyncio.gather(
+        c.ok("create", type="task", task=task["id"], orders=[more]),
+        c.ok("go", robot="r1", task=task["id"]),
+    )
+    [joined] = join["tasks"]
+    assert go["robot"]["status"] == "Delivering"
+    t1 = next(s for s in joined["stops"] if s["table"] == "T1")
+    assert more in t1["orders"] and len(t1["orders"]) == 2
+    await c.until(lambda: c.order(more).get("status") == "assigned")
+    # Gone: the trip is stale, nothing changes.
+    err = await c.error("create", "stale", type="task", task=task["id"], orders=[other])
+    assert err["details"] == {"task": task["id"], "robot": "r1", "status": "Delivering"}
+    assert c.order(other)["status"] == "pending"
 
 
 async def test_cancel_while_loading_keeps_the_robot_at_the_pass(pass_site: Restaurant) -> None:

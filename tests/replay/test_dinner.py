@@ -197,3 +197,33 @@ async def test_staff_expect_a_loading_robot_back_after_its_loading_and_trip() ->
         job.close()  # type: ignore[attr-defined]
     staff.robot_home("r1")
     assert staff.eta == {}
+
+
+# T3's second plate comes out while the first is still being loaded (10 s + 4 s a plate).
+JOIN_LOG = """ready_at,table,dish
+5.0,T3,Laksa
+12.0,T3,Satay
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("join", [True, False])
+def test_a_plate_out_while_its_tables_robot_loads_rides_with_it(join: bool) -> None:
+    """With ``join`` the staff put T3's second plate on the robot still loading for T3: one
+    trip, both plates collected together. Without it the plate waits for that robot to
+    leave T3 (a second robot may not stand there), then rides a trip of its own."""
+    opts = ReplayOptions(robots=2, seed=SEED, away=0.0, load_spread=0.0, join=join, progress=False)
+    r = run_replay(parse_orders(JOIN_LOG), opts, ["serveur"])["serveur"]
+    s = r.stats()
+    assert s["delivered"] == 2
+    trips = [t for t in r.trips if t["status"] == "done"]
+    first, second = sorted(r.orders, key=lambda o: o["ready_at"])
+    if join:
+        assert s["joined"] == r.players["joined"] == 1 and len(trips) == 1
+        assert first["task"] == second["task"]
+        # Loading counted the added plate too: 10 s + 4 s x 2.
+        assert r.players["loading_s"] == pytest.approx(18.0)
+        assert second["collected"] == pytest.approx(first["collected"], abs=0.5)
+    else:
+        assert s["joined"] == r.players["joined"] == 0 and len(trips) == 2
+        assert second["collected"] > first["collected"] + 20.0

@@ -25,7 +25,7 @@ from serveur.domain import (
     WaypointKind,
     WaypointRecord,
 )
-from serveur.errors import Conflict, InvalidField, NotFound, StoreError
+from serveur.errors import Conflict, InvalidField, NotFound, Stale, StoreError
 from serveur.status import RobotMode, RobotStatus
 from serveur.store.base import Store
 from serveur.store.factory import open_store
@@ -540,6 +540,65 @@ async def test_create_tasks_idempotency_key(store: Store) -> None:
     with pytest.raises(Conflict):
         await store.tasks.create_tasks([[("T3", [c])]], key="order-key", now=T0)
     assert len(await store.tasks.list_tasks()) == 3
+
+
+async def _robot_status(store: Store, name: str, status: RobotStatus) -> None:
+    await store.robots.save_robot_state(
+        name, status=status, mode=RobotMode.AUTO, resume=None, last_error=None, now=T0
+    )
+
+
+async def test_add_to_task_puts_dishes_on_a_trip_still_at_the_pass(store: Store) -> None:
+    """A plate out while its table's robot is being loaded goes on that robot, at its stop;
+    once the robot has left, the trip is refused as stale and nothing changes."""
+    await seed(store)
+    a, b, c, d, e, f = await orders(store, "T1", "T2", "T1", "T2", "T1", "T3")
+    (task,) = await store.tasks.create_tasks([[("T1", [a]), ("T2", [b])]], now=T0)
+    # Queued: it joins.
+    queued = await store.tasks.add_to_task(task.id, [c], fingerprint="q", now=T0 + 1)
+    assert [(s.table, s.orders) for s in queued.stops] == [("T1", [a, c]), ("T2", [b])]
+    assert (await store.orders.get_order(c)).dispatched_at is None
+    # Taken by r1, Loading: it joins, dispatched now, with an event.
+    await store.tasks.start_task(task.id, "r1", now=T0 + 2)
+    await _robot_status(store, "r1", RobotStatus.LOADING)
+    got = await store.tasks.add_to_task(task.id, [d], key="join-1", fingerprint="j", now=T0 + 3)
+    assert [(s.table, s.orders) for s in got.stops] == [("T1", [a, c]), ("T2", [b, d])]
+    order = await store.orders.get_order(d)
+    assert (order.status, order.task_id, order.dispatched_at) == (
+        OrderStatus.ASSIGNED,
+        task.id,
+        T0 + 3,
+    )
+    event = (await store.events.list_events())[-1]
+    assert (event.kind, event.robot, event.task_id, event.data) == (
+        "task.dishes_added",
+        "r1",
+        task.id,
+        {"orders": [d]},
+    )
+    # Refused, changing nothing: a table the trip does not serve, a dish not pending, an
+    # unknown dish.
+    before = await store.events.list_events()
+    with pytest.raises(InvalidField) as raised:
+        await store.tasks.add_to_task(task.id, [e, f], fingerprint="x", now=T0 + 4)
+    assert raised.value.details == {"field": "orders", "orders": [f], "tables": ["T1", "T2"]}
+    with pytest.raises(Conflict):
+        await store.tasks.add_to_task(task.id, [a], fingerprint="x", now=T0 + 4)
+    with pytest.raises(NotFound):
+        await store.tasks.add_to_task(task.id, [999], fingerprint="x", now=T0 + 4)
+    with pytest.raises(NotFound):
+        await store.tasks.add_to_task(999, [e], fingerprint="x", now=T0 + 4)
+    # Go: it has left, the dish stays pending for a cart of its own.
+    await _robot_status(store, "r1", RobotStatus.DELIVERING)
+    before = await store.events.list_events()
+    with pytest.raises(Stale) as left:
+        await store.tasks.add_to_task(task.id, [e], fingerprint="x", now=T0 + 5)
+    assert left.value.details == {"task": task.id, "robot": "r1", "status": "Delivering"}
+    assert (await store.orders.get_order(e)).status is OrderStatus.PENDING
+    assert await store.events.list_events() == before
+    # The tablet that lost the reply resends: the trip as it is now, not a refusal.
+    again = await store.tasks.add_to_task(task.id, [d], key="join-1", fingerprint="j", now=T0 + 6)
+    assert again.id == task.id and [s.orders for s in again.stops][1] == [b, d]
 
 
 async def test_list_tasks_filters(store: Store) -> None:
