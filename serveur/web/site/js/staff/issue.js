@@ -3,7 +3,9 @@
 // ONE `create task` (the server groups the cart by table into trips), the dishes that came back
 // (send again or void), and the tables no robot is sent to until someone clears them.
 // The cart's key is made on the client, so a resend after a dropped connection cannot
-// dispatch the same dishes twice.
+// dispatch the same dishes twice. A dish whose table is a stop of a trip still at the pass (queued,
+// or its robot loading) goes on that trip instead (`create task` with `task`), as a waiter would
+// put the plate on the robot being loaded; the row and its table's button say so beforehand.
 
 import { act, byName, el, formatDuration, KeyedList, newKey, toast } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
@@ -12,6 +14,11 @@ import { blockWords, technicalNote } from "./trouble.js";
 import { keep, kept } from "../keep.js";
 
 const CART_KEY = "serveur.keep.cart"; // the cart and its key, kept across a reload (keep.js)
+
+/** What a row shows of the trip its dishes would go on: redrawn only when that changes. */
+function tripSignature(trip) {
+  return trip ? [trip.id, trip.robot] : null;
+}
 
 function taskStatus(status) {
   return status === "queued" ? t("task.queued") : status === "active" ? t("task.active") : status;
@@ -29,6 +36,7 @@ export class IssuePanel {
     this.key = ok ? saved.key : newKey("cart");
     this.ordersSeen = false; // the orders snapshot came: the cart can be checked against it
     this.sending = new Set(); // ids of a cart being sent: their leaving "pending" is expected
+    this.atPass = new Map(); // table -> the trip still at the pass that serves it (render's)
     this.pendingBody = el("tbody");
     // One tap sends what is ready: everything, or one table's dishes (no cart on the way).
     this.sendAllBtn = el("button", { class: "primary", "data-needs-online": true, onclick: (e) => this._sendNow(e.currentTarget, this._ready(this._pending())) });
@@ -104,21 +112,22 @@ export class IssuePanel {
     );
     this.pendingRows = new KeyedList(this.pendingBody, {
       key: (o) => o.id,
-      signature: (o) => [dishLabel(o), o.table, o.ready_at, o.status, this.live.blocks.get(o.table)?.robot ?? null, this.live.blocks.has(o.table)],
+      signature: (o) => [
+        dishLabel(o),
+        o.table,
+        o.ready_at,
+        o.status,
+        this.live.blocks.get(o.table)?.robot ?? null,
+        this.live.blocks.has(o.table),
+        tripSignature(this.atPass.get(o.table)),
+      ],
       build: (o) => this._pendingRow(o),
       empty: () => el("tr", {}, el("td", { colspan: 4, class: "muted" }, this._pending().length ? t("issue.allInCart") : t("issue.noneWaiting"))),
     });
     this.tableSendRows = new KeyedList(this.tableSends, {
       key: ([table]) => table,
-      signature: ([, ids]) => ids.length,
-      build: ([table, ids]) =>
-        el("button", {
-          class: "secondary",
-          "data-needs-online": true,
-          "aria-label": t("issue.sendTableFor", { table, dishes: t("count.dishes", { count: ids.length }) }),
-          onclick: (e) => this._sendNow(e.currentTarget, this._ready(this._pending().filter((o) => o.table === table))),
-          text: t("issue.sendTable", { table, count: ids.length }),
-        }),
+      signature: ([table, ids]) => [ids.length, tripSignature(this.atPass.get(table))],
+      build: ([table, ids]) => this._tableSend(table, ids.length),
     });
     this.loadingRows = new KeyedList(this.loadingList, {
       key: (r) => r.name,
@@ -170,6 +179,7 @@ export class IssuePanel {
   }
 
   render() {
+    this.atPass = this._tripsAtPass();
     const pending = this._pending();
     const pendingIds = new Set(pending.map((o) => o.id));
     // Dishes another tablet dispatched (or the kitchen withdrew) leave our cart.
@@ -205,7 +215,13 @@ export class IssuePanel {
       "tr",
       { "data-order": o.id, class: block ? "blocked" : "" },
       el("td", {}, label),
-      el("td", {}, o.table, block ? el("span", { class: "why-waiting" }, t("blocks.dishWaits", { reason: blockWords(block) })) : null),
+      el(
+        "td",
+        {},
+        o.table,
+        block ? el("span", { class: "why-waiting" }, t("blocks.dishWaits", { reason: blockWords(block) })) : null,
+        this._goesWith(o.table),
+      ),
       el("td", { class: "waiting", "data-ready-at": o.ready_at }, this._waiting(o.ready_at)),
       el(
         "td",
@@ -286,6 +302,52 @@ export class IssuePanel {
     return pending.filter((o) => !this.live.blocks.has(o.table)).map((o) => o.id);
   }
 
+  /**
+   * The trips still at the pass, by the tables they serve: queued, or taken by a robot that is
+   * Loading. A dish for one of those tables goes on that trip (the robot being loaded first).
+   */
+  _tripsAtPass() {
+    const loading = (trip) => trip.status === "active" && Boolean(trip.robot) && this.live.robots.get(trip.robot)?.status === "Loading";
+    const trips = [...this.live.tasks.values()]
+      .filter((trip) => trip.status === "queued" || loading(trip))
+      .sort((a, b) => Number(loading(b)) - Number(loading(a)) || a.id - b.id);
+    const byTable = new Map();
+    for (const trip of trips) {
+      for (const stop of trip.stops) if (!byTable.has(stop.table)) byTable.set(stop.table, trip);
+    }
+    return byTable;
+  }
+
+  /** Under a pending dish's table: the trip it will go on when sent, if one is at the pass. */
+  _goesWith(table) {
+    const trip = this.atPass.get(table);
+    if (!trip) return null;
+    const words = trip.robot ? t("issue.goesOnTrays", { robot: trip.robot }) : t("issue.goesOnTrip", { id: trip.id });
+    return el("div", { class: "muted" }, words);
+  }
+
+  /** One table's send button: "Add T3 to r1" when its dishes would go on a trip at the pass. */
+  _tableSend(table, count) {
+    const trip = this.atPass.get(table);
+    const dishes = t("count.dishes", { count });
+    let label = t("issue.sendTableFor", { table, dishes });
+    let text = t("issue.sendTable", { table, count });
+    if (trip && trip.robot) {
+      label = t("issue.addTableRobotFor", { table, dishes, robot: trip.robot });
+      text = t("issue.addTableRobot", { table, count, robot: trip.robot });
+    } else if (trip) {
+      label = t("issue.addTableTripFor", { table, dishes, id: trip.id });
+      text = t("issue.addTableTrip", { table, count, id: trip.id });
+    }
+    return el("button", {
+      class: "secondary",
+      "data-needs-online": true,
+      "aria-label": label,
+      onclick: (e) => this._sendNow(e.currentTarget, this._ready(this._pending().filter((o) => o.table === table))),
+      text,
+    });
+  }
+
   /** "Send all ready" and one button per table, from the dishes `render` found pending. */
   _renderSendBar(pending) {
     const ready = this._ready(pending);
@@ -304,7 +366,7 @@ export class IssuePanel {
     this.tableSendRows.update(byTable.size > 1 ? [...byTable].sort((a, b) => byName(a[0], b[0])) : []);
   }
 
-  /** Send `orders` at once (one `create task`, its own key): what "Send" does with a cart. */
+  /** Send `orders` at once (under its own key): what "Send" does with a cart. */
   async _sendNow(button, orders) {
     if (!orders.length) return;
     await this._dispatch(button, orders, newKey("send"));
@@ -374,16 +436,52 @@ export class IssuePanel {
     if (reply && this.cart.join() === orders.join()) this._setCart([]);
   }
 
-  /** One `create task` for `orders` under `key`; says which trips were made. The reply or null. */
+  /**
+   * Send `orders` under `key`: the dishes for a table a trip still at the pass serves go on that
+   * trip (one `create task` with `task` per trip, key `key-<trip>`), the others in one
+   * `create task` (the server groups them by table into trips), as do those whose trip left
+   * meanwhile (`stale`: Go was pressed). One toast says where the dishes went. The reply of the
+   * whole (its `tasks`: the new trips), or null after an error was shown.
+   */
   async _dispatch(button, orders, key) {
-    const msg = { clientmsg: "create", type: "task", orders, key };
+    const atPass = this._tripsAtPass();
+    const joins = new Map(); // trip id -> {trip, ids}
+    const cart = [];
+    for (const id of orders) {
+      const trip = atPass.get(this.live.orders.get(id)?.table);
+      if (!trip) cart.push(id);
+      else if (joins.has(trip.id)) joins.get(trip.id).ids.push(id);
+      else joins.set(trip.id, { trip, ids: [id] });
+    }
+    const words = []; // what happened, in a waiter's words: one toast
     orders.forEach((id) => this.sending.add(id));
-    const reply = await act(button, () => this.conn.request(msg, { resend: true }));
+    const reply = await act(button, async () => {
+      for (const { trip, ids } of joins.values()) {
+        const msg = { clientmsg: "create", type: "task", task: trip.id, orders: ids, key: `${key}-${trip.id}` };
+        try {
+          const added = await this.conn.request(msg, { resend: true });
+          words.push(this._joinedWords(added.tasks[0] ?? trip, ids));
+        } catch (err) {
+          if (err.code !== "stale") throw err;
+          cart.push(...ids); // the robot left with its trip: these make a trip of their own
+        }
+      }
+      if (!cart.length) return { tasks: [] };
+      return this.conn.request({ clientmsg: "create", type: "task", orders: cart, key }, { resend: true });
+    });
     orders.forEach((id) => this.sending.delete(id));
-    if (!reply) return null;
-    const trips = reply.tasks.map((task) => task.stops.map((s) => s.table).join(", "));
-    toast(t("issue.sent", { trips: t("count.trips", { count: reply.tasks.length }), tables: trips.join(" | ") }));
+    if (reply && reply.tasks.length) {
+      const trips = reply.tasks.map((task) => task.stops.map((s) => s.table).join(", "));
+      words.push(t("issue.sent", { trips: t("count.trips", { count: reply.tasks.length }), tables: trips.join(" | ") }));
+    }
+    if (words.length) toast(words.join(" · "));
     return reply;
+  }
+
+  /** "Added to r1's trays: T3": where the dishes `ids` went on `trip`, in a waiter's words. */
+  _joinedWords(trip, ids) {
+    const tables = [...new Set(ids.map((id) => this.live.orders.get(id)?.table).filter(Boolean))].sort(byName).join(", ");
+    return trip.robot ? t("issue.addedToTrays", { robot: trip.robot, tables }) : t("issue.addedToTrip", { id: trip.id, tables });
   }
 
   _waiting(readyAt) {
