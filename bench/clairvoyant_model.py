@@ -13,9 +13,12 @@ stops (a table and the dishes it gets there), at most ``capacity`` stops a trip 
 ``--capacity``, tables per tray). The plan is judged by :func:`evaluate` with the replay's own
 rules, the very functions ``serveur replay`` uses:
 
-* a trip leaves when its robot is home, every dish on it is ready, and staff have loaded it:
+* a trip leaves when staff have loaded it: they start once its robot is home and its first
+  dish is ready, take the fixed part and then each plate as it is ready (a plate out while
+  the robot loads goes on it, as the replay's staff do since issue 31):
   :func:`serveur.replay.model.loading_time` (10 s + 4 s a plate, times the seeded spread keyed
-  by the trip's first log line, exactly as the replay's staff);
+  by the trip's first log line, exactly as the replay's staff); all ready at the start, it is
+  that loading time;
 * it drives each leg in :class:`Travel` time (the planner's path length on the map, the
   distance table the server's scheduler uses, at an effective speed plus a fixed cost a leg);
 * at a stop the robot waits for a party that is away (:func:`serveur.replay.model.absences`,
@@ -202,10 +205,18 @@ class Evaluation:
 def _time_trip(
     inst: Instance, robot: int, home_at: float, trip: Trip, delivered: dict[int, float]
 ) -> TripRecord:
-    dishes = [i for _, ids in trip for i in ids]
+    dishes = sorted((i for _, ids in trip for i in ids), key=lambda i: inst.dishes[i].ready)
     lines = [inst.dishes[i].line for i in dishes]
     load = loading_time(inst.opts, min(lines), len(dishes))
-    depart = max([home_at, *(inst.dishes[i].ready for i in dishes)]) + load
+    # Staff start loading once the robot is home and the first dish is ready: the fixed part,
+    # then each plate as it is ready (a plate out while the robot loads goes on it, as the
+    # replay's staff do since issue 31), with the trip's seeded spread on every part.
+    o = inst.opts
+    base = o.load_fixed + o.load_per_dish * len(dishes)
+    factor = load / base if base > 0.0 else 0.0
+    depart = max(home_at, inst.dishes[dishes[0]].ready) + o.load_fixed * factor
+    for i in dishes:
+        depart = max(depart, inst.dishes[i].ready) + o.load_per_dish * factor
     home = inst.homes[robot]
     rec = TripRecord(robot, home_at, depart, 0.0, list(trip), load)
     here, t = home, depart
