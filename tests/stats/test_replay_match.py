@@ -38,10 +38,13 @@ LOG = """ready_at,table,dish
 @pytest.fixture(scope="module")
 def replayed(tmp_path_factory: pytest.TempPathFactory) -> tuple[PolicyResult, Path]:
     work = tmp_path_factory.mktemp("stats-replay")
-    # Robots pass through each other here (the replay's default before issue 31): this is about
-    # the statistics agreeing with the replay, and docs/statistics.md's worked example quotes
-    # this very service's figures (8 trips, 6 dishes returned), measured that way.
-    opts = ReplayOptions(robots=2, seed=1, away=0.5, progress=False, robots_see_each_other=False)
+    # Robots pass through each other here and staff never put a dish on a trip still loading
+    # (the replay's defaults before issue 31): this is about the statistics agreeing with the
+    # replay, and docs/statistics.md's worked example quotes this very service's figures (8
+    # trips, 6 dishes returned), measured that way.
+    opts = ReplayOptions(
+        robots=2, seed=1, away=0.5, progress=False, robots_see_each_other=False, join=False
+    )
     with asyncio.Runner(loop_factory=VirtualTimeLoop) as runner:
         result = runner.run(replay_policy(parse_orders(LOG), opts, "serveur", work))
     return result, work / "serveur.db"  # the server's database, kept in our workdir
