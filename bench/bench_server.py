@@ -13,7 +13,10 @@ Four processes, so that the load never shares an interpreter with what it measur
 Phases (every one bounded in count and time; the script stops everything it started):
 
 1. **footprint** — server RSS and CPU over ``--idle`` seconds with the robots parked at
-   home and the clients connected, subscribed to ``robots``, sending nothing;
+   home and the clients connected, subscribed to ``robots``, sending nothing. Parked robots
+   are measured as they are on site: in a run of their own first, the simulator's AMCL as
+   the amcl node (``--idle-amcl real``: silent while a robot stands still; the other phases
+   need the simulator's 10 Hz poses); the same figure with 10 Hz poses is reported beside it;
 2. then **the service** starts and runs to the end: the staff client (this process) puts
    every robot in automatic, sends a dish to a table as a cart (``create order``, ``create
    task``, to the ``--tables`` nearest the pass in turn) whenever a robot waits free at home,
@@ -540,6 +543,8 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
                     "--map",
                     str(room),
                     *(["--spread-phases"] if ns.sim_spread else []),
+                    "--amcl",
+                    ns.amcl,
                 ],
                 ns.robots,
             )
@@ -604,8 +609,18 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
             server, _ = await _start([*prefix, *cmd], 1)
             procs.append(server)
             url = f"ws://127.0.0.1:{port}/ws"
+            # Browsers never send websocket pings (only the server's keepalive pings them):
+            # the clients' own pings, websockets' default, would be load no tablet makes.
             clients = [
-                Load(await connect(url, compression=None, max_size=2**24, additional_headers=auth))
+                Load(
+                    await connect(
+                        url,
+                        compression=None,
+                        max_size=2**24,
+                        additional_headers=auth,
+                        ping_interval=None,
+                    )
+                )
                 for _ in range(ns.clients)
             ]
             await asyncio.gather(*(c.call("data", topics=["robots"]) for c in clients))
@@ -613,15 +628,24 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
             snap = await staff.call("data", topics=["robots"])
             staff.robots = {r["name"]: r for r in snap["data"]["robots"]}
             await staff.until(lambda: all(r["status"] != "Offline" for r in staff.robots.values()))
-            await asyncio.sleep(2.0)
             spid = server.pid
+            # Settling: the robots' first snapshots, their poses saved once, the clients'
+            # subscriptions; what is left after it is what an idle server does for ever.
+            await asyncio.sleep(ns.settle)
             cpu0, _ = _proc_stats(spid)
-            await asyncio.sleep(ns.idle)
+            per_s: list[float] = []
+            for _ in range(int(ns.idle)):
+                a, _ = _proc_stats(spid)
+                await asyncio.sleep(1.0)
+                b, _ = _proc_stats(spid)
+                per_s.append(round(100 * (b - a), 1))
             cpu1, rss = _proc_stats(spid)
             results["footprint"] = {
                 "rss_mb": rss / 2**20,
-                "idle_cpu_percent": 100 * (cpu1 - cpu0) / ns.idle,
-                "idle_seconds": ns.idle,
+                "idle_cpu_percent": 100 * (cpu1 - cpu0) / int(ns.idle),
+                "idle_seconds": int(ns.idle),
+                "settle_seconds": ns.settle,
+                "idle_cpu_per_second": per_s,
             }
             print("footprint", results["footprint"], flush=True)
             if ns.footprint_only:
@@ -741,6 +765,26 @@ if __name__ == "__main__":
     ap.add_argument("--robots", type=int, default=10)
     ap.add_argument("--samples", type=int, default=2000)
     ap.add_argument("--idle", type=float, default=20.0, help="seconds of idle measurement")
+    ap.add_argument(
+        "--amcl",
+        choices=("continuous", "real"),
+        default="continuous",
+        help="the simulated robots' AMCL (serveur sim --amcl): 10 Hz whatever happens, or as "
+        "the amcl node, silent while parked",
+    )
+    ap.add_argument(
+        "--idle-amcl",
+        choices=("continuous", "real"),
+        default="real",
+        help="the AMCL of the parked robots whose idle CPU is measured (default real: as the "
+        "amcl node, silent while parked; measured in a run of its own before the others)",
+    )
+    ap.add_argument(
+        "--settle",
+        type=float,
+        default=2.0,
+        help="seconds after every robot is online before the idle measurement (2)",
+    )
     ap.add_argument("--fanout-seconds", type=float, default=20.0)
     ap.add_argument(
         "--dispatch-seconds",
@@ -816,7 +860,22 @@ if __name__ == "__main__":
         args.pin = args.rt = True
     if args.pin:
         os.sched_setaffinity(0, {1})  # the load clients and the simulator (started from here)
+    parked = None
+    if args.idle_amcl != args.amcl and not args.latency_only:
+        # Parked robots first, as they are on site: a real amcl node publishes nothing while
+        # its robot stands still; the streaming phases keep the simulator's 10 Hz poses.
+        idle_args = argparse.Namespace(**{**vars(args), "amcl": args.idle_amcl})
+        idle_args.footprint_only = True
+        parked = asyncio.run(main(idle_args))["footprint"]
     out = asyncio.run(main(args))
+    if parked is not None:
+        streaming = out["footprint"]
+        out["footprint"] = {
+            **parked,
+            "amcl": args.idle_amcl,
+            "rss_mb": max(parked["rss_mb"], streaming["rss_mb"]),
+            "idle_cpu_percent_amcl_streaming": streaming["idle_cpu_percent"],
+        }
     out["verdict"] = verdict(out, args)
     print(json.dumps(out, indent=1))
     failed = [name for name, v in out["verdict"].items() if v != "ok"]
