@@ -31,6 +31,24 @@ from serveur.store.sql import Db, Tx, one, sql_in
 __all__ = ["Tasks"]
 
 
+async def _lock_orders(tx: Tx, wanted: Sequence[int]) -> dict[int, dict[str, Any]]:
+    """The orders' rows (id, res_table, status) by id, locked; NotFound names the missing.
+
+    Locked in id order: a concurrent caller wanting some of these dishes waits here for our
+    COMMIT, then finds them assigned (and two callers never lock crosswise).
+    """
+    locked = await tx.all(
+        f"SELECT id, res_table, status FROM orders WHERE {sql_in('id', wanted)}"
+        " ORDER BY id" + tx.dialect.for_update,
+        list(wanted),
+    )
+    found = {r["id"]: r for r in locked}
+    missing = sorted(set(wanted) - set(found))
+    if missing:
+        raise NotFound(f"no order(s) {missing}", orders=missing)
+    return found
+
+
 class Tasks:
     """Trip methods of the store (``store.tasks``)."""
 
@@ -65,17 +83,7 @@ class Tasks:
                     return await rows.get_tasks(tx, sql_in("id", ids), ids)
             plan = check_trips(trips)
             wanted = [oid for trip in plan for _, ids in trip for oid in ids]
-            # Locked in id order: a concurrent caller wanting some of these dishes waits here
-            # for our COMMIT, then finds them assigned (and two callers never lock crosswise).
-            locked = await tx.all(
-                f"SELECT id, res_table, status FROM orders WHERE {sql_in('id', wanted)}"
-                " ORDER BY id" + tx.dialect.for_update,
-                wanted,
-            )
-            found = {r["id"]: r for r in locked}
-            missing = sorted(set(wanted) - set(found))
-            if missing:
-                raise NotFound(f"no order(s) {missing}", orders=missing)
+            found = await _lock_orders(tx, wanted)
             misplaced = sorted(
                 oid
                 for trip in plan
@@ -161,15 +169,7 @@ class Tasks:
                     status=where,
                 )
             wanted = sorted(set(orders))
-            locked = await tx.all(
-                f"SELECT id, res_table, status FROM orders WHERE {sql_in('id', wanted)}"
-                " ORDER BY id" + tx.dialect.for_update,
-                wanted,
-            )
-            found = {r["id"]: r for r in locked}
-            missing = sorted(set(wanted) - set(found))
-            if missing:
-                raise NotFound(f"no order(s) {missing}", orders=missing)
+            found = await _lock_orders(tx, wanted)
             tables = sorted({s.table for s in task.stops})
             elsewhere = [oid for oid in wanted if found[oid]["res_table"] not in tables]
             if elsewhere:
