@@ -28,17 +28,6 @@ from tests.web.test_ui import Screens, http_base, lagging
 PHONE = {"width": 390, "height": 844}
 
 
-class _AxeBrowser:
-    """The browser, its windows opened with the pages' CSP bypassed so that axe can be
-    injected (as tests/web/test_a11y.py does)."""
-
-    def __init__(self, browser: Any) -> None:
-        self.browser = browser
-
-    async def new_context(self, **options: Any) -> Any:
-        return await self.browser.new_context(bypass_csp=True, **options)
-
-
 async def dish(c: Client, name: str, table: str) -> int:
     """A dish ready at the pass (pending), by its id."""
     return int((await c.ok("create", type="order", dish=name, table=table))["order"]["id"])
@@ -75,8 +64,8 @@ async def test_a_dish_for_the_table_being_loaded_goes_on_its_trays_until_it_leav
         await activate(c)
         trip = await loading_for(c, "T3")
         tea = await dish(c, "Tea", "T3")
-        screens = Screens(_AxeBrowser(browser), http_base(r), r.token)
-        page = await screens.open("/", viewport=PHONE)
+        screens = Screens(browser, http_base(r), r.token)
+        page = await screens.open("/", viewport=PHONE, bypass_csp=True)  # axe is injected
         await page.get_by_role("tab", name="Send food").click()
         toasts = page.locator(".toast-text")
 

@@ -69,10 +69,13 @@ class Screens:
         online: bool = True,
         token: str | None = None,
         viewport: dict[str, int] | None = None,
+        bypass_csp: bool = False,
     ) -> Any:
+        """The page at ``path``, online unless told otherwise. ``bypass_csp`` lets a test
+        inject axe (as tests/web/test_a11y.py does); without it a CSP violation is an error."""
         # One context (window) per screen, as on separate devices: a second tab in the same
         # window would be a hidden tab, whose animation frames Chromium pauses.
-        context = await self.browser.new_context(viewport=viewport or TABLET)
+        context = await self.browser.new_context(viewport=viewport or TABLET, bypass_csp=bypass_csp)
         page = await context.new_page()
         if ws_route is not None:
             await page.route_web_socket(re.compile(r"/ws$"), ws_route)
