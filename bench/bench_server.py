@@ -632,18 +632,17 @@ async def main(ns: argparse.Namespace) -> dict[str, Any]:
             # Settling: the robots' first snapshots, their poses saved once, the clients'
             # subscriptions; what is left after it is what an idle server does for ever.
             await asyncio.sleep(ns.settle)
-            cpu0, _ = _proc_stats(spid)
-            per_s: list[float] = []
-            for _ in range(int(ns.idle)):
-                a, _ = _proc_stats(spid)
+            seconds = int(ns.idle)
+            cpu = [_proc_stats(spid)[0]]  # CPU seconds used, once a second
+            for _ in range(seconds):
                 await asyncio.sleep(1.0)
-                b, _ = _proc_stats(spid)
-                per_s.append(round(100 * (b - a), 1))
-            cpu1, rss = _proc_stats(spid)
+                cpu.append(_proc_stats(spid)[0])
+            per_s = [round(100 * (b - a), 1) for a, b in itertools.pairwise(cpu)]
+            rss = _proc_stats(spid)[1]
             results["footprint"] = {
                 "rss_mb": rss / 2**20,
-                "idle_cpu_percent": 100 * (cpu1 - cpu0) / int(ns.idle),
-                "idle_seconds": int(ns.idle),
+                "idle_cpu_percent": 100 * (cpu[-1] - cpu[0]) / seconds,
+                "idle_seconds": seconds,
                 "settle_seconds": ns.settle,
                 "idle_cpu_per_second": per_s,
             }
