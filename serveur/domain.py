@@ -34,6 +34,9 @@ __all__ = [
     "Alert",
     "AlertKind",
     "AuditRecord",
+    "Call",
+    "CallButton",
+    "CallKind",
     "DishAction",
     "EventRecord",
     "MenuItem",
@@ -41,9 +44,11 @@ __all__ = [
     "OrderStatus",
     "Robot",
     "Stop",
+    "StopPurpose",
     "StopStatus",
     "TableBlock",
     "Task",
+    "TaskKind",
     "TaskStatus",
     "WaypointKind",
     "WaypointRecord",
@@ -90,6 +95,24 @@ class TaskStatus(StrEnum):
     CANCELLED = "cancelled"
 
 
+class TaskKind(StrEnum):
+    """What a trip is for. Every kind runs through the same statuses (a robot on a trip is
+    Delivering between stops and Delivered at one); the screens word them by the kind."""
+
+    DELIVERY = "delivery"  # dishes from the pass to tables
+    BUSSING = "bussing"  # used dishes from tables to the dish return
+    CRUISE = "cruise"  # a round of places (snacks, tasting, adverts), again and again
+
+
+class StopPurpose(StrEnum):
+    """What the robot does at a stop, and so what ends its wait there."""
+
+    DELIVER = "deliver"  # guests take their dishes: "food collected" (or the table timeout)
+    COLLECT = "collect"  # guests or staff put used dishes on: Done (or the bussing wait)
+    UNLOAD = "unload"  # staff empty it at the dish return: Done (no timeout)
+    VISIT = "visit"  # a cruise's place: it pauses, then goes on by itself
+
+
 class StopStatus(StrEnum):
     PENDING = "pending"  # not reached yet
     ARRIVED = "arrived"  # robot at the table, waiting for "food collected"
@@ -102,6 +125,8 @@ class WaypointKind(StrEnum):
     HOME = "home"
     PASS = "pass"
     OTHER = "other"
+    DISH_RETURN = "dish_return"  # where bussing robots are emptied
+    DOCK = "dock"  # a robot's charger
 
 
 class _Record(BaseModel):
@@ -132,6 +157,7 @@ class Robot(_Record):
     yaw: float | None = None
     last_error: str | None = None
     trays: int | None = Field(default=None, description="tables per trip; None: the site's")
+    dock: str | None = Field(default=None, description="the place of its charger (a dock)")
     updated_at: float = 0.0
     status_since: float = Field(default=0.0, description="when it entered its status (epoch s)")
     link_error: str | None = Field(
@@ -169,6 +195,8 @@ class AlertKind(StrEnum):
     TABLE_UNREACHABLE = "table_unreachable"  # subject: the table
     ZONE_WAIT = "zone_wait"  # subject: the robot waiting for a zone (serveur.core.leases)
     ROBOT_LOST = "robot_lost"  # subject: the robot not sure where it is (core.localisation)
+    CALL_WAITING = "call_waiting"  # subject: "<table>/<kind>", a guest's call nobody answered
+    NOT_CHARGING = "not_charging"  # subject: the robot on its dock whose battery does not rise
 
 
 class Alert(_Record):
@@ -267,6 +295,50 @@ class Order(_Record):
     ordered_at: float | None = None
     returned_at: float | None = None
     voided_at: float | None = None
+    special: str | None = Field(
+        default=None,
+        description="a special delivery (a birthday): the message the robot shows at the table,"
+        " where it plays a song and waits for Done",
+    )
+    tray: int | None = Field(default=None, description="the tray staff chose; None: the plan's")
+
+
+class CallKind(StrEnum):
+    """What a guest calls for."""
+
+    PLATES = "plates"  # a robot to take the used dishes (answered by a bussing trip)
+    WAITER = "waiter"
+    BILL = "bill"
+
+
+class Call(_Record):
+    """A guest's call from a table: open until staff (or the robot sent) answer it, or staff
+    cancel it. ``presses``: how many presses were merged into it."""
+
+    id: int
+    table: str
+    kind: CallKind
+    source: str = Field(description='"table" (its screen), "staff", or "button:<name>"')
+    opened_at: float
+    presses: int = 1
+    escalated_at: float | None = None
+    answered_at: float | None = None
+    answered_by: str | None = None
+    cancelled_at: float | None = None
+    cancelled_by: str | None = None
+    task_id: int | None = Field(default=None, description="the bussing trip sent for it")
+
+
+class CallButton(_Record):
+    """A Wi-Fi call button (ESPHome, Tasmota, Shelly...): it calls ``kind`` to ``table`` with
+    an HTTP request carrying its token. The token is shown once, when it is made."""
+
+    name: str
+    table: str
+    kind: CallKind
+    created_at: float
+    revoked_at: float | None = None
+    last_press: float | None = None
 
 
 class Stop(_Record):
@@ -275,6 +347,7 @@ class Stop(_Record):
     seq: int
     table: str
     status: StopStatus = StopStatus.PENDING
+    purpose: StopPurpose = StopPurpose.DELIVER
     orders: list[int] = Field(default_factory=list)
     arrived_at: float | None = None
     done_at: float | None = None
@@ -285,6 +358,7 @@ class Task(_Record):
 
     id: int
     robot: str | None = None
+    kind: TaskKind = TaskKind.DELIVERY
     status: TaskStatus = TaskStatus.QUEUED
     stops: list[Stop] = Field(default_factory=list)
     current_stop: int = 0

@@ -29,6 +29,7 @@ from typing import Annotated, Any, Final, Literal, TypeAlias
 from pydantic import (
     AfterValidator,
     BaseModel,
+    ConfigDict,
     Field,
     TypeAdapter,
     ValidationError,
@@ -61,6 +62,15 @@ from serveur.wire.backups import (
     SiteRestore,
 )
 from serveur.wire.base import ClientModel
+from serveur.wire.calls import (
+    CallAnswer,
+    CallCancel,
+    CallMessage,
+    CallOpen,
+    SiteAddButton,
+    SiteButtons,
+    SiteRevokeButton,
+)
 from serveur.wire.fields import (
     MAX_ANGULAR,
     MAX_COORD,
@@ -167,8 +177,13 @@ __all__ = [
     "AccountSetRole",
     "AckMsg",
     "BackupInfo",
+    "CallAnswer",
+    "CallCancel",
+    "CallMessage",
+    "CallOpen",
     "CameraMsg",
     "CancelMsg",
+    "ChargeMsg",
     "ClearMsg",
     "ClientMessage",
     "CloudData",
@@ -180,6 +195,7 @@ __all__ = [
     "ControlManual",
     "ControlMessage",
     "ControlTeleop",
+    "CreateBussing",
     "CreateDish",
     "CreateMessage",
     "CreateOrder",
@@ -187,6 +203,7 @@ __all__ = [
     "CreateTask",
     "CreateWaypoint",
     "CreateZone",
+    "CruiseMsg",
     "DataMsg",
     "DishMsg",
     "ErrorCode",
@@ -208,10 +225,12 @@ __all__ = [
     "ScanData",
     "ServerMessage",
     "Session",
+    "SiteAddButton",
     "SiteAlignMap",
     "SiteAudit",
     "SiteBackupNow",
     "SiteBackups",
+    "SiteButtons",
     "SiteDependents",
     "SiteDownloadBackup",
     "SiteEditRobot",
@@ -223,6 +242,7 @@ __all__ = [
     "SiteRemoveZone",
     "SiteRenameWaypoint",
     "SiteRestore",
+    "SiteRevokeButton",
     "SiteSetMap",
     "SiteSetSettings",
     "SiteSettings",
@@ -239,9 +259,11 @@ __all__ = [
     "StopMsg",
     "TargetMsg",
     "TokenInfo",
+    "TrayChoice",
     "UpdateData",
     "UpdateMsg",
     "UserInfo",
+    "WorkMsg",
     "action_of",
     "dump",
     "error_frame",
@@ -379,6 +401,11 @@ class CreateOrder(_ClientMsg):
     table: Name
     quantity: Quantity = 1
     note: Note | None = Field(default=None, description='For the kitchen: "no chilli"')
+    special: Annotated[str, Field(min_length=1, max_length=120)] | None = Field(
+        default=None,
+        description="A special delivery (a birthday): the message the robot shows at the"
+        " table while it plays a song; it waits there for Done",
+    )
     status: Literal["ordered", "pending"] = Field(
         default="pending", description="ordered: for the kitchen; pending: ready at the pass"
     )
@@ -397,6 +424,15 @@ class CreateDish(_ClientMsg):
     position: Annotated[int, Field(ge=0, le=10_000)] = 0
 
 
+class TrayChoice(BaseModel):
+    """One dish on the tray staff chose (1 is the top tray)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+    order: OrderId
+    tray: Annotated[int, Field(ge=1, le=12)]
+
+
 class CreateTask(_ClientMsg):
     """The confirmed virtual cart: dispatch these pending orders (split into trips), or put
     them on a trip still being loaded (``task``)."""
@@ -413,6 +449,33 @@ class CreateTask(_ClientMsg):
         default=None,
         description="Put the dishes on this trip, still at the pass, at their tables' stops",
     )
+    trays: Annotated[list[TrayChoice], Field(max_length=MAX_ORDERS_PER_TASK)] | None = Field(
+        default=None,
+        description="The tray staff chose for some of the dishes (the plan places the"
+        " others); the cart then leaves as one trip",
+    )
+
+    @model_validator(mode="after")
+    def _trays_name_cart_dishes(self) -> CreateTask:
+        if self.trays is not None:
+            named = [t.order for t in self.trays]
+            if len(set(named)) != len(named):
+                raise PydanticCustomError("duplicate", "a dish is given two trays")
+            if not set(named) <= set(self.orders):
+                raise PydanticCustomError("tray_order", "a tray is chosen for a dish not in orders")
+            if self.task is not None:
+                raise PydanticCustomError("tray_join", "trays cannot be chosen when joining a trip")
+        return self
+
+
+class CreateBussing(_ClientMsg):
+    """Send a robot for the used dishes of these tables, then to the dish return (a place of
+    kind dish_return); it leaves when the scheduler says a waiting dish will not suffer."""
+
+    clientmsg: Literal["create"]
+    type: Literal["bussing"]
+    tables: Annotated[list[Name], Field(min_length=1, max_length=12)]
+    key: Name | None = Field(default=None, description="Client-chosen idempotency key")
 
 
 class CreateRobot(_ClientMsg):
@@ -460,7 +523,13 @@ class CreateZone(_ClientMsg):
 
 
 CreateMessage: TypeAlias = Annotated[
-    CreateWaypoint | CreateOrder | CreateTask | CreateRobot | CreateDish | CreateZone,
+    CreateWaypoint
+    | CreateOrder
+    | CreateTask
+    | CreateRobot
+    | CreateDish
+    | CreateZone
+    | CreateBussing,
     Field(discriminator="type"),
 ]
 
@@ -593,6 +662,26 @@ class SkipMsg(_TargetMsg):
     clientmsg: Literal["skip"]
 
 
+class ChargeMsg(_RobotMsg):
+    """Send the robot (free, automatic) to its dock to charge."""
+
+    clientmsg: Literal["charge"]
+
+
+class WorkMsg(_RobotMsg):
+    """Take the robot off its dock, back into service."""
+
+    clientmsg: Literal["work"]
+
+
+class CruiseMsg(_RobotMsg):
+    """Send the robot (free, automatic) round these places again and again (snacks, tasting,
+    adverts on its screen) until it is called back to deliveries."""
+
+    clientmsg: Literal["cruise"]
+    route: Annotated[list[Name], Field(min_length=1, max_length=16)]
+
+
 class DishMsg(_ClientMsg):
     """One step of a dish: the kitchen starts it or marks it ready (a returned dish: send it
     again), staff void it, or edit its quantity, note or table. ``status``, if given, is the
@@ -677,6 +766,10 @@ ClientMessage: TypeAlias = Annotated[
     | ReleaseMsg
     | CameraMsg
     | OrderMsg
+    | ChargeMsg
+    | WorkMsg
+    | CruiseMsg
+    | CallMessage
     | AccountMessage
     | SiteMessage
     | StatsMessage,
@@ -686,7 +779,8 @@ _CLIENT: TypeAdapter[ClientMessage] = TypeAdapter(ClientMessage)
 
 #: Sub-discriminators of the nested verbs, with their tags (for clear error messages).
 _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
-    "create": ("type", ("waypoint", "order", "task", "robot", "dish", "zone")),
+    "create": ("type", ("waypoint", "order", "task", "robot", "dish", "zone", "bussing")),
+    "call": ("action", ("open", "answer", "cancel")),
     "control": ("action", ("auto", "manual", "teleop", "initialpose", "goal", "goto")),
     "account": (
         "action",
@@ -723,6 +817,9 @@ _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
             "backup_now",
             "download_backup",
             "restore",
+            "add_button",
+            "buttons",
+            "revoke_button",
         ),
     ),
     "stats": ("action", ("figures", "trips", "forecast", "forecast_cancel", "last_service")),
@@ -742,6 +839,9 @@ _ACTIONS: Final[dict[type[BaseModel], Action]] = {
     CancelMsg: Action.CANCEL,
     GoMsg: Action.GO,
     SkipMsg: Action.SKIP,
+    ChargeMsg: Action.CHARGE,
+    WorkMsg: Action.WORK,
+    CruiseMsg: Action.CRUISE,
 }
 
 

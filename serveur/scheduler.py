@@ -33,7 +33,7 @@ import logging
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 from serveur.domain import Order
 
@@ -41,18 +41,22 @@ __all__ = [
     "DEFAULT_CAPACITY",
     "MIN_BATTERY",
     "RANKS",
+    "UNLOAD_SECONDS",
     "Candidate",
     "Dish",
     "Dispatcher",
     "Distance",
     "Fleet",
+    "QueuedTrip",
     "TripEstimate",
     "adaptive_hold",
+    "bussing_seconds",
     "can_carry",
     "cart_order_trips",
     "choose_robot",
     "fifo_cart",
     "group_by_table",
+    "may_bus",
     "order_stops",
     "plan_trips",
     "rank_tables",
@@ -512,17 +516,78 @@ def choose_robot(
     return best.name
 
 
+class QueuedTrip(NamedTuple):
+    """A trip waiting for a robot: its tables, and for a bussing trip how long it would keep
+    its robot (seconds, :func:`bussing_seconds`)."""
+
+    task_id: int
+    stops: int
+    bussing: bool = False
+    seconds: float = 0.0
+
+
+#: Seconds staff take to empty a bussing robot at the dish return (for :func:`may_bus`).
+UNLOAD_SECONDS = 60.0
+
+
+def bussing_seconds(
+    origin: str,
+    tables: Sequence[str],
+    dish_return: str,
+    distance: Distance,
+    *,
+    wait: float,
+    estimate: TripEstimate = TripEstimate(),
+) -> float:
+    """How long a bussing trip keeps its robot, at worst: the drive from ``origin`` round the
+    tables (each its full ``wait``), to the dish return (emptied in :data:`UNLOAD_SECONDS`),
+    and back."""
+    total, here = 0.0, origin
+    for t in tables:
+        total += estimate.leg(distance, here, t) + wait
+        here = t
+    total += estimate.leg(distance, here, dish_return) + UNLOAD_SECONDS
+    return total + estimate.leg(distance, dish_return, origin)
+
+
+def may_bus(free: int, seconds: float, *, dishes_waiting: bool, max_delay: float) -> bool:
+    """May a free robot leave on a bussing trip of ``seconds`` now?
+
+    Hot food first: a bussing trip never holds back a dish beyond ``max_delay``. It may go if
+    another robot stays free for the next dish, or no dish is waiting or being cooked, or the
+    trip is back within ``max_delay`` (a dish ready the moment it leaves waits that long at
+    most). Queued deliveries are served before any bussing trip (:class:`Dispatcher`).
+    """
+    return free >= 2 or not dishes_waiting or seconds <= max_delay
+
+
 class Fleet(Protocol):
     """What the dispatcher needs from the server core."""
 
-    async def queued_tasks(self) -> list[tuple[int, int]]:
-        """The queued trips, oldest first, as (task id, number of tables)."""
+    async def queued_tasks(self) -> list[QueuedTrip]:
+        """The queued trips, oldest first."""
         ...
 
     def free_robots(self) -> list[Candidate]: ...
 
     async def start_trip(self, task_id: int, robot: str) -> bool:
         """Give the trip to the robot; False if either was taken meanwhile."""
+        ...
+
+    async def dishes_waiting(self) -> bool:
+        """Is a dish ordered, cooking or ready and not yet on a trip?"""
+        ...
+
+    def bussing_max_delay(self) -> float:
+        """The site's ``bussing_max_delay`` (s)."""
+        ...
+
+    def cruising(self) -> list[str]:
+        """The robots on a cruise (they come back when deliveries need them)."""
+        ...
+
+    async def recall(self, robot: str) -> bool:
+        """End the robot's cruise: it goes home into service; False if it moved on."""
         ...
 
 
@@ -540,22 +605,44 @@ class Dispatcher:
         self._wake.set()
 
     async def dispatch_once(self) -> int:
-        """One round: assign as many queued trips as there are free robots. Returns the count."""
+        """One round: assign as many queued trips as there are free robots, deliveries first,
+        then bussing trips that hold no dish back (:func:`may_bus`); a delivery left without a
+        robot calls a cruising robot back. Returns the count."""
         self.rounds += 1
+        fleet = self._fleet
         assigned = 0
-        if not self._fleet.free_robots():
+        cruising = fleet.cruising()
+        if not fleet.free_robots() and not cruising:
             # Every robot busy: most rounds in a rush (each new trip kicks one). Reading the
             # whole queue for nothing made each of them cost more as the backlog grew.
             return 0
-        for task_id, stops in await self._fleet.queued_tasks():
-            free = self._fleet.free_robots()
+        queued = await fleet.queued_tasks()
+        unserved = 0
+        for q in (q for q in queued if not q.bussing):
+            free = fleet.free_robots()
+            # A trip waits for a robot with a tray per table; smaller trips behind it go on.
+            robot = choose_robot([c for c in free if can_carry(c, q.stops)])
+            if robot is not None and await fleet.start_trip(q.task_id, robot):
+                assigned += 1
+            else:
+                unserved += 1
+        for robot_name in cruising[:unserved]:
+            await fleet.recall(robot_name)  # home, then the trip waiting for it
+        if unserved:
+            return assigned
+        waiting: bool | None = None
+        for q in (q for q in queued if q.bussing):
+            free = fleet.free_robots()
             if not free:
                 break
-            # A trip waits for a robot with a tray per table; smaller trips behind it go on.
-            robot = choose_robot([c for c in free if can_carry(c, stops)])
-            if robot is None:
-                continue
-            if await self._fleet.start_trip(task_id, robot):
+            if waiting is None:
+                waiting = await fleet.dishes_waiting()
+            if not may_bus(
+                len(free), q.seconds, dishes_waiting=waiting, max_delay=fleet.bussing_max_delay()
+            ):
+                break  # oldest first: a later bussing trip does not jump the queue
+            robot = choose_robot([c for c in free if can_carry(c, q.stops - 1)])
+            if robot is not None and await fleet.start_trip(q.task_id, robot):
                 assigned += 1
         return assigned
 

@@ -22,7 +22,7 @@ import typing
 from collections import Counter
 from collections.abc import Awaitable, Callable
 from typing import Any
-from urllib.parse import urlsplit
+from urllib.parse import parse_qs, urlsplit
 
 import websockets
 from websockets.asyncio.server import Server as WsServer
@@ -33,6 +33,7 @@ from websockets.protocol import State
 
 from serveur import protocol as P
 from serveur.core.backup_desk import DOWNLOAD_PATH, BackupDesk
+from serveur.core.call_desk import CALL_PATH
 from serveur.core.camera import CameraRelay, CameraViewer
 from serveur.core.engine import Core
 from serveur.core.hub import Subscriber
@@ -240,6 +241,8 @@ class Server:
                 return _http(http.HTTPStatus.NOT_FOUND, b"no such floor plan\n", "text/plain")
             # Named by its digest: the same address is always the same picture.
             return _http(http.HTTPStatus.OK, *found, cache="max-age=31536000, immutable")
+        if path.startswith(CALL_PATH):
+            return await self._button(connection, request, path.removeprefix(CALL_PATH))
         if path.startswith(DOWNLOAD_PATH) and self.backups is not None:
             status, body = await self.backups.fetch(request.path)
             if status is not http.HTTPStatus.OK:
@@ -252,6 +255,18 @@ class Server:
                 ("Content-Disposition", f'attachment; filename="{name}"'),
             )
         return self._site.respond(request)  # the web UI (GET/HEAD), 404 for anything else
+
+    async def _button(self, ws: ServerConnection, request: Request, token: str) -> Response:
+        """A Wi-Fi call button's ``GET /call/<token>[?kind=bill]`` (what ESPHome, Tasmota's
+        WebSend and Shelly's actions send): answered in plain text, 200 when the call is
+        open (new or merged), 4xx with the reason otherwise, nothing changed."""
+        kinds = parse_qs(urlsplit(request.path).query).get("kind")
+        press = await self.core.calls.press(token, kinds[0] if kinds else None)
+        await self.core.flush_events()
+        if press.status != 200:
+            log.info("call button refused from %s: %s", _peer(ws), press.text.strip())
+        body = press.text.encode()
+        return _http(http.HTTPStatus(press.status), body, "text/plain; charset=utf-8")
 
     async def _ws_handshake(self, ws: ServerConnection, request: Request) -> Response | None:
         origin = request.headers.get("Origin")

@@ -46,6 +46,7 @@ class RobotStatus(StrEnum):
     TRANSIT = "Transit"  # moving without food: going home
     MANUAL = "Manual"  # under staff control (teleop, calibration, goals, go-to)
     ERROR = "Error"  # navigation aborted or a goal was never acknowledged
+    CHARGING = "Charging"  # on its dock, charging: no trips until it leaves (work)
 
 
 class RobotMode(StrEnum):
@@ -73,6 +74,9 @@ class Action(StrEnum):
     SAVE_WAYPOINT = "save_waypoint"  # create a waypoint at the robot's current pose
     GO = "go"  # trays loaded: leave on the trip
     SKIP = "skip"  # leave this table unserved, its dishes returned
+    CHARGE = "charge"  # go to the dock and charge
+    WORK = "work"  # leave the dock, back into service
+    CRUISE = "cruise"  # go round a route of places
 
 
 S = RobotStatus
@@ -83,7 +87,7 @@ A = Action
 ALLOWED: dict[RobotStatus, frozenset[Action]] = {
     S.OFFLINE: frozenset(),
     S.READY: frozenset({A.AUTO, A.MANUAL, A.SAVE_WAYPOINT}),
-    S.AWAITING: frozenset({A.READY, A.MANUAL, A.SAVE_WAYPOINT}),
+    S.AWAITING: frozenset({A.READY, A.MANUAL, A.SAVE_WAYPOINT, A.CHARGE, A.CRUISE}),
     S.LOADING: frozenset({A.GO, A.CANCEL, A.MANUAL, A.SAVE_WAYPOINT}),
     S.DELIVERING: frozenset({A.STOP, A.MANUAL, A.SAVE_WAYPOINT}),
     S.DELIVERED: frozenset({A.NEXT, A.SKIP, A.MANUAL, A.SAVE_WAYPOINT}),
@@ -91,6 +95,7 @@ ALLOWED: dict[RobotStatus, frozenset[Action]] = {
     S.TRANSIT: frozenset({A.STOP, A.MANUAL, A.SAVE_WAYPOINT}),
     S.MANUAL: frozenset({A.TELEOP, A.INITIALPOSE, A.GOAL, A.GOTO, A.READY, A.SAVE_WAYPOINT}),
     S.ERROR: frozenset({A.CONTINUE, A.CANCEL, A.SKIP, A.MANUAL, A.SAVE_WAYPOINT}),
+    S.CHARGING: frozenset({A.WORK, A.MANUAL, A.SAVE_WAYPOINT}),
 }
 
 
@@ -113,6 +118,10 @@ class Event(StrEnum):
     STOP = "stop"
     CONTINUE = "continue"
     CANCEL = "cancel"
+    CHARGE = "charge"  # sent to its dock (by staff, or below the site's charge level)
+    DOCKED = "docked"  # on the dock: the goal to it succeeded
+    UNDOCK = "undock"  # leaves the dock, home (by staff, or charged)
+    RECALL = "recall"  # a cruise ends, called back to deliveries: home without stopping first
 
 
 @dataclass(frozen=True, slots=True)
@@ -162,6 +171,12 @@ TRANSITIONS: dict[tuple[RobotStatus, Event], RobotStatus] = {
     # A stopped or failed robot whose trip is handed back goes home without food.
     (S.STOPPED, Event.GO_HOME): S.TRANSIT,
     (S.ERROR, Event.GO_HOME): S.TRANSIT,
+    (S.AWAITING, Event.CHARGE): S.TRANSIT,
+    (S.TRANSIT, Event.DOCKED): S.CHARGING,
+    (S.CHARGING, Event.UNDOCK): S.TRANSIT,
+    (S.CHARGING, Event.MANUAL): S.MANUAL,
+    (S.DELIVERING, Event.RECALL): S.TRANSIT,
+    (S.DELIVERED, Event.RECALL): S.TRANSIT,
 }
 
 

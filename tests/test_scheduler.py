@@ -13,11 +13,13 @@ from serveur.scheduler import (
     Candidate,
     Dish,
     Dispatcher,
+    QueuedTrip,
     TripEstimate,
     adaptive_hold,
     cart_order_trips,
     choose_robot,
     fifo_cart,
+    may_bus,
     group_by_table,
     order_stops,
     plan_trips,
@@ -110,10 +112,12 @@ class FakeFleet:
         self.free = {r: float(i) for i, r in enumerate(robots)}
         self.started: list[tuple[int, str]] = []
         self.queue_reads = 0
+        self.cruisers = []
+        self.recalled = []
 
-    async def queued_tasks(self) -> list[tuple[int, int]]:
+    async def queued_tasks(self) -> list[QueuedTrip]:
         self.queue_reads += 1
-        return [(t, 1) for t in self.tasks if t not in {s for s, _ in self.started}]
+        return [QueuedTrip(t, 1) for t in self.tasks if t not in {s for s, _ in self.started}]
 
     def free_robots(self) -> list[Candidate]:
         return [Candidate(r, t) for r, t in self.free.items()]
@@ -122,6 +126,24 @@ class FakeFleet:
         self.started.append((task_id, robot))
         del self.free[robot]
         return True
+
+    async def dishes_waiting(self) -> bool:
+        return self.kitchen_busy
+
+    def bussing_max_delay(self) -> float:
+        return 90.0
+
+    def cruising(self) -> list[str]:
+        return list(self.cruisers)
+
+    async def recall(self, robot: str) -> bool:
+        self.cruisers.remove(robot)
+        self.recalled.append(robot)
+        return True
+
+    kitchen_busy = True
+    cruisers: list[str]
+    recalled: list[str]
 
 
 async def test_dispatch_gives_each_trip_to_one_robot() -> None:
@@ -142,9 +164,9 @@ async def test_a_trip_goes_to_a_robot_with_a_tray_for_each_table() -> None:
         sizes = {1: 4, 2: 2}
         trays = {"small": 2, "big": 4}
 
-        async def queued_tasks(self) -> list[tuple[int, int]]:
+        async def queued_tasks(self) -> list[QueuedTrip]:
             done = {s for s, _ in self.started}
-            return [(t, self.sizes[t]) for t in self.tasks if t not in done]
+            return [QueuedTrip(t, self.sizes[t]) for t in self.tasks if t not in done]
 
         def free_robots(self) -> list[Candidate]:
             return [Candidate(r, t, trays=self.trays[r]) for r, t in self.free.items()]
@@ -158,6 +180,63 @@ async def test_a_trip_goes_to_a_robot_with_a_tray_for_each_table() -> None:
     fleet.free["big"] = 5.0
     assert await d.dispatch_once() == 1
     assert fleet.started[-1] == (1, "big")
+
+
+class ModesFleet(FakeFleet):
+    """Trips 100+ are bussing trips of ``seconds[t]``; the rest deliveries."""
+
+    seconds: dict[int, float] = {}
+
+    async def queued_tasks(self) -> list[QueuedTrip]:
+        done = {s for s, _ in self.started}
+        return [
+            QueuedTrip(t, 2, bussing=t >= 100, seconds=self.seconds.get(t, 0.0))
+            for t in self.tasks
+            if t not in done
+        ]
+
+
+def test_may_bus_never_holds_a_dish_beyond_the_limit() -> None:
+    assert may_bus(1, 300.0, dishes_waiting=True, max_delay=90.0) is False
+    assert may_bus(1, 80.0, dishes_waiting=True, max_delay=90.0) is True
+    assert may_bus(2, 300.0, dishes_waiting=True, max_delay=90.0) is True  # one stays free
+    assert may_bus(1, 300.0, dishes_waiting=False, max_delay=90.0) is True  # kitchen idle
+
+
+async def test_deliveries_go_before_bussing_and_a_long_bussing_trip_waits() -> None:
+    fleet = ModesFleet([100, 1], ["r1"])
+    fleet.seconds = {100: 300.0}
+    d = Dispatcher(fleet)
+    assert await d.dispatch_once() == 1
+    assert fleet.started == [(1, "r1")]  # the delivery, though queued after the bussing trip
+    fleet.free["r2"] = 5.0
+    assert await d.dispatch_once() == 0  # one robot, dishes cooking, 300 s > 90 s: it waits
+    fleet.kitchen_busy = False
+    assert await d.dispatch_once() == 1
+    assert fleet.started[-1] == (100, "r2")
+
+
+async def test_a_short_bussing_trip_or_a_second_free_robot_may_go() -> None:
+    fleet = ModesFleet([100, 101], ["r1", "r2"])
+    fleet.seconds = {100: 300.0, 101: 300.0}
+    d = Dispatcher(fleet)
+    assert await d.dispatch_once() == 1  # two free: one goes, the last stays for dishes
+    assert fleet.started == [(100, "r1")]
+    fleet.seconds[101] = 60.0
+    assert await d.dispatch_once() == 1  # back within 90 s: it may take the last robot
+    assert fleet.started[-1] == (101, "r2")
+
+
+async def test_a_delivery_without_a_robot_calls_a_cruiser_back() -> None:
+    fleet = ModesFleet([1], [])
+    fleet.cruisers = ["r1", "r2"]
+    d = Dispatcher(fleet)
+    assert await d.dispatch_once() == 0
+    assert fleet.recalled == ["r1"]  # one trip waiting: one robot called back
+    assert fleet.cruisers == ["r2"]
+    fleet.tasks = []
+    await d.dispatch_once()
+    assert fleet.recalled == ["r1"]  # nothing waiting: the other cruises on
 
 
 def test_cart_order_trips_keep_the_cart_order() -> None:

@@ -15,6 +15,7 @@ from typing import Any
 
 from serveur.core.robot import RobotController
 from serveur.core.runtime import Destination
+from serveur.domain import TaskKind
 from serveur.errors import Conflict, LinkError
 from serveur.status import Action, Event, RobotStatus
 
@@ -131,6 +132,33 @@ async def _cancel(ctl: RobotController, msg: Any, actor: str | None) -> None:
         await ctl.drive(ctl.home_dest())
 
 
+async def _charge(ctl: RobotController, msg: Any, actor: str | None) -> None:
+    await ctl.charge()
+
+
+async def _work(ctl: RobotController, msg: Any, actor: str | None) -> None:
+    await ctl.work()
+
+
+async def _cruise(ctl: RobotController, msg: Any, actor: str | None) -> None:
+    if ctl.rt.localisation.lost:
+        raise Conflict(
+            f"{ctl.name} is not sure where it is: set where the robot is on the map first",
+            robot=ctl.name,
+            reason="lost",
+        )
+    crew = ctl.crew
+    for place in msg.route:
+        crew.places.waypoint(place)  # NotFound names a place that does not exist
+    task = await crew.store.rounds.create_cruise(ctl.name, msg.route, now=crew.clock.epoch())
+    taken = await crew.trips.take(task.id, ctl.name)
+    if taken is None:  # pragma: no cover - the robot's lock is held: nobody else takes it
+        raise Conflict(f"robot {ctl.name} was given another trip", robot=ctl.name)
+    ctl.rt.trip_kind = TaskKind.CRUISE
+    await ctl.event(Event.DISPATCH)
+    await ctl.drive(ctl.stop_dest(taken))
+
+
 #: Action -> what it does (``save_waypoint`` is the core's: it creates a waypoint).
 ACTIONS: dict[Action, ActionHandler] = {
     Action.AUTO: _auto,
@@ -146,4 +174,7 @@ ACTIONS: dict[Action, ActionHandler] = {
     Action.STOP: _stop,
     Action.CONTINUE: _continue,
     Action.CANCEL: _cancel,
+    Action.CHARGE: _charge,
+    Action.WORK: _work,
+    Action.CRUISE: _cruise,
 }

@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
-from serveur.domain import Alert, AlertKind
+from serveur.domain import Alert, AlertKind, Call
 from serveur.errors import Conflict, NotFound
 from serveur.status import RobotMode, RobotStatus
 
@@ -41,6 +41,7 @@ CRITICAL = frozenset(
         AlertKind.ROBOT_OFFLINE,
         AlertKind.TABLE_UNREACHABLE,
         AlertKind.ROBOT_LOST,
+        AlertKind.CALL_WAITING,
     }
 )
 
@@ -70,6 +71,7 @@ class RobotFact:
     waiting_since: float | None = None
     blockers: tuple[str, ...] = ()  # the robots it waits behind
     lost: bool = False  # not sure where it is (serveur.core.localisation)
+    not_charging: bool = False  # on its dock, its battery not rising (serveur.core.modes)
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,6 +96,7 @@ def conditions(
     now: float,
     active: Iterable[Key] = (),
     limits: Thresholds = Thresholds(),
+    calls: Iterable[Call] = (),
 ) -> dict[Key, str]:
     """The alert conditions that hold at ``now``, each with the message staff read.
 
@@ -124,6 +127,11 @@ def conditions(
             out[(AlertKind.WAITING_AT_TABLE, r.name)] = (
                 f"{r.name} waiting{where} for {_minutes(now - r.since)}"
             )
+        if r.not_charging:
+            out[(AlertKind.NOT_CHARGING, r.name)] = (
+                f"{r.name} is on its dock but not charging: check the dock is plugged in and"
+                " the robot sits on its contacts"
+            )
         if r.waiting_for and r.waiting_since is not None:
             waited = now - r.waiting_since
             if waited >= limits.zone_wait:
@@ -142,6 +150,12 @@ def conditions(
             )
     for table, reason in blocked.items():
         out[(AlertKind.TABLE_UNREACHABLE, table)] = f"robots cannot reach {table}: {reason}"
+    for c in calls:  # escalated by the call desk (the site's call_escalate)
+        words = {"plates": "a robot for the plates", "waiter": "a waiter", "bill": "the bill"}
+        out[(AlertKind.CALL_WAITING, f"{c.table}/{c.kind.value}")] = (
+            f"{c.table} asked for {words.get(c.kind.value, c.kind.value)}"
+            f" {_minutes(now - c.opened_at)} ago"
+        )
     return out
 
 

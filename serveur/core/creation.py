@@ -24,11 +24,14 @@ from serveur.core.places import Places
 from serveur.core.publisher import Publisher
 from serveur.core.runtime import CoreConfig
 from serveur.domain import Order, OrderStatus, Task, WaypointRecord
-from serveur.errors import Conflict
-from serveur.scheduler import cart_order_trips, plan_trips
+from serveur.errors import Conflict, InvalidField
+from serveur.scheduler import cart_order_trips, group_by_table, order_stops, plan_trips
 from serveur.store.base import Store
 
 __all__ = ["Creation"]
+
+#: The most trays a robot has (a robot's ``trays`` is at most 12).
+MAX_TRAYS = 12
 
 
 class Creation:
@@ -66,6 +69,7 @@ class Creation:
         quantity: int = 1,
         note: str | None = None,
         status: OrderStatus = OrderStatus.PENDING,
+        special: str | None = None,
     ) -> Order:
         """A dish for a table that must exist: ready at the pass now, or ordered."""
         now = self._clock.epoch()
@@ -79,31 +83,41 @@ class Creation:
             quantity=quantity,
             note=note,
             status=status,
+            special=special,
         )
         self._publisher.pub("orders", order)
         return order
 
-    async def tasks(self, order_ids: list[int], key: str | None) -> list[Task]:
+    async def tasks(
+        self, order_ids: list[int], key: str | None, *, trays: dict[int, int] | None = None
+    ) -> list[Task]:
         """Queue the orders as trips (planned by the configured policy); the dispatcher runs.
+
+        With ``trays`` (dish id -> the tray staff chose) the cart leaves as one trip, stops in
+        the planned order: staff put dishes on trays for one robot, not for a split.
 
         Without a key every order must be pending. With a key, a resend is answered by the
         store from the key; only the orders still pending are planned otherwise.
         """
         fp = _fingerprint({"orders": sorted(order_ids)})
+        if trays:
+            fp = _fingerprint({"orders": sorted(order_ids), "trays": sorted(trays.items())})
         orders: list[Order] = [await self._store.orders.get_order(i) for i in order_ids]
         pending = [o for o in orders if o.status is OrderStatus.PENDING]
         if key is None and len(pending) != len(orders):
             bad = sorted(o.id for o in orders if o.status is not OrderStatus.PENDING)
             raise Conflict(f"orders not pending: {bad}", orders=bad)
         self._reachable({o.table for o in pending})
-        if self._config.policy == "baseline":
+        if trays:
+            trips = _one_trip(pending or orders, self._origin(), self._places, trays)
+        elif self._config.policy == "baseline":
             trips = cart_order_trips(pending or orders, self._config.capacity)
         else:
             trips = plan_trips(
                 pending or orders, self._origin(), self._places.distance, self._config.capacity
             )
         tasks = await self._store.tasks.create_tasks(
-            trips, key=key, fingerprint=fp, now=self._clock.epoch()
+            trips, key=key, fingerprint=fp, now=self._clock.epoch(), trays=trays
         )
         for t in tasks:
             self._publisher.pub_task(t)
@@ -131,6 +145,18 @@ class Creation:
         self._places.put(wp)
         self._publisher.pub("waypoints", wp)
         return wp
+
+
+def _one_trip(
+    orders: list[Order], origin: str, places: Places, trays: Mapping[int, int]
+) -> list[list[tuple[str, list[int]]]]:
+    """The cart as one trip (staff chose trays): its tables in the shortest order."""
+    by_table = group_by_table(orders)
+    if len(by_table) > MAX_TRAYS:
+        raise InvalidField(f"{len(by_table)} tables cannot go on one robot's trays", field="trays")
+    tables = order_stops(origin, [t for t, _ in by_table], places.distance, end=origin)
+    ids = dict(by_table)
+    return [[(t, ids[t]) for t in tables]]
 
 
 def _fingerprint(payload: Mapping[str, Any]) -> str:

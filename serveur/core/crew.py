@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from serveur.clock import Clock
+from serveur.core.call_desk import CallDesk
 from serveur.core.hub import Hub
 from serveur.core.link_reports import LinkReports
 from serveur.core.places import Places
@@ -41,6 +42,8 @@ class Crew:
     trips: Trips
     traffic: Traffic
     reports: LinkReports
+    #: Guests' calls: a bussing robot at a table answers the plates call it was sent for.
+    calls: CallDesk
     #: Every robot's record as stored (name -> Robot), shared with :class:`Trips`, which
     #: writes the record back after each trip step.
     records: dict[str, Robot]

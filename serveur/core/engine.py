@@ -39,13 +39,15 @@ from typing import Any
 from serveur import protocol as P
 from serveur.clock import Clock
 from serveur.core.alerts import RobotFact, Thresholds
+from serveur.core.call_desk import CallDesk
 from serveur.core.creation import Creation
 from serveur.core.crew import Crew
-from serveur.core.events import RobotEvent, TableTimeout
+from serveur.core.events import Charged, ChargeDue, CruiseResume, RobotEvent, TableTimeout
 from serveur.core.hub import Hub
 from serveur.core.instructions import Instructions
 from serveur.core.leases import LeaseBook
 from serveur.core.link_reports import HANDOVER_GRACE, LinkReports
+from serveur.core.modes import charge_due, charged, stop_wait
 from serveur.core.places import Places
 from serveur.core.publisher import Publisher
 from serveur.core.robot import RobotController
@@ -56,13 +58,16 @@ from serveur.core.site_map import stored_backdrop, stored_map
 from serveur.core.traffic import Traffic
 from serveur.core.trips import Trips
 from serveur.domain import (
+    Call,
     OrderStatus,
     Robot,
+    StopPurpose,
+    TaskKind,
     TaskStatus,
     ZoneRecord,
 )
 from serveur.errors import LinkError, NotFound, ServeurError
-from serveur.scheduler import Candidate, Dispatcher
+from serveur.scheduler import Candidate, Dispatcher, QueuedTrip, bussing_seconds
 from serveur.status import Event, RobotState, RobotStatus
 from serveur.store.base import Store
 
@@ -164,6 +169,14 @@ class Core:
             kick=self.dispatcher.kick,
             reachable=self.service.check_reachable,
         )
+        self.calls = CallDesk(
+            store,
+            clock,
+            cfg,
+            places=self.places,
+            publisher=self.publisher,
+            kick=self.dispatcher.kick,
+        )
         self.crew = Crew(
             store=store,
             clock=clock,
@@ -175,6 +188,7 @@ class Core:
             trips=self.trips,
             traffic=self.traffic,
             reports=self.reports,
+            calls=self.calls,
             records=self._robots,
             kick=self.dispatcher.kick,
             robot_ssl=robot_ssl,
@@ -200,6 +214,7 @@ class Core:
             service=self.service,
             traffic=self.traffic,
             site=self.site,
+            calls=self.calls,
         )
 
     # -- what others read of the collaborators ----------------------------------------------
@@ -281,6 +296,7 @@ class Core:
             st = RobotState(S.OFFLINE, robot.mode, resume)
             ctl.rt.state = st
             await ctl.save_state(st, event="robot.restored")
+        await self.calls.start()
         self.dispatcher.start()
         await self.service.start(self)
         for ctl in self._ctl.values():
@@ -436,11 +452,47 @@ class Core:
 
     # -- dispatcher (scheduler.Fleet) -------------------------------------------------------
 
-    async def queued_tasks(self) -> list[tuple[int, int]]:
+    async def queued_tasks(self) -> list[QueuedTrip]:
+        out = []
+        for t in await self.store.tasks.list_tasks(status=TaskStatus.QUEUED):
+            if t.kind is TaskKind.DELIVERY:
+                out.append(QueuedTrip(t.id, len(t.stops)))
+            elif t.kind is TaskKind.BUSSING:
+                tables = [s.table for s in t.stops if s.purpose is StopPurpose.COLLECT]
+                last = t.stops[-1].table
+                wait = self.config.bussing_wait
+                secs = bussing_seconds(self._origin(), tables, last, self.distance, wait=wait)
+                out.append(QueuedTrip(t.id, len(t.stops), bussing=True, seconds=secs))
+            # A cruise is never queued for just anyone: it is started for its robot.
+        return out
+
+    async def dishes_waiting(self) -> bool:
+        waiting = [OrderStatus.ORDERED, OrderStatus.COOKING, OrderStatus.PENDING]
+        return bool(await self.store.orders.list_orders(status=waiting))
+
+    def bussing_max_delay(self) -> float:
+        return self.config.bussing_max_delay
+
+    def cruising(self) -> list[str]:
         return [
-            (t.id, len(t.stops))
-            for t in await self.store.tasks.list_tasks(status=TaskStatus.QUEUED)
+            name
+            for name, ctl in sorted(self._ctl.items())
+            if ctl.rt.trip_kind is TaskKind.CRUISE
+            and ctl.rt.state.status in (S.DELIVERING, S.DELIVERED)
         ]
+
+    async def recall(self, robot: str) -> bool:
+        ctl = self._ctl[robot]
+        async with ctl.rt.lock:
+            if ctl.rt.trip_kind is not TaskKind.CRUISE or ctl.rt.state.status not in (
+                S.DELIVERING,
+                S.DELIVERED,
+            ):
+                return False
+            log.info("%s: cruise ended, dishes are waiting", robot)
+            await ctl.recall("called back to deliveries")
+        await self.flush_events()
+        return True
 
     def free_robots(self) -> list[Candidate]:
         return [
@@ -471,7 +523,9 @@ class Core:
             task = await self.trips.take(task_id, robot)
             if task is None:
                 return False
-            if self.config.auto_depart:
+            ctl.rt.trip_kind = task.kind
+            if self.config.auto_depart or task.kind is not TaskKind.DELIVERY:
+                # Nothing to load at the pass: a bussing robot leaves from where it is.
                 await ctl.event(Event.DISPATCH)
                 await ctl.drive(ctl.stop_dest(task))
             else:
@@ -506,28 +560,58 @@ class Core:
                     waiting_since=rt.waiting_since,
                     blockers=tuple(self.leases.blockers(name)) if rt.waiting_for else (),
                     lost=rt.localisation.lost,
+                    not_charging=rt.not_charging and rt.state.status is S.CHARGING,
                 )
             )
         return facts
 
-    def table_timeouts(self) -> None:
-        """Post a table timeout to each robot at a table past the site's limit (once per
-        arrival: the arrival's time identifies it, so a robot that moved on is left alone)."""
-        limit = self.config.table_timeout
-        if limit is None:
-            return
-        now = self.clock.epoch()
+    async def escalate_calls(self) -> list[Call]:
+        await self.calls.escalate_due()
+        return self.calls.escalated()
+
+    def timers(self) -> None:
+        """Post each robot what its waiting has come to (once per arrival or stop: its
+        ``status_since`` identifies it, so a robot that moved on is left alone): a stop's wait
+        over (serveur.core.modes.stop_wait), a touched cruising robot's pause over, a free
+        robot low enough to charge, a charging one charged."""
+        cfg, now = self.config, self.clock.epoch()
         for name, ctl in self._ctl.items():
             rt, robot = ctl.rt, ctl.record
-            since = robot.status_since
-            if (
-                rt.state.status is S.DELIVERED
+            since, status = robot.status_since, rt.state.status
+            if status is S.DELIVERED and robot.current_task is not None:
+                limit = stop_wait(
+                    rt.at_stop or StopPurpose.DELIVER,
+                    special=rt.special,
+                    table_timeout=cfg.table_timeout,
+                    bussing_wait=cfg.bussing_wait,
+                    cruise_pause=cfg.cruise_pause,
+                )
+                if limit is not None and now - since >= limit and rt.timed_out != since:
+                    rt.timed_out = since
+                    self.reports.post(name, TableTimeout(robot.current_task, since))
+            elif (
+                status is S.STOPPED
+                and rt.trip_kind is TaskKind.CRUISE
                 and robot.current_task is not None
-                and now - since >= limit
-                and rt.timed_out != since
+                and now - since >= cfg.cruise_resume
+                and rt.resumed != since
             ):
-                rt.timed_out = since
-                self.reports.post(name, TableTimeout(robot.current_task, since))
+                rt.resumed = since
+                self.reports.post(name, CruiseResume(robot.current_task, since))
+            elif rt.link is not None and rt.link.up and rt.timed_out != since:
+                if (
+                    charge_due(
+                        status, rt.battery, has_dock=robot.dock is not None, below=cfg.charge_below
+                    )
+                    and not rt.localisation.lost
+                ):
+                    rt.timed_out = since
+                    self.reports.post(name, ChargeDue())
+                elif charged(status, rt.battery, until=cfg.charge_until):
+                    rt.timed_out = since
+                    self.reports.post(name, Charged())
+            if status is S.CHARGING:
+                rt.not_charging = rt.charge_watch.not_charging(now, rt.battery)
 
 
 async def _robots(core: Core) -> Any:
@@ -570,6 +654,10 @@ async def _leases(core: Core) -> Any:
     return core.traffic.lease_rows()
 
 
+async def _calls(core: Core) -> Any:
+    return core.calls.snapshot()
+
+
 #: Topic -> its snapshot (``pose:<robot>`` and ``scan:<robot>`` are per robot).
 _SNAPSHOTS: dict[str, Callable[[Core], Awaitable[Any]]] = {
     "robots": _robots,
@@ -584,4 +672,5 @@ _SNAPSHOTS: dict[str, Callable[[Core], Awaitable[Any]]] = {
     "settings": _settings,
     "zones": _zones,
     "leases": _leases,
+    "calls": _calls,
 }

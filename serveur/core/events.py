@@ -17,6 +17,9 @@ from serveur.robots import rosbridge as rb
 from serveur.robots.driver import GoalLoss
 
 __all__ = [
+    "ChargeDue",
+    "Charged",
+    "CruiseResume",
     "GoalEnded",
     "HandoverDue",
     "LeaseGranted",
@@ -82,6 +85,24 @@ class TableTimeout:
     since: float
 
 
+@dataclass(frozen=True, slots=True)
+class ChargeDue:
+    """A free robot with a dock is below the site's charge level: off to charge."""
+
+
+@dataclass(frozen=True, slots=True)
+class Charged:
+    """A robot on its dock reached the site's upper level: back into service."""
+
+
+@dataclass(frozen=True, slots=True)
+class CruiseResume:
+    """A cruising robot someone stopped at ``since`` has waited the site's cruise_resume."""
+
+    task_id: int
+    since: float
+
+
 RobotEvent = (
     LinkUp
     | LinkDown
@@ -91,4 +112,7 @@ RobotEvent = (
     | HandoverDue
     | PersistPose
     | TableTimeout
+    | ChargeDue
+    | Charged
+    | CruiseResume
 )

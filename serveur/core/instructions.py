@@ -15,6 +15,7 @@ from typing import Any
 
 from serveur import protocol as P
 from serveur.core.actions import ACTIONS
+from serveur.core.call_desk import CallDesk
 from serveur.core.creation import Creation
 from serveur.core.places import Places
 from serveur.core.robot import RobotController
@@ -22,7 +23,14 @@ from serveur.core.service import Service
 from serveur.core.site import SITE_ACTIONS, Fleet, Site
 from serveur.core.traffic import Traffic
 from serveur.core.trips import Trips
-from serveur.domain import DishAction, MenuItem, OrderStatus, WaypointKind, WaypointRecord
+from serveur.domain import (
+    CallKind,
+    DishAction,
+    MenuItem,
+    OrderStatus,
+    WaypointKind,
+    WaypointRecord,
+)
 from serveur.errors import Conflict, InvalidField
 from serveur.status import Action, check_allowed
 from serveur.store.base import Store
@@ -48,6 +56,7 @@ class Instructions:
         service: Service,
         traffic: Traffic,
         site: Site,
+        calls: CallDesk,
     ) -> None:
         self.store = store
         self.fleet = fleet
@@ -57,6 +66,7 @@ class Instructions:
         self.service = service
         self.traffic = traffic
         self.site = site
+        self.calls = calls
 
     async def handle(self, msg: Any, actor: str | None, table: str | None) -> dict[str, Any]:
         """The reply payload for ``msg`` (a ServeurError if refused).
@@ -67,6 +77,9 @@ class Instructions:
         verb = _VERBS.get(type(msg))
         if verb is not None:
             return await verb(self, msg, actor)
+        if isinstance(msg, P.CallOpen):  # the one verb that says which screen asked
+            source = "table" if table is not None else "staff"
+            return await self.calls.call(msg.table, CallKind(msg.kind), source)
         action = P.action_of(msg)
         robot = P.robot_of(msg)
         if robot is None or action is None:
@@ -99,6 +112,7 @@ class Instructions:
             quantity=msg.quantity,
             note=msg.note,
             status=OrderStatus(msg.status),
+            special=msg.special,
         )
         return {"order": order}
 
@@ -114,7 +128,8 @@ class Instructions:
 
     async def _create_task(self, msg: P.CreateTask, actor: str | None) -> dict[str, Any]:
         if msg.task is None:
-            return {"tasks": await self.creation.tasks(list(msg.orders), msg.key)}
+            trays = {t.order: t.tray for t in msg.trays} if msg.trays is not None else None
+            return {"tasks": await self.creation.tasks(list(msg.orders), msg.key, trays=trays)}
         # Onto a trip at the pass: under its robot's lock, so that Go waits for the dishes.
         robot = (await self.store.tasks.get_task(msg.task)).robot
         if robot is None:
@@ -185,6 +200,24 @@ class Instructions:
     async def _site(self, msg: Any, actor: str | None) -> dict[str, Any]:
         return await self.site.site(msg, actor)
 
+    async def _create_bussing(self, msg: P.CreateBussing, actor: str | None) -> dict[str, Any]:
+        return {"task": await self.calls.bussing(list(msg.tables), msg.key)}
+
+    async def _call_answer(self, msg: P.CallAnswer, actor: str | None) -> dict[str, Any]:
+        return await self.calls.answer(msg.call, actor)
+
+    async def _call_cancel(self, msg: P.CallCancel, actor: str | None) -> dict[str, Any]:
+        return await self.calls.cancel(msg.call, actor)
+
+    async def _add_button(self, msg: P.SiteAddButton, actor: str | None) -> dict[str, Any]:
+        return await self.calls.add_button(msg.name, msg.table, CallKind(msg.kind))
+
+    async def _buttons(self, msg: P.SiteButtons, actor: str | None) -> dict[str, Any]:
+        return await self.calls.buttons()
+
+    async def _revoke_button(self, msg: P.SiteRevokeButton, actor: str | None) -> dict[str, Any]:
+        return await self.calls.revoke_button(msg.name)
+
 
 #: Client message type -> what it does (the robot actions go through
 #: :data:`serveur.core.actions.ACTIONS` once the status machine allowed them).
@@ -200,5 +233,11 @@ _VERBS: dict[type, Verb] = {
     P.AckMsg: Instructions._ack,
     P.ClearMsg: Instructions._clear,
     P.ReleaseMsg: Instructions._release,
+    P.CreateBussing: Instructions._create_bussing,
+    P.CallAnswer: Instructions._call_answer,
+    P.CallCancel: Instructions._call_cancel,
+    P.SiteAddButton: Instructions._add_button,
+    P.SiteButtons: Instructions._buttons,
+    P.SiteRevokeButton: Instructions._revoke_button,
     **{cls: Instructions._site for cls in SITE_ACTIONS},
 }

@@ -36,6 +36,9 @@ from serveur import protocol as P
 from serveur.core.camera import CameraRelay, CameraSource
 from serveur.core.crew import Crew
 from serveur.core.events import (
+    Charged,
+    ChargeDue,
+    CruiseResume,
     GoalEnded,
     HandoverDue,
     LeaseGranted,
@@ -47,7 +50,7 @@ from serveur.core.events import (
     TableTimeout,
 )
 from serveur.core.runtime import Destination, Runtime
-from serveur.domain import Robot, Task
+from serveur.domain import Robot, StopPurpose, Task
 from serveur.errors import Conflict, Forbidden, LinkError, Stale, StoreError
 from serveur.robots import rosbridge as rb
 from serveur.robots.camera import RosbridgeCamera
@@ -323,9 +326,41 @@ class RobotController:
             or robot.status_since != ev.since
         ):
             return  # food collected (or skipped) meanwhile
+        if self.rt.at_stop in (StopPurpose.COLLECT, StopPurpose.VISIT):
+            # Used dishes collected (what was put on), or a cruise's pause over: on it goes.
+            await self.serve()
+            await self.crew.publisher.flush_events()
+            return
         limit = self.crew.config.table_timeout or 0.0
         log.warning("%s: nobody collected the food in %g s, going on", self.name, limit)
         await self.skip(f"nobody collected the food in {limit:g} s", None)
+        await self.crew.publisher.flush_events()
+
+    async def _on_charge_due(self, _: ChargeDue) -> None:
+        rt = self.rt
+        if rt.state.status is not S.AWAITING or self.record.dock is None:
+            return  # given a trip, or taken by staff, meanwhile
+        log.info("%s: battery %.0f%%, going to charge", self.name, (rt.battery or 0) * 100)
+        await self.charge()
+        await self.crew.publisher.flush_events()
+
+    async def _on_charged(self, _: Charged) -> None:
+        if self.rt.state.status is not S.CHARGING:
+            return
+        log.info("%s: charged to %.0f%%, back to work", self.name, (self.rt.battery or 0) * 100)
+        await self.work()
+        await self.crew.publisher.flush_events()
+
+    async def _on_cruise_resume(self, ev: CruiseResume) -> None:
+        robot = self.record
+        if (
+            self.rt.state.status is not S.STOPPED
+            or robot.current_task != ev.task_id
+            or robot.status_since != ev.since
+        ):
+            return  # staff sent it on, or elsewhere, meanwhile
+        await self.event(Event.CONTINUE)
+        await self.resume_move()
         await self.crew.publisher.flush_events()
 
     # -- checks before an instruction -------------------------------------------------------
@@ -376,6 +411,8 @@ class RobotController:
         await self._go_on(await self.crew.trips.skip_stop(self.name, reason, actor))
 
     async def _go_on(self, task: Task) -> None:
+        self.rt.at_stop, self.rt.special = None, False
+        self.rt.trip_kind = task.kind if task.current_stop < len(task.stops) else None
         if task.current_stop < len(task.stops):
             await self.event(Event.NEXT_TABLE)
             await self.drive(self.stop_dest(task))
@@ -384,8 +421,60 @@ class RobotController:
             await self.drive(self.home_dest())
 
     def stop_dest(self, task: Task) -> Destination:
-        wp = self.crew.places.waypoint(task.stops[task.current_stop].table)
-        return Destination("table", wp.name, wp.x, wp.y, wp.yaw)
+        stop = task.stops[task.current_stop]
+        wp = self.crew.places.waypoint(stop.table)
+        at_table = stop.purpose in (StopPurpose.DELIVER, StopPurpose.COLLECT)
+        return Destination("table" if at_table else "place", wp.name, wp.x, wp.y, wp.yaw)
+
+    def dock_dest(self) -> Destination:
+        dock = self.record.dock
+        if dock is None:
+            raise Conflict(
+                f"robot {self.name} has no dock: set its charger's place first",
+                robot=self.name,
+                reason="no_dock",
+            )
+        wp = self.crew.places.waypoint(dock)
+        return Destination("dock", wp.name, wp.x, wp.y, wp.yaw)
+
+    def transit_dest(self) -> Destination:
+        """Where a robot in Transit is going: its dock when sent to charge, else home."""
+        return self.dock_dest() if self.rt.to_dock else self.home_dest()
+
+    # -- charging and cruising --------------------------------------------------------------
+
+    async def charge(self) -> None:
+        """Off to the dock (from Awaiting); Charging once there."""
+        dest = self.dock_dest()
+        self.rt.to_dock = True
+        await self.event(Event.CHARGE)
+        await self.drive(dest)
+
+    async def work(self) -> None:
+        """Off the dock, home, back into service."""
+        rt = self.rt
+        rt.to_dock = False
+        rt.charge_watch.left()
+        rt.not_charging = False
+        await self.event(Event.UNDOCK)
+        if rt.link is not None:
+            try:
+                await rt.link.undock()
+            except LinkError as exc:
+                log.warning("%s: undock not sent: %s", self.name, exc)
+        await self.drive(self.home_dest())
+
+    async def recall(self, reason: str) -> None:
+        """A cruise ends (dishes wait and no robot is free): home, into service."""
+        rt = self.rt
+        if rt.link is not None:
+            with contextlib.suppress(LinkError):
+                await rt.link.cancel_goal()
+        rt.goal_id = None
+        await self.crew.trips.abandon(self.name, reason)
+        rt.at_stop, rt.trip_kind = None, None
+        await self.event(Event.RECALL)
+        await self.drive(self.home_dest())
 
     def home_dest(self) -> Destination:
         home = self.record.home
@@ -409,6 +498,7 @@ class RobotController:
         rt.dest = dest
         rt.goal_id = None
         rt.resume_dest = None
+        rt.to_dock = dest.kind == "dock"
         if await self.crew.traffic.lease_leg(self, dest):
             await self.send_goal(dest)
 
@@ -416,7 +506,10 @@ class RobotController:
         rt = self.rt
         assert rt.link is not None
         try:
-            rt.goal_id = await rt.link.send_goal(dest.x, dest.y, dest.yaw)
+            if dest.kind == "dock":
+                rt.goal_id = await rt.link.dock(dest.x, dest.y, dest.yaw, dest.name)
+            else:
+                rt.goal_id = await rt.link.send_goal(dest.x, dest.y, dest.yaw)
         except LinkError as exc:
             rt.goal_id = None  # re-sent when the link is back (resume)
             log.warning("%s: goal to %s not sent: %s", self.name, dest.name, exc)
@@ -437,16 +530,26 @@ class RobotController:
             else:
                 await self.drive(dest)
         elif status is S.TRANSIT:
-            dest = self.home_dest()
+            dest = self.transit_dest()
             if self._near(dest):
                 self.rt.dest = dest
-                await self.event(Event.ARRIVED)
+                await self._arrived()
             else:
                 await self.drive(dest)
 
     async def _arrived(self) -> None:
-        if self.rt.state.status is S.DELIVERING:
-            await self.crew.trips.arrive(self.name)
+        rt = self.rt
+        if rt.state.status is S.DELIVERING:
+            task, special = await self.crew.trips.arrive(self.name)
+            stop = task.stops[task.current_stop]
+            rt.trip_kind, rt.at_stop, rt.special = task.kind, stop.purpose, special
+            if stop.purpose is StopPurpose.COLLECT:
+                await self.crew.calls.robot_at(task.id, stop.table, self.name)
+        elif rt.state.status is S.TRANSIT and rt.to_dock:
+            rt.to_dock = False
+            rt.charge_watch.docked(self.crew.clock.epoch(), rt.battery)
+            await self.event(Event.DOCKED)
+            return
         await self.event(Event.ARRIVED)
 
     async def _goal_ended(
@@ -511,6 +614,9 @@ _ON_EVENT: dict[type, Callable[[RobotController, Any], Awaitable[None]]] = {
     HandoverDue: RobotController._on_handover,
     PersistPose: RobotController._on_persist,
     TableTimeout: RobotController._on_table_timeout,
+    ChargeDue: RobotController._on_charge_due,
+    Charged: RobotController._on_charged,
+    CruiseResume: RobotController._on_cruise_resume,
 }
 
 

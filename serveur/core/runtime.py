@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 from serveur.core.events import RobotEvent
 from serveur.core.localisation import Localisation
+from serveur.core.modes import ChargeWatch
+from serveur.domain import StopPurpose, TaskKind
 from serveur.robots.driver import RobotDriver
 from serveur.status import RobotState
 
@@ -60,6 +62,22 @@ class CoreConfig:
     #: Zones are leased (serveur.core.leases) when the owner has drawn any; False ignores
     #: them (the replay's "without leases" runs).
     leases: bool = True
+    #: Guests' calls (serveur.core.calls): a call nobody answered this long (s) is escalated
+    #: (every console rings louder, an alert is raised). Two minutes: a waiter on the floor
+    #: answers within one; the hospitality call systems escalate after one to three.
+    call_escalate: float = 120.0
+    #: Bussing: how long a robot waits at a table for the used dishes before it goes on by
+    #: itself, and the most a bussing trip may hold back a dish waiting at the pass (s).
+    bussing_wait: float = 120.0
+    bussing_max_delay: float = 90.0
+    #: Charging (serveur.core.charging): a free robot with a dock goes to charge below
+    #: ``charge_below`` and comes back into service at ``charge_until`` (battery fractions).
+    charge_below: float = 0.25
+    charge_until: float = 0.90
+    #: Cruise: seconds at each place of the round, and before going on once someone touched
+    #: the robot's screen.
+    cruise_pause: float = 20.0
+    cruise_resume: float = 30.0
     #: The pages' languages (the owner's settings change them): offered, and the default.
     languages: tuple[str, ...] = ("en", "zh", "ms")
     language: str = "en"
@@ -69,7 +87,7 @@ class CoreConfig:
 class Destination:
     """Where a robot was last sent: the goal a SUCCEEDED result is checked against."""
 
-    kind: str  # "table" | "home" | "manual"
+    kind: str  # "table" | "place" (dish return, a cruise's) | "home" | "dock" | "manual"
     name: str
     x: float
     y: float
@@ -111,6 +129,16 @@ class Runtime:
     odometer: float = 0.0  # metres driven since this server started (in each status event)
     #: How sure it is of where it is (lost: no trips, an alert); from its poses' spread.
     localisation: Localisation = field(default_factory=Localisation)
+    #: What its trip is for, and what it does at the stop it stands at (None: no trip, or not
+    #: at a stop): the screens' words and how long it waits there (serveur.core.modes).
+    trip_kind: TaskKind | None = None
+    at_stop: StopPurpose | None = None
+    special: bool = False  # a special delivery (a birthday) at this stop: no timeout
+    to_dock: bool = False  # its Transit is to its dock, not home
+    #: Whether its battery rises while on the dock (serveur.core.modes.ChargeWatch).
+    charge_watch: ChargeWatch = field(default_factory=ChargeWatch)
+    not_charging: bool = False
+    resumed: float | None = None  # the stop (status_since) a cruise resume was posted for
 
 
 def pose_dict(pose: tuple[float, float, float], stamp: float) -> dict[str, float]:

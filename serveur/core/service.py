@@ -31,7 +31,7 @@ from serveur.core.alerts import (
 )
 from serveur.core.places import Places
 from serveur.core.publisher import Publisher
-from serveur.domain import DishAction, MenuItem, Order, OrderStatus, TableBlock
+from serveur.domain import Call, DishAction, MenuItem, Order, OrderStatus, TableBlock
 from serveur.errors import InvalidField, ServeurError, Stale, Unreachable
 from serveur.store.base import Store
 
@@ -48,8 +48,12 @@ class ServiceHost(Protocol):
 
     def robot_facts(self) -> list[RobotFact]: ...
 
-    def table_timeouts(self) -> None:
-        """Post a timeout to each robot waiting at a table past the site's limit."""
+    def timers(self) -> None:
+        """Post each robot what its waiting has come to (a stop's wait over, charging)."""
+        ...
+
+    async def escalate_calls(self) -> list[Call]:
+        """Escalate the calls nobody answered in time; the escalated calls still open."""
         ...
 
 
@@ -178,8 +182,9 @@ class Service:
         self._publisher.pub("alerts", alert)
         return alert
 
-    async def evaluate(self, host: ServiceHost) -> list[Alert]:
-        """Raise and clear alerts from the restaurant as it is now."""
+    async def evaluate(self, host: ServiceHost, calls: Iterable[Call] = ()) -> list[Alert]:
+        """Raise and clear alerts from the restaurant as it is now (``calls``: the escalated
+        calls still open)."""
         now = self._clock.epoch()
         pending = await self._store.orders.list_orders(status=OrderStatus.PENDING)
         dishes = [DishFact(o.table, o.ready_at) for o in pending if o.ready_at is not None]
@@ -187,6 +192,7 @@ class Service:
             host.robot_facts(),
             dishes,
             {t: b.reason for t, b in self.blocks.items()},
+            calls=calls,
             now=now,
             active=self.alerts.keys(),
             limits=self._limits,
@@ -204,8 +210,8 @@ class Service:
     async def _watch(self, host: ServiceHost) -> None:
         while True:
             try:
-                host.table_timeouts()
-                await self.evaluate(host)
+                host.timers()
+                await self.evaluate(host, await host.escalate_calls())
                 await self._publisher.flush_events()
             except ServeurError as exc:  # a busy or full disk: try again next tick
                 log.warning("service watch: %s", exc)

@@ -42,6 +42,17 @@ log = logging.getLogger("serveur.core.engine")
 TARGET_WAIT = 600.0
 #: A robot's fields whose change means connecting to it anew.
 _RELINK = ("url", "kinematics", "link")
+#: The settings of the modes besides delivering, kept on the core's config (seconds or battery
+#: fractions; serveur.core.runtime.CoreConfig says what each does).
+MODE_SETTINGS = (
+    "call_escalate",
+    "bussing_wait",
+    "bussing_max_delay",
+    "charge_below",
+    "charge_until",
+    "cruise_pause",
+    "cruise_resume",
+)
 
 
 class Fleet(Protocol):
@@ -123,6 +134,7 @@ class Site:
             "name": self.name,
             "public_url": self.public_url,
             "target_wait": self.target_wait,
+            **{k: getattr(self.config, k) for k in MODE_SETTINGS},
         }
 
     async def load_settings(self) -> None:
@@ -144,6 +156,9 @@ class Site:
             self.public_url = values["public_url"] or None
         if "target_wait" in values:
             self.target_wait = float(values["target_wait"])
+        for k in MODE_SETTINGS:
+            if k in values and values[k] is not None:
+                setattr(self.config, k, float(values[k]))
         if "languages" in values:
             self.languages = [x for x in values["languages"] if x in P.LANGUAGES] or ["en"]
         if "language" in values and values["language"] in self.languages:
@@ -158,6 +173,14 @@ class Site:
         if lang not in langs:
             raise InvalidField(f"{lang} is not among the languages offered", field="language")
         changes["language"] = lang
+        below = changes.get("charge_below", self.config.charge_below)
+        until = changes.get("charge_until", self.config.charge_until)
+        if until <= below:
+            raise InvalidField(
+                f"a robot would charge below {below:g} and stop at {until:g}: charge_until"
+                " must be above charge_below",
+                field="charge_until",
+            )
         await self.store.service.put_settings(changes, now=self.clock.epoch(), by=actor)
         self._apply_settings(changes)
         self.publisher.pub("settings", self.settings())
@@ -221,7 +244,7 @@ class Site:
             )
             # Keep the live status fields: the core's record is the one the links update.
             self._robots[rt.name] = old.model_copy(
-                update={k: getattr(robot, k) for k in (*_RELINK, "home", "trays")}
+                update={k: getattr(robot, k) for k in (*_RELINK, "home", "trays", "dock")}
             )
             if relink and rt.link is not None:
                 log.info("%s: reconnecting to %s (edited by %s)", rt.name, robot.url, actor)

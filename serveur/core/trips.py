@@ -17,7 +17,7 @@ from serveur.clock import Clock
 from serveur.core.places import Places
 from serveur.core.publisher import Publisher
 from serveur.core.runtime import CoreConfig
-from serveur.domain import Order, Robot, StopStatus, Task, TaskStatus
+from serveur.domain import Order, Robot, StopPurpose, StopStatus, Task, TaskKind, TaskStatus
 from serveur.errors import Conflict
 from serveur.scheduler import order_stops
 from serveur.status import RobotMode, RobotStatus
@@ -125,8 +125,14 @@ class Trips:
         home = self._robots[robot].home or self._origin()
         task = await self._store.tasks.get_task(task_id)
         order = [s.table for s in task.stops]
-        if self._config.policy == "baseline":
-            stop_order = order  # the cart's order, as the design report's robot does
+        if task.kind is TaskKind.CRUISE or self._config.policy == "baseline":
+            stop_order = order  # the round as drawn; the cart's order, as the report's robot
+        elif task.kind is TaskKind.BUSSING:
+            # The tables in the shortest order, the dish return last.
+            tables = [s.table for s in task.stops if s.purpose is StopPurpose.COLLECT]
+            last = [s.table for s in task.stops if s.purpose is not StopPurpose.COLLECT]
+            end = last[0] if last else home
+            stop_order = order_stops(home, tables, self._places.distance, end=end) + last
         else:
             stop_order = order_stops(home, order, self._places.distance, end=home)
         try:
@@ -140,13 +146,20 @@ class Trips:
         await self._publisher.pub_orders([o for s in task.stops for o in s.orders])
         return task
 
-    async def arrive(self, robot: str) -> None:
-        """The robot reached the current stop of its trip."""
+    async def arrive(self, robot: str) -> tuple[Task, bool]:
+        """The robot reached the current stop of its trip: the trip, and whether a dish of
+        the stop is a special delivery (it then waits for Done, without a timeout)."""
         task = await self.current(robot)
         task = await self._store.tasks.arrive_stop(
             task.id, task.stops[task.current_stop].seq, now=self._clock.epoch()
         )
         self._publisher.pub_task(task)
+        ids = set(task.stops[task.current_stop].orders)
+        special = False
+        if ids:
+            aboard = await self._store.orders.list_orders(task_id=task.id)
+            special = any(o.special is not None for o in aboard if o.id in ids)
+        return task, special
 
     async def serve_stop(self, robot: str) -> Task:
         """Food collected at the current stop; the trip, finished (``done``) after the last."""
@@ -169,7 +182,11 @@ class Trips:
         """Publish a stop served or skipped; after the trip's last stop, finish the trip."""
         self._publisher.pub_task(task)
         await self._publisher.pub_orders(orders)
-        if task.current_stop >= len(task.stops):
+        if task.current_stop >= len(task.stops) and task.kind is TaskKind.CRUISE:
+            # A round is over: the next begins at the first place (it ends when recalled).
+            task = await self._store.rounds.restart(task.id, now=self._clock.epoch())
+            self._publisher.pub_task(task)
+        elif task.current_stop >= len(task.stops):
             task = await self._store.tasks.finish_task(task.id, now=self._clock.epoch())
             self._robots[robot] = await self._store.robots.get_robot(robot)
             self._publisher.pub_task(task)
@@ -204,6 +221,10 @@ class Trips:
     async def hand_back(self, robot: str, task_id: int, reason: str) -> None:
         """Take the trip off a robot gone too long and requeue it whole for another robot."""
         now = self._clock.epoch()
+        if (await self._store.tasks.get_task(task_id)).kind is TaskKind.CRUISE:
+            # Nobody else is sent on a round of snacks: the cruise simply ends.
+            await self.abandon(robot, reason)
+            return
         try:
             task = await self._store.tasks.requeue_task(task_id, now=now, reason=reason)
         except Conflict:

@@ -162,6 +162,7 @@ def required_scope(msg: Any) -> Scope:
             "robot": Scope.ROBOTS,
             "dish": Scope.MENU,
             "zone": Scope.SITE,  # the owner's drawing of the room
+            "bussing": Scope.TASKS,
         }[msg.type]
     if verb == "dish":
         return Scope.ORDERS
@@ -169,7 +170,7 @@ def required_scope(msg: Any) -> Scope:
         return Scope.TASKS
     if verb in ("control", "ready", "camera"):  # watching a camera is part of manual control
         return Scope.CONTROL
-    if verb in ("next", "stop", "continue", "cancel"):
+    if verb in ("next", "stop", "continue", "cancel", "call", "charge", "work", "cruise"):
         return Scope.TASKS
     if verb == "account":
         return Scope.ACCOUNTS
@@ -194,7 +195,7 @@ def topic_allowed(p: Principal, topic: str) -> bool:
             kind == "pose" and robot == p.robot
         )
     if p.role is Role.TABLE_SCREEN:
-        return topic in ("orders", "tasks", "menu", "settings")
+        return topic in ("orders", "tasks", "menu", "settings", "calls")
     if topic == "audit":
         return Scope.AUDIT in p.scopes
     if topic == "forecast":
@@ -231,6 +232,10 @@ def authorize(p: Principal | None, msg: Any) -> None:
             return
         if verb == "next":
             return  # only for the robot at this table: the core checks (Core.handle)
+        if verb == "call" and msg.action == "open":
+            if msg.table != p.table:
+                raise Forbidden(f"this screen belongs to table {p.table}", table=msg.table)
+            return
         raise Forbidden(f"a table screen may not send {verb!r}")
     if verb == "data":
         _topics(p, msg.topics)
@@ -267,7 +272,7 @@ def visible(p: Principal, topic: str, record: Any, task_robot: Callable[[int], s
             return any(s.table == p.table for s in getattr(record, "stops", ()))
         if topic in ("menu", "settings"):
             return True
-        return topic == "orders" and getattr(record, "table", None) == p.table
+        return topic in ("orders", "calls") and getattr(record, "table", None) == p.table
     return True
 
 

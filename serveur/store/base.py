@@ -35,9 +35,11 @@ from types import TracebackType
 from typing import Self
 
 from serveur.store.accounts import Accounts, Audit, TokenRecord, UserRecord
+from serveur.store.calls import Calls
 from serveur.store.events import Events
 from serveur.store.orders import Orders
 from serveur.store.robots import Robots
+from serveur.store.rounds import Rounds
 from serveur.store.service import Service
 from serveur.store.sitemap import SiteBackdrop, SiteMap, StoredBackdrop, StoredMap
 from serveur.store.sql import Db
@@ -68,6 +70,8 @@ class Store:
         self.waypoints = Waypoints(db)
         self.orders = Orders(db)
         self.tasks = Tasks(db)
+        self.rounds = Rounds(db)
+        self.calls = Calls(db)
         self.events = Events(db)
         self.accounts = Accounts(db)
         self.audit = Audit(db)

@@ -68,6 +68,7 @@ def check_new_order(
     quantity: int,
     note: str | None,
     status: OrderStatus,
+    special: str | None = None,
 ) -> tuple[str | None, float | None, str]:
     """A new order's fields checked, as every backend's ``add_order`` needs them: the note
     (stripped, None if empty), ``ready_at`` (None while only ordered) and the fingerprint a
@@ -82,7 +83,12 @@ def check_new_order(
     # The first fields alone for a plain dish ready at the pass: keys stored before quantity,
     # note and status existed still match their resends.
     plain = (quantity, note, status) == (1, None, OrderStatus.PENDING)
-    extra = [] if plain else [quantity, note, status.value]
+    extra: list[object] = [] if plain else [quantity, note, status.value]
+    if special is not None:
+        check_text(special, "special")
+        if len(special) > 120:
+            raise InvalidField("a special message is at most 120 characters", field="special")
+        extra.append(["special", special])
     return note, ready_at, digest(["order", dish, table, *extra])
 
 

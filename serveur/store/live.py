@@ -15,7 +15,7 @@ __all__ = ["ROBOT", "ROBOT_NAMED", "WAYPOINT", "WAYPOINT_NAMED"]
 #: Every live robot's record (append ``AND ...`` or ``ORDER BY ...``).
 ROBOT: Final = (
     "SELECT name, url, home, kinematics, link, mode, status, resume, current_task, battery,"
-    " x, y, yaw, last_error, updated_at, status_since, trays FROM robot_info"
+    " x, y, yaw, last_error, updated_at, status_since, trays, dock FROM robot_info"
     " WHERE removed_at IS NULL"
 )
 #: Every live waypoint (append ``AND ...`` or ``ORDER BY ...``).

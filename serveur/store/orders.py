@@ -39,12 +39,19 @@ class Orders:
         quantity: int = 1,
         note: str | None = None,
         status: OrderStatus = OrderStatus.PENDING,
+        special: str | None = None,
     ) -> Order:
         """A dish for ``table``: ready at the pass (``pending``, at ``ready_at``) or just
         ``ordered`` (the kitchen marks it ready later); ``key`` makes a resend return the same
         order."""
         note, ready_at, fingerprint = check_new_order(
-            dish, table, ready_at=ready_at, quantity=quantity, note=note, status=status
+            dish,
+            table,
+            ready_at=ready_at,
+            quantity=quantity,
+            note=note,
+            status=status,
+            special=special,
         )
         if key is not None:
             self._db.dialect.check_name(key, "key")
@@ -57,8 +64,8 @@ class Orders:
             await rows.get_waypoint(tx, table)
             order_id = await tx.insert(
                 "INSERT INTO orders (dish, res_table, `key`, ready_at, status, quantity, note,"
-                " ordered_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                (dish, table, key, ready_at, status.value, quantity, note, now),
+                " ordered_at, special) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (dish, table, key, ready_at, status.value, quantity, note, now, special),
             )
             if key is not None:
                 await rows.remember(tx, key, "order", fingerprint, {"order_id": order_id}, now)
@@ -71,6 +78,8 @@ class Orders:
                 "quantity": quantity,
                 "note": note,
             }
+            if special is not None:
+                data["special"] = special
             await rows.add_event(tx, "order.created", now, order_id=order_id, data=data)
             return await rows.get_order(tx, order_id)
 

@@ -11,7 +11,7 @@ import json
 from collections.abc import Mapping
 from typing import Any, Final
 
-from serveur.domain import Robot
+from serveur.domain import Robot, WaypointKind
 from serveur.errors import Conflict, InvalidField, NotFound
 from serveur.status import RobotMode, RobotStatus
 from serveur.store import rows
@@ -212,9 +212,9 @@ class Robots:
         self, name: str, changes: Mapping[str, Any], *, now: float, by: str | None = None
     ) -> Robot:
         """Change a robot's ``url``, ``home``, ``kinematics``, ``link`` (a dict) and/or
-        ``trays`` (None: the site's); fields not in ``changes`` are kept. One event lists
+        ``trays`` (None: the site's), ``dock`` (a place of kind dock); fields not in ``changes`` are kept. One event lists
         what changed; nothing changed is a no-op."""
-        allowed = {"url", "home", "kinematics", "link", "trays"}
+        allowed = {"url", "home", "kinematics", "link", "trays", "dock"}
         if not changes or set(changes) - allowed:
             raise InvalidField(f"a robot edit changes some of {sorted(allowed)}", field="changes")
 
@@ -226,6 +226,14 @@ class Robots:
             new = {k: v for k, v in changes.items() if old[k] != v}
             if new.get("home") is not None:
                 await rows.get_waypoint(tx, new["home"])
+            if new.get("dock") is not None:
+                dock = await rows.get_waypoint(tx, new["dock"])
+                if dock.kind is not WaypointKind.DOCK:
+                    raise InvalidField(
+                        f"{dock.name} is not a dock (it is a {dock.kind.value})",
+                        field="dock",
+                        waypoint=dock.name,
+                    )
             if new:
                 sets = ", ".join(f"{k} = ?" for k in new)
                 values = [

@@ -40,18 +40,20 @@ __all__ = [
 
 ORDER: Final = (
     "SELECT id, dish, res_table AS `table`, status, task_num AS task_id, `key`, ready_at,"
-    " dispatched_at, delivered_at, quantity, note, ordered_at, returned_at, voided_at FROM orders"
+    " dispatched_at, delivered_at, quantity, note, ordered_at, returned_at, voided_at, special,"
+    " tray FROM orders"
 )
 EVENT: Final = "SELECT id, ts, kind, robot, task_id, order_id, data FROM events"
 TASK: Final = (
-    "SELECT id, robot_name AS robot, status, current_stop, created_at, started_at, finished_at"
-    " FROM task"
+    "SELECT id, robot_name AS robot, kind, status, current_stop, created_at, started_at,"
+    " finished_at FROM task"
 )
 # A stop's dishes are the trip's orders for its table (see 001_init), and those it carried
 # before it was skipped (returned, 008): gathered per stop in the same query, so a task list
 # costs two statements whatever its size.
 _STOPS = (
-    "SELECT s.task_id, s.seq, s.waypoint AS `table`, s.status, s.arrived_at, s.done_at,"
+    "SELECT s.task_id, s.seq, s.waypoint AS `table`, s.status, s.purpose, s.arrived_at,"
+    " s.done_at,"
     " s.returned, (SELECT {ids}(o.id) FROM orders AS o"
     "   WHERE o.task_num = s.task_id AND o.res_table = s.waypoint) AS orders"
     " FROM task_stop AS s WHERE s.task_id IN (SELECT id FROM task WHERE {where})"

@@ -12,7 +12,7 @@ at most one trip, "food collected" counts once.
 from __future__ import annotations
 
 import json
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from typing import Any
 
 from serveur.domain import Stop, StopStatus, Task, TaskStatus
@@ -62,8 +62,10 @@ class Tasks:
         key: str | None = None,
         fingerprint: str = "",
         now: float,
+        trays: Mapping[int, int] | None = None,
     ) -> list[Task]:
-        """Queue trips (each: stops in visiting order as ``(table, order ids)``) atomically.
+        """Queue trips (each: stops in visiting order as ``(table, order ids)``) atomically;
+        ``trays`` puts dishes (by id) on the trays staff chose.
 
         All or nothing: one missing, non-pending, repeated or misplaced order and no trip is
         created. With ``key``, a resend with the same ``fingerprint`` (the caller's digest of
@@ -101,6 +103,13 @@ class Tasks:
             if taken:
                 raise Conflict(f"order(s) {taken} are not pending", orders=taken)
             task_ids = [await self._queue_trip(tx, trip, now) for trip in plan]
+            if trays:
+                if not set(trays) <= set(wanted):
+                    raise InvalidField("a tray is chosen for a dish not on the trip", field="trays")
+                await tx.many(
+                    "UPDATE orders SET tray = ? WHERE id = ?",
+                    [(tray, oid) for oid, tray in sorted(trays.items())],
+                )
             if key is not None:
                 await rows.remember(tx, key, "tasks", plan_digest, {"task_ids": task_ids}, now)
             return await rows.get_tasks(tx, sql_in("id", task_ids), task_ids)

@@ -74,6 +74,7 @@ STATE_TOPICS: Final = (
     "blocks",
     "settings",
     "forecast",
+    "calls",
     "zones",
     "leases",
 )
@@ -104,6 +105,10 @@ VERBS: Final = (
     "stats",
     "release",
     "camera",
+    "call",
+    "charge",
+    "work",
+    "cruise",
 )
 
 #: Limits of the work area: far beyond any restaurant, close enough to catch unit mistakes.

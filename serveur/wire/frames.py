@@ -89,6 +89,25 @@ class Settings(_ServerModel):
         description="seconds within which the owner wants 95 % of dishes at their table (the"
         " forecast's target)",
     )
+    call_escalate: float = Field(
+        default=120.0, description="seconds after which a call nobody answered is escalated"
+    )
+    bussing_wait: float = Field(
+        default=120.0, description="seconds a bussing robot waits at a table for used dishes"
+    )
+    bussing_max_delay: float = Field(
+        default=90.0, description="the most a bussing trip may hold back a waiting dish (s)"
+    )
+    charge_below: float = Field(
+        default=0.25, description="a free robot with a dock goes to charge below this fraction"
+    )
+    charge_until: float = Field(
+        default=0.90, description="a charging robot comes back into service at this fraction"
+    )
+    cruise_pause: float = Field(default=20.0, description="seconds at each place of a cruise")
+    cruise_resume: float = Field(
+        default=30.0, description="seconds a touched cruising robot waits before going on"
+    )
 
 
 class Dependents(_ServerModel):

@@ -17,6 +17,7 @@ from pydantic_core import PydanticCustomError
 
 from serveur.wire.backups import SiteBackupNow, SiteBackups, SiteDownloadBackup, SiteRestore
 from serveur.wire.base import ClientModel
+from serveur.wire.calls import SiteAddButton, SiteButtons, SiteRevokeButton
 from serveur.wire.fields import Name, OrderId, WsUrl
 from serveur.wire.uploads import (
     SiteAlignMap,
@@ -62,6 +63,13 @@ SETTINGS = (
     "name",
     "public_url",
     "target_wait",
+    "call_escalate",
+    "bussing_wait",
+    "bussing_max_delay",
+    "charge_below",
+    "charge_until",
+    "cruise_pause",
+    "cruise_resume",
 )
 #: The restaurant's address as its tablets reach it: scheme, host and port, nothing after.
 PublicUrl = Annotated[str, Field(max_length=200, pattern=r"^https?://[^\s/#?@]+$")]
@@ -98,6 +106,9 @@ class SiteEditRobot(_SiteMsg):
     trays: Annotated[int, Field(ge=1, le=12)] | None = Field(
         default=None, description="null (given): the site's"
     )
+    dock: Name | None = Field(
+        default=None, description="its charger, a place of kind dock; null (given): none"
+    )
 
     @model_validator(mode="after")
     def _something(self) -> SiteEditRobot:
@@ -110,7 +121,7 @@ class SiteEditRobot(_SiteMsg):
 
     def changes(self) -> dict[str, Any]:
         """The fields given, with their new values (``home``/``trays`` may be None)."""
-        keys = ("url", "home", "kinematics", "link", "trays")
+        keys = ("url", "home", "kinematics", "link", "trays", "dock")
         return {k: getattr(self, k) for k in keys if k in self.model_fields_set}
 
 
@@ -195,6 +206,33 @@ class SiteSetSettings(_SiteMsg):
         description="seconds within which the owner wants 95 % of dishes at their table:"
         " the forecast recommends the smallest fleet that meets it",
     )
+    call_escalate: Annotated[float, Field(ge=15, le=3600)] | None = Field(
+        default=None, description="seconds after which a call nobody answered is escalated"
+    )
+    bussing_wait: Annotated[float, Field(ge=10, le=1800)] | None = Field(
+        default=None,
+        description="seconds a bussing robot waits at a table for the used dishes before it"
+        " goes on by itself",
+    )
+    bussing_max_delay: Annotated[float, Field(ge=0, le=1800)] | None = Field(
+        default=None,
+        description="the most a bussing trip may hold back a dish waiting at the pass, in"
+        " seconds: a bussing trip that could delay one longer waits",
+    )
+    charge_below: Annotated[float, Field(ge=0.05, le=0.8)] | None = Field(
+        default=None,
+        description="a free robot with a dock goes to charge below this battery fraction",
+    )
+    charge_until: Annotated[float, Field(ge=0.2, le=1.0)] | None = Field(
+        default=None, description="a charging robot comes back into service at this fraction"
+    )
+    cruise_pause: Annotated[float, Field(ge=0, le=600)] | None = Field(
+        default=None, description="seconds a cruising robot stops at each place of its round"
+    )
+    cruise_resume: Annotated[float, Field(ge=5, le=600)] | None = Field(
+        default=None,
+        description="seconds a cruising robot someone touched waits before it goes on",
+    )
 
     @model_validator(mode="after")
     def _something(self) -> SiteSetSettings:
@@ -208,9 +246,19 @@ class SiteSetSettings(_SiteMsg):
             "cameras",
             "name",
             "target_wait",
+            "call_escalate",
+            "bussing_wait",
+            "bussing_max_delay",
+            "charge_below",
+            "charge_until",
+            "cruise_pause",
+            "cruise_resume",
         ):
             if key in self.model_fields_set and getattr(self, key) is None:
                 raise PydanticCustomError("not_null", f"{key} cannot be null")
+        below, until = self.charge_below, self.charge_until
+        if below is not None and until is not None and until <= below:
+            raise PydanticCustomError("charge_levels", "charge_until must be above charge_below")
         if self.languages is not None and len(set(self.languages)) != len(self.languages):
             raise PydanticCustomError("duplicate", "a language is named twice")
         return self
@@ -256,7 +304,10 @@ SiteMessage: TypeAlias = Annotated[
     | SiteBackups
     | SiteBackupNow
     | SiteDownloadBackup
-    | SiteRestore,
+    | SiteRestore
+    | SiteAddButton
+    | SiteButtons
+    | SiteRevokeButton,
     Field(discriminator="action"),
 ]
 

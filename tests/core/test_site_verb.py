@@ -157,6 +157,8 @@ async def test_settings_apply_at_once_and_survive_a_restart(tmp_path: Path) -> N
                 languages=["zh", "en"],
                 language="zh",
                 target_wait=480,
+                call_escalate=60,
+                charge_below=0.3,
             ),
         )
         assert changed["settings"] == {
@@ -169,8 +171,21 @@ async def test_settings_apply_at_once_and_survive_a_restart(tmp_path: Path) -> N
             "name": "",
             "public_url": None,
             "target_wait": 480.0,
+            "call_escalate": 60.0,
+            "bussing_wait": 120.0,
+            "bussing_max_delay": 90.0,
+            "charge_below": 0.3,
+            "charge_until": 0.9,
+            "cruise_pause": 20.0,
+            "cruise_resume": 30.0,
         }
         assert app.core is not None and app.core.config.table_timeout == 60.0
+        # A robot would charge below 50 % and stop at 40 %: refused, nothing changed.
+        crossed = await request(ws, _site("set_settings", charge_below=0.5, charge_until=0.4))
+        assert crossed["code"] == "invalid_field"
+        crossed = await request(ws, _site("set_settings", charge_until=0.25))
+        assert crossed["code"] == "invalid_field"  # below the charge_below already set
+        assert app.core.config.charge_until == 0.9
         bad = await request(ws, _site("set_settings", languages=["en"], language="ms"))
         assert bad["code"] == "invalid_field"
         low = await request(ws, _site("set_settings", table_timeout=1))
@@ -186,6 +201,7 @@ async def test_settings_apply_at_once_and_survive_a_restart(tmp_path: Path) -> N
         assert (app.core.config.table_timeout, app.core.config.capacity) == (60.0, 2)
         assert app.core.settings()["language"] == "zh"
         assert app.core.settings()["target_wait"] == 480.0
+        assert app.core.config.call_escalate == 60.0 and app.core.config.charge_below == 0.3
     finally:
         await app.close()
 
