@@ -211,9 +211,9 @@ class Robots:
     async def edit_robot(
         self, name: str, changes: Mapping[str, Any], *, now: float, by: str | None = None
     ) -> Robot:
-        """Change a robot's ``url``, ``home``, ``kinematics``, ``link`` (a dict) and/or
-        ``trays`` (None: the site's), ``dock`` (a place of kind dock); fields not in ``changes`` are kept. One event lists
-        what changed; nothing changed is a no-op."""
+        """Change a robot's ``url``, ``home``, ``kinematics``, ``link`` (a dict), ``trays``
+        (None: the site's) and/or ``dock`` (a place of kind dock); fields not in ``changes``
+        are kept. One event lists what changed; nothing changed is a no-op."""
         allowed = {"url", "home", "kinematics", "link", "trays", "dock"}
         if not changes or set(changes) - allowed:
             raise InvalidField(f"a robot edit changes some of {sorted(allowed)}", field="changes")
