@@ -241,6 +241,7 @@ class Client:
             "alerts",
             "menu",
             "blocks",
+            "calls",
         ):
             self.records.setdefault(topic, {})[data[keys.get(topic, "id")]] = data
         else:

@@ -18,6 +18,8 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 from serveur.domain import (
     Alert,
     AuditRecord,
+    Call,
+    CallButton,
     EventRecord,
     MenuItem,
     Order,
@@ -216,6 +218,7 @@ Snapshot: TypeAlias = (
     | list[TableBlock]
     | list[ZoneRecord]
     | list[ZoneLease]
+    | list[Call]
     | Settings
     | ForecastInfo
     | MapSnapshot
@@ -238,6 +241,7 @@ UpdateData: TypeAlias = (
     | TableBlock
     | ZoneRecord
     | ZoneLease
+    | Call
     | Settings
     | ForecastInfo
     | MapSnapshot
@@ -299,7 +303,9 @@ class OkReply(_ServerModel):
     device: TokenInfo | None = Field(
         default=None, description="account create_token, revoke_token: the token's record"
     )
-    token: str | None = Field(default=None, description="account create_token: shown once")
+    token: str | None = Field(
+        default=None, description="account create_token, site add_button: shown once"
+    )
     link: str | None = Field(
         default=None, description="account create_token: the screen's setup path, token included"
     )
@@ -331,6 +337,19 @@ class OkReply(_ServerModel):
         " none yet)",
     )
     camera: CameraState | None = Field(default=None, description="camera: watching or not")
+    call: Call | None = Field(default=None, description="call open, answer, cancel: the call")
+    merged: bool | None = Field(
+        default=None, description="call open: true if it joined the table's open call"
+    )
+    task: Task | None = Field(default=None, description="create bussing: the trip queued")
+    button: CallButton | None = Field(
+        default=None, description="site add_button, revoke_button: the button"
+    )
+    buttons: list[CallButton] | None = Field(default=None, description="site buttons")
+    path: str | None = Field(
+        default=None,
+        description="site add_button: the address the button requests (GET, token included)",
+    )
     upload: UploadInfo | None = Field(default=None, description="site upload, upload_part")
     map: MapInfo | None = Field(
         default=None, description="site set_map, plan_map: the map now (or previewed)"

@@ -28,6 +28,7 @@ export const STATUS_COLOURS = {
   Manual: "#8e6708",
   Error: "#d9105c",
   Loading: "#6d4c41",
+  Charging: "#556b2f",
 };
 
 export function statusColour(status) {
