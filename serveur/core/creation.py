@@ -30,9 +30,6 @@ from serveur.store.base import Store
 
 __all__ = ["Creation"]
 
-#: The most trays a robot has (a robot's ``trays`` is at most 12).
-MAX_TRAYS = 12
-
 
 class Creation:
     """Creates orders, trips and waypoints for the ``create`` verb."""
@@ -109,7 +106,9 @@ class Creation:
             raise Conflict(f"orders not pending: {bad}", orders=bad)
         self._reachable({o.table for o in pending})
         if trays:
-            trips = _one_trip(pending or orders, self._origin(), self._places, trays)
+            trips = _one_trip(
+                pending or orders, self._origin(), self._places, trays, self._config.capacity
+            )
         elif self._config.policy == "baseline":
             trips = cart_order_trips(pending or orders, self._config.capacity)
         else:
@@ -148,12 +147,31 @@ class Creation:
 
 
 def _one_trip(
-    orders: list[Order], origin: str, places: Places, trays: Mapping[int, int]
+    orders: list[Order],
+    origin: str,
+    places: Places,
+    trays: Mapping[int, int],
+    capacity: int,
 ) -> list[list[tuple[str, list[int]]]]:
-    """The cart as one trip (staff chose trays): its tables in the shortest order."""
+    """The cart as one trip (staff chose trays): its tables in the shortest order. It must
+    fit the site's trays: a trip of more tables would wait for a robot that does not come."""
     by_table = group_by_table(orders)
-    if len(by_table) > MAX_TRAYS:
-        raise InvalidField(f"{len(by_table)} tables cannot go on one robot's trays", field="trays")
+    if len(by_table) > capacity:
+        raise InvalidField(
+            f"{len(by_table)} tables do not fit on one robot's {capacity} trays: send fewer"
+            " tables, or let the plan split the cart",
+            field="trays",
+            tables=len(by_table),
+            trays=capacity,
+        )
+    high = sorted(oid for oid, tray in trays.items() if tray > capacity)
+    if high:
+        raise InvalidField(
+            f"the robots have {capacity} trays: dish(es) {high} are on a tray beyond",
+            field="trays",
+            orders=high,
+            trays=capacity,
+        )
     tables = order_stops(origin, [t for t, _ in by_table], places.distance, end=origin)
     ids = dict(by_table)
     return [[(t, ids[t]) for t in tables]]
