@@ -9,7 +9,7 @@ these, each an object testable on its own.
 from __future__ import annotations
 
 import ssl
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
 from serveur.clock import Clock
@@ -22,7 +22,7 @@ from serveur.core.runtime import CoreConfig
 from serveur.core.service import Service
 from serveur.core.traffic import Traffic
 from serveur.core.trips import Trips
-from serveur.domain import Robot
+from serveur.domain import Robot, Task
 from serveur.store.base import Store
 
 __all__ = ["Crew"]
@@ -49,5 +49,8 @@ class Crew:
     records: dict[str, Robot]
     #: Let the dispatcher look at the queue again (a robot became free, trays changed...).
     kick: Callable[[], None]
+    #: A robot whose delivery just ended may take a queued bussing trip on its way back
+    #: (``Core.chain_bussing``): the trip taken, or None (home).
+    chain: Callable[[str], Awaitable[Task | None]]
     #: How links verify ``wss://`` robots (None: the system trust store).
     robot_ssl: ssl.SSLContext | None = None

@@ -62,12 +62,13 @@ from serveur.domain import (
     OrderStatus,
     Robot,
     StopPurpose,
+    Task,
     TaskKind,
     TaskStatus,
     ZoneRecord,
 )
 from serveur.errors import LinkError, NotFound, ServeurError
-from serveur.scheduler import Candidate, Dispatcher, QueuedTrip, bussing_seconds
+from serveur.scheduler import Candidate, Dispatcher, QueuedTrip, bussing_seconds, may_bus
 from serveur.status import Event, RobotState, RobotStatus
 from serveur.store.base import Store
 
@@ -191,6 +192,7 @@ class Core:
             calls=self.calls,
             records=self._robots,
             kick=self.dispatcher.kick,
+            chain=self.chain_bussing,
             robot_ssl=robot_ssl,
         )
         self.site = Site(
@@ -465,6 +467,23 @@ class Core:
                 out.append(QueuedTrip(t.id, len(t.stops), bussing=True, seconds=secs))
             # A cruise is never queued for just anyone: it is started for its robot.
         return out
+
+    async def chain_bussing(self, robot: str) -> Task | None:
+        """A robot's delivery just ended (its lock held): on its way back it takes the oldest
+        queued bussing trip if no delivery is queued and :func:`may_bus` allows it, counting
+        itself among the free robots. The trip taken, or None."""
+        queued = await self.queued_tasks()
+        if not queued or any(not q.bussing for q in queued):
+            return None
+        q = next(q for q in queued if q.bussing)
+        free = len(self.free_robots()) + 1
+        waiting = await self.dishes_waiting()
+        if not may_bus(free, q.seconds, dishes_waiting=waiting, max_delay=self.bussing_max_delay()):
+            return None
+        task = await self.trips.take(q.task_id, robot)
+        if task is not None:
+            log.info("%s: on its way back, takes the plates of %s", robot, task.stops[0].table)
+        return task
 
     async def dishes_waiting(self) -> bool:
         waiting = [OrderStatus.ORDERED, OrderStatus.COOKING, OrderStatus.PENDING]

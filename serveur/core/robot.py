@@ -50,7 +50,7 @@ from serveur.core.events import (
     TableTimeout,
 )
 from serveur.core.runtime import Destination, Runtime
-from serveur.domain import Robot, StopPurpose, Task
+from serveur.domain import Robot, StopPurpose, Task, TaskKind
 from serveur.errors import Conflict, Forbidden, LinkError, Stale, StoreError
 from serveur.robots import rosbridge as rb
 from serveur.robots.camera import RosbridgeCamera
@@ -416,6 +416,13 @@ class RobotController:
         if task.current_stop < len(task.stops):
             await self.event(Event.NEXT_TABLE)
             await self.drive(self.stop_dest(task))
+            return
+        # Its trip is over: on its way back it may take the plates of a table that called.
+        nxt = await self.crew.chain(self.name) if task.kind is TaskKind.DELIVERY else None
+        if nxt is not None:
+            self.rt.trip_kind = nxt.kind
+            await self.event(Event.NEXT_TABLE)
+            await self.drive(self.stop_dest(nxt))
         else:
             await self.event(Event.NEXT_HOME)
             await self.drive(self.home_dest())

@@ -151,3 +151,29 @@ async def test_a_plates_call_sends_a_bussing_robot_to_the_dish_return(tmp_path: 
         await c.ok("next", robot="r1", task=task_id, stop=1)
         await c.until(lambda: c.task(task_id)["status"] == "done")
         await c.status("r1", "Awaiting", timeout=60)
+
+
+async def test_a_robot_back_from_a_delivery_takes_the_plates_on_its_way(tmp_path: Path) -> None:
+    async with restaurant(tmp_path, robots=1, config=site()) as r:
+        c = await staff(r)
+        await c.subscribe("orders", "events")
+        await c.ok("create", type="waypoint", name="dish return", x=9.0, y=10.8, kind="dish_return")
+        await activate(c, "r1")
+        [dish] = [(await c.ok("create", type="order", dish="Laksa", table="T1"))["order"]["id"]]
+        [trip] = (await c.ok("create", type="task", orders=[dish]))["tasks"]
+        await c.status("r1", "Loading")
+        await c.ok("go", robot="r1", task=trip["id"])
+        # While it is away, T5 asks for its plates: the bussing trip waits in the queue.
+        call = (await c.ok("call", action="open", table="T5", kind="plates"))["call"]
+        await c.until(lambda: c.task(trip["id"]).get("stops", [{}])[0].get("status") == "arrived")
+        assert c.task(call["task_id"])["status"] == "queued"
+        await c.ok("next", robot="r1", task=trip["id"], stop=0)
+        # Food collected at T1: straight on to T5, never home in between.
+        await c.until(lambda: c.task(call["task_id"]).get("robot") == "r1")
+        await c.until(lambda: calls(c)[call["id"]].get("answered_at") is not None, timeout=60)
+        statuses = [
+            e["data"].get("status")
+            for e in sorted(c.records.get("events", {}).values(), key=lambda e: e["id"])
+            if e["kind"] == "robot.status" and e["ts"] >= c.task(trip["id"])["finished_at"]
+        ]
+        assert "Transit" not in statuses and "Awaiting" not in statuses, statuses
