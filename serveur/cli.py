@@ -249,6 +249,9 @@ async def _demo(ns: argparse.Namespace) -> int:
     clock = ScaledClock(ns.time_scale)
     nav_map, waypoints = load_demo()
     homes = sorted((w for w in waypoints.values() if w.kind == "home"), key=lambda w: w.name)
+    # The demo room's dish return (bussing robots are emptied there) beside the kitchen, and
+    # a charger at each robot's home spot: the simulator charges a robot standing on it.
+    waypoints = {**waypoints, **_demo_places(homes[: ns.robots])}
     if ns.robots > len(homes):
         print(
             f"the demo restaurant has {len(homes)} home spots; --robots {ns.robots} is too many",
@@ -309,6 +312,7 @@ async def _demo(ns: argparse.Namespace) -> int:
             )
             return 1
         creds = await _demo_accounts(app, specs, waypoints)
+        await _demo_docks(app, specs)
         stop = _on_signal()
         print(
             f"serveur demo: {ns.robots} simulated robots, time scale {ns.time_scale}x", flush=True
@@ -323,6 +327,7 @@ async def _demo(ns: argparse.Namespace) -> int:
             print(f"  robot screen {spec.name}: {web}/robot/{spec.name}#token={creds[spec.name]}")
         first = creds["table"]
         print(f"  table screen: {web}/table/{first}#token={creds['table-token']}")
+        print(f"  call button of {first} (a Wi-Fi button's request): GET {web}{creds['button']}")
         print("  (demo credentials: fresh and random on every start)")
         kept = "removed when the demo stops; --db PATH keeps one" if tmpdir else "kept"
         print(f"  database: {db} ({kept})")
@@ -336,9 +341,30 @@ async def _demo(ns: argparse.Namespace) -> int:
     return 0
 
 
+def _demo_places(homes: Sequence[Any]) -> dict[str, Any]:
+    from serveur.maps.mapio import Waypoint
+
+    places = {"dish return": Waypoint("dish return", 9.0, 10.8, 1.570796, "dish_return")}
+    for i, home in enumerate(homes):
+        name = f"dock{i + 1}"
+        places[name] = Waypoint(name, home.x, home.y, home.yaw, "dock")
+    return places
+
+
+async def _demo_docks(app: Any, specs: Sequence[Any]) -> None:
+    """Each demo robot's dock is the charger at its home spot."""
+    from serveur import protocol as P
+
+    for i, spec in enumerate(specs):
+        edit = {"clientmsg": "site", "action": "edit_robot", "robot": spec.name}
+        edit["dock"] = f"dock{i + 1}"
+        await app.core.site.site(P.SiteEditRobot.model_validate(edit), "demo")
+
+
 async def _demo_accounts(app: Any, specs: Sequence[Any], waypoints: Any) -> dict[str, str]:
     """Demo logins: an owner and a staff user with random passwords, a token per robot
     screen and one for the first table's screen."""
+    from serveur.domain import CallKind
     from serveur.security import auth
 
     assert app.sessions is not None
@@ -359,6 +385,12 @@ async def _demo_accounts(app: Any, specs: Sequence[Any], waypoints: Any) -> dict
     first = min(tables, key=lambda n: (len(n), n)) if tables else "T1"
     creds["table"] = first
     creds["table-token"] = await app.issue_token("table-screen", table=first, label="demo")
+    # A Wi-Fi call button for that table (named by the start time: a demo started again on
+    # its database gets a new one; button names are never reused).
+    made = await app.core.calls.add_button(
+        f"{first} demo button {int(app.clock.epoch())}", first, CallKind.WAITER
+    )
+    creds["button"] = made["path"]
     return creds
 
 

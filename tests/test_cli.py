@@ -8,6 +8,7 @@ import os
 import re
 import signal
 import sys
+import urllib.request
 from pathlib import Path
 
 from websockets.asyncio.client import connect
@@ -103,6 +104,20 @@ async def test_demo_runs_the_restaurant_and_stops_on_sigterm(tmp_path: Path) -> 
         assert [r["home"] for r in robots] == ["home1", "home2"]
         tables = [w for w in reply["data"]["waypoints"] if w["kind"] == "table"]
         assert len(tables) >= 12
+        # The demo room has a dish return, a charger for each robot, and a call button.
+        kinds = {w["name"]: w["kind"] for w in reply["data"]["waypoints"]}
+        assert kinds["dish return"] == "dish_return"
+        assert [r["dock"] for r in robots] == ["dock1", "dock2"]
+        assert kinds["dock1"] == kinds["dock2"] == "dock"
+        button = re.search(r"call button of (\S+) .*: GET (\S+)", out)
+        assert button, out
+
+        def press() -> tuple[int, bytes]:
+            with urllib.request.urlopen(button[2], timeout=10) as resp:
+                return resp.status, resp.read()
+
+        status, body = await asyncio.to_thread(press)
+        assert status == 200 and body.startswith(f"called: waiter at {button[1]}".encode())
         proc.send_signal(signal.SIGTERM)
         assert await asyncio.wait_for(proc.wait(), 20) == 0
     finally:

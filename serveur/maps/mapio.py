@@ -44,7 +44,7 @@ __all__ = [
     "save_waypoints",
 ]
 
-WAYPOINT_KINDS = frozenset({"table", "home", "pass", "other"})
+WAYPOINT_KINDS = frozenset({"table", "home", "pass", "other", "dish_return", "dock"})
 
 _DATA = Path(__file__).resolve().parent.parent / "data"  # serveur/data/: the demo room
 _MODES = ("trinary", "scale", "raw")
