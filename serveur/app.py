@@ -23,6 +23,7 @@ from serveur.core.engine import Core, CoreConfig
 from serveur.core.shelf import BackupShelf
 from serveur.domain import WaypointKind, WaypointRecord, ZoneRecord
 from serveur.errors import Conflict, ServeurError
+from serveur.mqtt.calls import BrokerAddress, MqttCalls
 from serveur.robots.names import OPTION_KEYS, RosNames
 from serveur.security.sessions import SecurityConfig, Sessions
 from serveur.server import Server
@@ -107,6 +108,7 @@ class App:
         robot_ssl: ssl_module.SSLContext | None = None,
         plan_in_child: bool = True,
         backups: str | Path | None = None,
+        mqtt: str | None = None,
     ) -> None:
         self.clock = clock or ScaledClock(1.0)
         self.store: Store = open_store(str(db))
@@ -127,6 +129,9 @@ class App:
         self._backups = None if backups is None else Path(backups)
         self.shelf: BackupShelf | None = None
         self._restart_lock = asyncio.Lock()
+        #: The site's MQTT broker for call buttons (None: none); checked here, used at start.
+        self._mqtt = None if mqtt is None else BrokerAddress.parse(mqtt)
+        self.mqtt_calls: MqttCalls | None = None
         #: Set when a restore left no server running (see :meth:`restart_on`).
         self.broken = asyncio.Event()
         self.core: Core | None = None
@@ -198,6 +203,9 @@ class App:
         )
         await self.server.start()
         self._port = self.server.port  # a restart listens where the screens knew it
+        if self._mqtt is not None:
+            self.mqtt_calls = MqttCalls(self._mqtt, self.core.calls.press, self.core.flush_events)
+            self.mqtt_calls.start()
         return self
 
     def _staging(self) -> Path:
@@ -310,6 +318,9 @@ class App:
         """Robots halted, every client closed: nothing changes the database from here on."""
         if self.core is not None:
             await self.core.halt_robots()
+        if self.mqtt_calls is not None:
+            await self.mqtt_calls.close()
+            self.mqtt_calls = None
         if self.server is not None:
             await self.server.close()
 

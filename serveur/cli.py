@@ -173,6 +173,14 @@ async def _run(ns: argparse.Namespace) -> int:
             print(f"serveur run: cannot start: {exc}", file=sys.stderr)
             return 1
     robots = [parse_robot_spec(s) for s in ns.robot]
+    if ns.mqtt:
+        from serveur.mqtt.calls import BrokerAddress
+
+        try:
+            BrokerAddress.parse(ns.mqtt)
+        except ValueError as exc:
+            print(f"serveur run: cannot start: --mqtt: {exc}", file=sys.stderr)
+            return 2
     app = App(
         ns.db,
         host=ns.host,
@@ -188,6 +196,7 @@ async def _run(ns: argparse.Namespace) -> int:
         config=_service_config(ns),
         setup=True,
         backups=_backups_folder(ns.backups, ns.db),
+        mqtt=ns.mqtt,
     )
     try:
         await app.start()
@@ -446,6 +455,13 @@ def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
         default=os.environ.get("SERVEUR_BACKUPS"),
         help="folder of the nightly backups and the console's (default: $SERVEUR_BACKUPS,"
         " else 'backups' beside a SQLite database; 'off': none)",
+    )
+    run.add_argument(
+        "--mqtt",
+        default=os.environ.get("SERVEUR_MQTT"),
+        metavar="mqtt://[USER:PASSWORD@]HOST[:PORT][/PREFIX]",
+        help="the restaurant's MQTT broker: call buttons publish presses on PREFIX/call"
+        " (default: $SERVEUR_MQTT; none)",
     )
     run.add_argument("--map", help="ROS map YAML (default: adopt the map a robot publishes)")
     run.add_argument("--waypoints", help="waypoints JSON to import (tables, homes)")

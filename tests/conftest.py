@@ -395,6 +395,7 @@ def make_app(
     *,
     config: CoreConfig | None = None,
     backups: Path | None = None,
+    mqtt: str | None = None,
 ) -> App:
     from serveur.maps.navigation import load_demo
 
@@ -409,6 +410,7 @@ def make_app(
         robots=specs,
         config=cfg,
         backups=backups,
+        mqtt=mqtt,
     )
 
 
@@ -432,6 +434,7 @@ async def restaurant(
     config: CoreConfig | None = None,
     link: Mapping[str, str] | None = None,
     backups: bool = False,
+    mqtt: str | None = None,
     **sim_options: Any,
 ) -> AsyncIterator[Restaurant]:
     """A running restaurant on a SQLite file in ``tmp_path``, or on ``db_url`` if given.
@@ -465,7 +468,7 @@ async def restaurant(
     ]
     db = db_url or tmp_path / "serveur.db"
     folder = tmp_path / "backups" if backups else None
-    app = make_app(db, clock, specs, config=config, backups=folder)
+    app = make_app(db, clock, specs, config=config, backups=folder, mqtt=mqtt)
     await app.start()
     r = Restaurant(app, sim, clock, db, specs, [], proxies=proxies)
     if backups:
