@@ -202,7 +202,13 @@ class Trips:
         if not tables:
             return task
         orders = [o for s in task.stops if s.table in blocks for o in s.orders]
-        task = await self._store.tasks.drop_stops(task_id, tables, now=self._clock.epoch())
+        now = self._clock.epoch()
+        task = await self._store.tasks.drop_stops(task_id, tables, now=now)
+        if task.status is TaskStatus.QUEUED and not any(
+            s.purpose is not StopPurpose.UNLOAD for s in task.stops
+        ):
+            # A bussing trip whose every table is blocked: nothing to collect, no trip.
+            task = await self._store.tasks.cancel_task(task_id, now=now, reason="tables blocked")
         self._publisher.pub_task(task)
         await self._publisher.pub_orders(orders)
         return task if task.status is TaskStatus.QUEUED else None

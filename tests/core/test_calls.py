@@ -177,3 +177,18 @@ async def test_a_robot_back_from_a_delivery_takes_the_plates_on_its_way(tmp_path
             if e["kind"] == "robot.status" and e["ts"] >= c.task(trip["id"])["finished_at"]
         ]
         assert "Transit" not in statuses and "Awaiting" not in statuses, statuses
+
+
+async def test_a_bussing_trip_to_a_blocked_table_is_not_sent(tmp_path: Path) -> None:
+    async with restaurant(tmp_path, robots=1, config=site()) as r:
+        c = await staff(r)
+        await c.ok("create", type="waypoint", name="dish return", x=9.0, y=10.8, kind="dish_return")
+        assert r.app.core is not None
+        await r.app.core.service.block("T6", "r9: could not reach it", "r9")
+        call = (await c.ok("call", action="open", table="T6", kind="plates"))["call"]
+        await activate(c, "r1")
+        # No robot goes to the dish return with nothing collected: the trip is cancelled,
+        # the call stays open for staff.
+        await c.until(lambda: c.task(call["task_id"]).get("status") == "cancelled")
+        assert c.robot("r1")["status"] == "Awaiting" and c.robot("r1")["current_task"] is None
+        assert calls(c)[call["id"]]["answered_at"] is None
