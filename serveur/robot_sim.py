@@ -84,6 +84,7 @@ __all__ = [
     "SimRobot",
     "Simulation",
     "add_sim_arguments",
+    "parse_dock",
     "run_sim",
     "run_sim_from_args",
     "shared_planner",
@@ -360,6 +361,8 @@ async def start_simulation(
     robots_see_each_other: bool = True,
     blocked_patience: float = ROBOT_PATIENCE,
     video_port: int | None = None,
+    docks: Mapping[str, tuple[float, float, float] | str] | None = None,
+    docking: bool | Sequence[bool] = False,
 ) -> Simulation:
     """Start ``n`` robots listening on ports ``port``..``port+n-1`` (0: free ports).
 
@@ -396,6 +399,13 @@ async def start_simulation(
     (:mod:`serveur.sim.video_server`), robot i on ``video_port + i`` (0: free ports), rendered
     from its true pose; :attr:`Simulation.video_urls` are the streams' URLs. None (the
     default): no video server, the camera is only on rosbridge.
+
+    ``docks``: a robot's charger (its dock), by robot name: a pose (x, y, yaw: how the robot
+    stands on the contacts) or the name of a waypoint of the map; a robot not named docks at
+    its home (where it starts), so it charges there as before. A robot charges only standing
+    on a charger (any robot's): :mod:`serveur.sim.robot`. ``docking``: ROS 2 robots also run
+    opennav_docking's docking server (``dock_robot``, ``undock_robot``:
+    :mod:`serveur.sim.docking`); True for every ROS 2 robot, or one entry per robot.
     """
     if n < 1:
         raise ValueError("at least one robot")
@@ -412,6 +422,12 @@ async def start_simulation(
         raise ValueError(f"ros must be 1, 2 or one of those per robot ({n}), not {ros!r}")
     if release not in ros2.RELEASES:
         raise ValueError(f"release must be one of {ros2.RELEASES}, not {release!r}")
+    if isinstance(docking, bool):
+        docked = [docking and d == 2 for d in dialects]
+    else:
+        docked = [bool(d) for d in docking]
+        if len(docked) != n or any(d and r != 2 for d, r in zip(docked, dialects, strict=True)):
+            raise ValueError(f"docking: one entry per robot ({n}), only on ROS 2 robots")
     clock = clock or ScaledClock(time_scale)
     if map_path is None:
         grid, waypoints = load_demo()
@@ -425,6 +441,8 @@ async def start_simulation(
     planner = shared_planner(grid, cache_size=max(32, len(waypoints) + 16))
     plan_lock = threading.Lock()
     homes = _start_poses(n, grid, planner, waypoints)
+    robot_names = [names[i] if names is not None else f"r{i + 1}" for i in range(n)]
+    dock_poses = _dock_poses(docks or {}, robot_names, waypoints)
     # The latched /map, built once: every robot shares the one frame (namespaced robots each
     # get their own topic name on the same message).
     map_msg = rb.occupancy_grid(grid, stamp=clock.epoch() + clock_offset, seq=0)
@@ -433,7 +451,7 @@ async def start_simulation(
     robots: list[SimRobot] = []
     endpoints: list[Endpoint] = []
     for i in range(n):
-        name = names[i] if names is not None else f"r{i + 1}"
+        name = robot_names[i]
         namespace = f"/{name}" if namespaced else ""
         robot = SimRobot(
             name,
@@ -456,9 +474,14 @@ async def start_simulation(
             twist_stamped=twist_stamped,
             humble_queue=humble_queue,
             rosbridge_fix=rosbridge_fix,
+            dock=dock_poses.get(name),
+            docking=docked[i],
         )
         robots.append(robot)
         endpoints.append(Endpoint(robot, host, port + i if port else 0, ssl))
+    # A charger is a charger whoever parks on it: every robot's dock is one for all.
+    for r in robots:
+        r.set_chargers([o.dock for o in robots])
     video: list[VideoServer] = []
     if video_port is not None:
         for i, r in enumerate(robots):
@@ -474,6 +497,45 @@ async def start_simulation(
     )
     await sim.start()
     return sim
+
+
+def _dock_poses(
+    docks: Mapping[str, tuple[float, float, float] | str],
+    names: Sequence[str],
+    waypoints: Mapping[str, Waypoint],
+) -> dict[str, tuple[float, float, float]]:
+    """Each named robot's dock as a pose (a waypoint's name looked up); ValueError for a robot
+    or a waypoint that does not exist, or a pose that is not three finite numbers."""
+    out: dict[str, tuple[float, float, float]] = {}
+    for name, spec in docks.items():
+        if name not in names:
+            raise ValueError(f"dock for robot {name!r}: no such robot ({', '.join(names)})")
+        if isinstance(spec, str):
+            wp = waypoints.get(spec)
+            if wp is None:
+                raise ValueError(f"dock for robot {name!r}: no waypoint {spec!r} on the map")
+            out[name] = (wp.x, wp.y, wp.yaw)
+            continue
+        pose = tuple(float(v) for v in spec)
+        if len(pose) != 3 or not all(math.isfinite(v) for v in pose):
+            raise ValueError(f"dock for robot {name!r}: a pose is x, y, yaw (finite numbers)")
+        out[name] = (pose[0], pose[1], pose[2])
+    return out
+
+
+def parse_dock(spec: str) -> tuple[str, tuple[float, float, float] | str]:
+    """``serveur sim --dock``'s value: ``NAME=X,Y,YAW`` or ``NAME=WAYPOINT``."""
+    name, sep, where = spec.partition("=")
+    if not sep or not name.strip() or not where.strip():
+        raise ValueError(f"--dock {spec!r}: NAME=X,Y,YAW or NAME=WAYPOINT")
+    parts = where.split(",")
+    if len(parts) == 1:
+        return name.strip(), where.strip()
+    try:
+        x, y, yaw = (float(v) for v in parts)
+    except ValueError:
+        raise ValueError(f"--dock {spec!r}: X,Y,YAW are three numbers") from None
+    return name.strip(), (x, y, yaw)
 
 
 def _video_server(
@@ -605,6 +667,22 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
         "free ports (default: no video server)",
     )
     parser.add_argument(
+        "--dock",
+        action="append",
+        default=[],
+        metavar="NAME=X,Y,YAW|NAME=WAYPOINT",
+        help="robot NAME's charger (its dock): a pose in the map frame (how the robot stands "
+        "on the contacts) or a waypoint of the map; repeat for each robot. A robot charges only "
+        "standing on a charger; without this one, its dock is its home (where it starts)",
+    )
+    parser.add_argument(
+        "--docking",
+        action="store_true",
+        help="ROS 2 robots also run opennav_docking's docking server (dock_robot and "
+        "undock_robot actions; nav2_msgs types, opennav_docking_msgs with --release humble): "
+        "register them with docking=nav2 (docking=opennav on Humble)",
+    )
+    parser.add_argument(
         "--amcl",
         choices=AMCL_MODES,
         default="continuous",
@@ -638,6 +716,8 @@ async def run_sim(
     robots_see_each_other: bool = True,
     blocked_patience: float = ROBOT_PATIENCE,
     video_port: int | None = None,
+    docks: Mapping[str, tuple[float, float, float] | str] | None = None,
+    docking: bool = False,
 ) -> int:
     """Run a simulation until ``stop`` is set or SIGINT/SIGTERM; print the URLs first (each
     robot's rosbridge, then, with ``video_port``, each robot's camera stream).
@@ -676,6 +756,8 @@ async def run_sim(
                 robots_see_each_other=robots_see_each_other,
                 blocked_patience=blocked_patience,
                 video_port=video_port,
+                docks=docks,
+                docking=docking,
             )
         except (OSError, ServeurError, ValueError) as exc:
             print(f"serveur sim: cannot start: {exc}", file=sys.stderr, flush=True)
@@ -722,6 +804,11 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
     else:
         print(f"serveur sim: --ros lists {len(parts)} robots, not {ns.robots}", file=sys.stderr)
         return 2
+    try:
+        docks = dict(parse_dock(spec) for spec in getattr(ns, "dock", None) or [])
+    except ValueError as exc:
+        print(f"serveur sim: {exc}", file=sys.stderr)
+        return 2
     return await run_sim(
         ns.robots,
         port=ns.port,
@@ -744,4 +831,6 @@ async def run_sim_from_args(ns: argparse.Namespace) -> int:
         robots_see_each_other=getattr(ns, "robots_see_each_other", True),
         blocked_patience=getattr(ns, "blocked_patience", ROBOT_PATIENCE),
         video_port=getattr(ns, "video_port", None),
+        docks=docks,
+        docking=getattr(ns, "docking", False),
     )

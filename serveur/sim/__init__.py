@@ -7,7 +7,8 @@ each an object it creates and hands what it needs: :mod:`~serveur.sim.state` (wh
 published, at which rates; :mod:`~serveur.sim.camera` renders what the camera sees),
 :mod:`~serveur.sim.video_server` (web_video_server's MJPEG streams),
 :mod:`~serveur.sim.navigator` (a goal's life and plan),
-:mod:`~serveur.sim.inbox` (what clients send) and :mod:`~serveur.sim.floor` (other robots);
+:mod:`~serveur.sim.inbox` (what clients send), :mod:`~serveur.sim.floor` (other robots) and
+:mod:`~serveur.sim.docking` (a ROS 2 robot's docking server, and where its chargers are);
 :mod:`~serveur.sim.bridge` (its rosbridge v2 server: ops, subscriptions, queues, and
 rosbridge 2.x's action ops), :mod:`~serveur.sim.ros2` (the ROS 2 dialect's names and shapes),
 :mod:`~serveur.sim.topics` (frames and subscriptions both share) and

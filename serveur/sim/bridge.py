@@ -32,6 +32,11 @@ and adds ``/rosapi/action_servers``. With the robot's ``humble_queue`` (rosbridg
 meanwhile wait in :attr:`BridgeClient.backlog` and are handled, in order, once it ends. A ROS1
 robot's rosbridge 0.11 knows no action op (``unknown op``).
 
+A ROS 2 robot made with ``docking`` also serves ``dock_robot`` and ``undock_robot``
+(:mod:`serveur.sim.docking`) the same way: goals of those actions, with their types
+(:func:`serveur.sim.ros2.action_of`), go to its docking server, cancels to whichever server has
+the goal.
+
 A ROS 2 robot also serves Nav2's ``/bt_navigator/get_state`` (``active``), and its bridge has
 the two failures measured on a real stack (shared/notes/ros2.md, "Liveness, measured on the
 same stack"; the robot's hooks ``stop_bridge_ros_side`` and ``kill_node``): a bridge whose ROS
@@ -439,25 +444,36 @@ class BridgeClient:
         if self.robot.ros_side_dead:
             self._fail(goal, ros2.ROS_SIDE_DEAD)
             return
-        if action_type.strip("/") not in ros2.ACTION_TYPES:
+        robot = self.robot
+        typ = action_type.strip("/")
+        docking = robot.docking
+        if not ros2.importable(typ, robot.release, docking is not None):
             self._fail(goal, f"Unable to import action type {action_type!r}")
             return
-        if self.robot.local(name) != ros2.NAVIGATE_TO_POSE or self.robot.node_dead:
+        served = ros2.action_of(robot.local(name), typ, robot.release, docking is not None)
+        if served is None or robot.node_dead:
             # No action server: rosbridge waits for one for ever and sends nothing; with the
             # fix it gives up after wait_for_server's 1 s.
-            if self.robot.rosbridge_fix:
+            if robot.rosbridge_fix:
                 loop = asyncio.get_running_loop()
                 loop.call_later(
                     self.clock.wall(1.0), self._fail, goal, "No action server available"
                 )
             return
+        args = msg.get("args")
         try:
-            frame, x, y, q = ros2.goal_from_args(msg.get("args"))
+            if served == "dock" and docking is not None:
+                docking.dock(goal, ros2.dock_goal_from_args(args))
+                return
+            if served == "undock" and docking is not None:
+                docking.undock(goal, ros2.undock_goal_from_args(args)[1])
+                return
+            frame, x, y, q = ros2.goal_from_args(args)
         except ServeurError as exc:
             self._fail(goal, exc.message)
             return
-        taken = self.robot.inbox.nav2_goal(goal, frame, x, y, q, None if oid is None else str(oid))
-        if not taken and self.robot.rosbridge_fix:
+        taken = robot.inbox.nav2_goal(goal, frame, x, y, q, None if oid is None else str(oid))
+        if taken is None and robot.rosbridge_fix:
             self._fail(goal, "Action goal was rejected")
         # Rejected without the fix: no frame, the handler waits for ever.
 
@@ -474,7 +490,10 @@ class BridgeClient:
             oid = action.split("#", 1)[1]
         goal = self.endpoint.actions.get(oid)
         if goal is not None and not goal.done and not self.robot.node_dead:
-            goal.client.robot.inbox.nav2_cancel(goal)
+            robot = goal.client.robot
+            robot.inbox.nav2_cancel(goal)
+            if robot.docking is not None:
+                robot.docking.cancel(goal)
 
     def _topic(self, msg: Mapping[str, Any]) -> str:
         """The op's topic as the robot names it inside (its namespace taken off).
@@ -692,8 +711,13 @@ def _rosapi_services(client: BridgeClient, args: Any) -> dict[str, Any]:
 
 
 def _rosapi_action_servers(client: BridgeClient, args: Any) -> dict[str, Any]:
-    """rosapi 2.x's ``/rosapi/action_servers``: the robot's navigator."""
-    return {"action_servers": [client.robot.wire(ros2.NAVIGATE_TO_POSE)]}
+    """rosapi 2.x's ``/rosapi/action_servers``: the robot's navigator, and its docking
+    server's actions when it runs one."""
+    robot = client.robot
+    names = [ros2.NAVIGATE_TO_POSE]
+    if robot.docking is not None:
+        names += [ros2.DOCK_ROBOT, ros2.UNDOCK_ROBOT]
+    return {"action_servers": sorted(robot.wire(n) for n in names)}
 
 
 _ROSAPI: Final[dict[str, Callable[[BridgeClient, Any], dict[str, Any]]]] = {

@@ -160,8 +160,8 @@ class Inbox:
         y: float,
         q: tuple[float, float, float, float],
         gid: str | None = None,
-    ) -> bool:
-        """A NavigateToPose goal reaching the navigator; False if it is rejected.
+    ) -> Goal | None:
+        """A NavigateToPose goal reaching the navigator (the goal); None if it is rejected.
 
         ``gid`` is the id the client gave the goal (rosbridge's op id):
         ``SimRobot.goal_statuses`` lists the goal under it, so a test sees which ids a driver
@@ -175,10 +175,11 @@ class Inbox:
         nav = self.navigator
         gid = gid if gid is not None else f"nav2-{next(self._goal_counter)}"
         if self.ignore_goals:  # a hung navigator: the goal is listed, never run nor answered
-            nav.goals.append(Goal(gid, self.state.epoch(), x, y, 0.0))
-            return True
+            hung = Goal(gid, self.state.epoch(), x, y, 0.0)
+            nav.goals.append(hung)
+            return hung
         if _goal_problem(frame, x, y, q) is not None or not self._on_map(x, y):
-            return False
+            return None
         goal = Goal(gid, self.state.epoch(), x, y, 0.0)
         goal.yaw = rb.yaw_from_quaternion({"x": q[0], "y": q[1], "z": q[2], "w": q[3]})
         goal.owner, goal.started = owner, self.state.t
@@ -188,7 +189,7 @@ class Inbox:
         nav.goals.append(goal)
         self.state.teleop = None
         nav.pending = goal
-        return True
+        return goal
 
     def nav2_cancel(self, owner: ActionSink) -> None:
         """A cancel request for the goal ``owner`` sent: CANCELING, then CANCELED at the
@@ -210,8 +211,8 @@ class Inbox:
         vx, vy, wz = rb.twist_from_msg(msg)
         if not all(math.isfinite(v) for v in (vx, vy, wz)):
             raise RosbridgeError("cmd_vel holds a non-finite velocity")
-        if nav.active is not None or nav.pending is not None:
-            return None
+        if nav.active is not None or nav.pending is not None or self.state.docking_drives:
+            return None  # the docking server's controller drives the base as move_base's does
         self.state.teleop = (vx, vy, wz)
         self.state.teleop_t = self.state.clock.now()
         return None

@@ -44,6 +44,20 @@ A robot made with ``ros=2`` is a ROS 2 robot running Nav2 behind rosbridge 2.x
 Other robots are not obstacles unless the fleet says so (:meth:`SimRobot.share_floor`, the
 fleet's ``robots_see_each_other``; on by default): :mod:`serveur.sim.floor`.
 
+**Battery and charger.** Each robot has a dock (``dock``, a pose; by default its home): its
+charger. It charges only standing still on a charger's contacts — within
+:data:`~serveur.sim.docking.CHARGE_DISTANCE` (5 cm) and :data:`~serveur.sim.docking.CHARGE_YAW`
+of the charger's pose, with no goal and no teleop — its own dock, or in a fleet any robot's.
+A full charge takes :data:`FULL_CHARGE` (4.5 h: PuduBot's and BellaBot's stated charging
+time); a charge lasts :data:`IDLE_DRAIN` standing (12 h, the same robots' stated runtime
+between 10 and 24 h) or :data:`DRIVE_RANGE` of driving. ``/battery_state`` says CHARGING (1)
+while it charges, FULL (4) when full on the charger, DISCHARGING (2) off it, with the current
+that goes with each (sensor_msgs/BatteryState: positive while charging).
+
+A ROS 2 robot made with ``docking`` also runs opennav_docking's docking server
+(:mod:`serveur.sim.docking`): ``dock_robot`` drives it through a staging pose onto a charger,
+``undock_robot`` backs it off again.
+
 The robot is :class:`SimRobot`, composed of one part per concern: it owns a
 :class:`~serveur.sim.state.RobotState` (what the parts share: settings, clock, body, time) and
 creates its parts, each given the state and the parts it calls, none inheriting another —
@@ -71,6 +85,7 @@ from serveur.maps.navigation import OccupancyMap, Planner
 from serveur.robots import rosbridge as rb
 from serveur.robots.rosbridge import GoalStatus
 from serveur.sim import ros2
+from serveur.sim.docking import DockingServer, on_charger
 from serveur.sim.floor import ROBOT_GAP, ROBOT_PATIENCE, Floor
 from serveur.sim.inbox import Inbox
 from serveur.sim.kinematics import Kind, Limits, MotionModel, OdometryModel, wrap_angle
@@ -86,7 +101,7 @@ from serveur.sim.sensors import (
     SCAN_RAYS,
     Sensors,
 )
-from serveur.sim.state import TICK, RobotState
+from serveur.sim.state import TICK, Goal, RobotState
 from serveur.sim.topics import Frame, Sub
 
 __all__ = [
@@ -94,6 +109,9 @@ __all__ = [
     "AMCL_TICKS",
     "AMCL_UPDATE_MIN_A",
     "AMCL_UPDATE_MIN_D",
+    "DRIVE_RANGE",
+    "FULL_CHARGE",
+    "IDLE_DRAIN",
     "LAST_CANCEL_CANCELED",
     "MAX_CATCH_UP",
     "NAV2_UPDATE_MIN_A",
@@ -119,6 +137,12 @@ CMD_VEL_TIMEOUT: Final = 0.5
 TERMINAL_KEEP: Final = 5.0  # s sim a finished goal stays in the status list (actionlib's default)
 BLOCKED_ABORT_AFTER: Final = 1.0  # s sim a blocked robot waits before aborting its goal
 STUCK_ABORT_AFTER: Final = 3.0  # s sim pushing against an obstacle before aborting
+#: Sim seconds from empty to full on a charger: 4.5 h, the charging time PuduBot's and BellaBot's
+#: makers state (a waiter robot's battery at its dock's few amperes), in place of the 2 h this
+#: simulator used before docks; and a charge's life standing idle (12 h) and in metres driven.
+FULL_CHARGE: Final = 4.5 * 3600.0
+IDLE_DRAIN: Final = 12.0 * 3600.0
+DRIVE_RANGE: Final = 4000.0
 #: Topics a ROS1 robot subscribes to (clients may publish there; anything else is refused).
 ROS1_SUBSCRIBES: Final = frozenset(
     {"/move_base/goal", "/move_base_simple/goal", "/move_base/cancel", "/cmd_vel", "/initialpose"}
@@ -131,11 +155,13 @@ class SimRobot:
     """One simulated robot: its body, its move_base, its sensors, and what it publishes.
 
     Public read-only state: ``name``, ``pose`` (true pose), ``kinematics``, ``battery``
-    (0..1), ``home``, ``velocity``, ``clock_offset``, ``amcl``, ``ros`` (1 or 2), and for ROS 2
-    ``release``, ``twist_stamped``, ``humble_queue``, ``rosbridge_fix``; ``topic_types`` and
-    ``subscribes`` (the robot's graph in its dialect). Fault hooks: :meth:`block_path`,
-    :meth:`ignore_goals`, and for ROS 2 :meth:`drop_results`, :meth:`stop_bridge_ros_side`
-    (healed by ``Simulation.restart_rosbridge``) and :meth:`kill_node` / :meth:`restart_node`.
+    (0..1), ``charging``, ``home``, ``dock`` (its charger's pose; ``home`` unless given),
+    ``velocity``, ``clock_offset``, ``amcl``, ``ros`` (1 or 2), and for ROS 2 ``release``,
+    ``twist_stamped``, ``humble_queue``, ``rosbridge_fix``, ``docking`` (its docking server,
+    None without); ``topic_types`` and ``subscribes`` (the robot's graph in its dialect).
+    Fault hooks: :meth:`block_path`, :meth:`ignore_goals`, and for ROS 2
+    :meth:`drop_results`, :meth:`stop_bridge_ros_side` (healed by
+    ``Simulation.restart_rosbridge``) and :meth:`kill_node` / :meth:`restart_node`.
 
     ``clock_offset`` (seconds) is added to every stamp the robot makes (:meth:`epoch`);
     ``amcl`` is one of :data:`AMCL_MODES` (see the module's docstring).
@@ -168,7 +194,13 @@ class SimRobot:
         twist_stamped: bool | None = None,
         humble_queue: bool | None = None,
         rosbridge_fix: bool = False,
+        dock: tuple[float, float, float] | None = None,
+        docking: bool = False,
     ) -> None:
+        if docking and ros != 2:
+            raise ValueError("docking is a ROS 2 docking server's (ros=2)")
+        if dock is not None and not all(math.isfinite(v) for v in dock):
+            raise ValueError("a dock is a finite pose (x, y, yaw)")
         if amcl not in AMCL_MODES:
             raise ValueError(f"amcl must be one of {AMCL_MODES}, not {amcl!r}")
         if ros not in (1, 2):
@@ -235,6 +267,24 @@ class SimRobot:
             state, self.outbox, self.navigator, self.sensors, twist_stamped=self.twist_stamped
         )
         self.floor = Floor(state, self.navigator)
+        #: The robot's charger: where it docks (its home unless told otherwise).
+        self.dock: tuple[float, float, float] = (
+            (float(dock[0]), float(dock[1]), float(dock[2])) if dock is not None else home
+        )
+        state.chargers = (self.dock,)
+        self._charger_cache: tuple[tuple[float, float, float], bool] | None = None
+        #: ROS 2 with ``docking``: opennav_docking's docking server (None without).
+        self.docking: DockingServer | None = (
+            DockingServer(
+                state,
+                self.navigator,
+                navigate=self._navigate,
+                kinematics=kinematics,
+                release=release,
+            )
+            if docking
+            else None
+        )
 
     # -- public state ----------------------------------------------------------------------
 
@@ -296,6 +346,16 @@ class SimRobot:
     @battery.setter
     def battery(self, value: float) -> None:
         self.state.battery = min(1.0, max(0.0, float(value)))
+
+    @property
+    def charging(self) -> bool:
+        """On a charger's contacts, taking current (or full there)."""
+        return self.state.charging
+
+    def set_chargers(self, chargers: Sequence[tuple[float, float, float]]) -> None:
+        """The chargers the robot can charge on (the fleet's docks); its own is always one."""
+        self.state.chargers = (self.dock, *(c for c in chargers if c != self.dock))
+        self._charger_cache = None
 
     @property
     def goal_statuses(self) -> list[tuple[str, GoalStatus, str]]:
@@ -374,6 +434,8 @@ class SimRobot:
         answered (rosapi still lists the dead node, so rosbridge waits for it)."""
         self.state.node_dead = True
         self.state.teleop = None
+        if self.docking is not None:
+            self.docking.kill()
         for g in list(self.navigator.goals):
             if not g.terminal:
                 g.owner = None  # its result never reaches the bridge
@@ -394,6 +456,11 @@ class SimRobot:
         """Put the robot somewhere else (like /initialpose, for tests)."""
         self.inbox.relocalise(x, y, yaw)
 
+    def _navigate(self, x: float, y: float, yaw: float, gid: str) -> Goal | None:
+        """The docking server's own navigate goal to (x, y, yaw), answered to nobody."""
+        q = (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
+        return self.inbox.nav2_goal(None, "map", x, y, q, gid)
+
     # -- move_base's control cycle -----------------------------------------------------------
 
     def _command(self, now: float) -> tuple[float, float, float]:
@@ -402,6 +469,8 @@ class SimRobot:
             # move_base's control cycle sees the preempt request: zero velocity, setPreempted()
             nav.finish(nav.active, GoalStatus.PREEMPTED, "")
             return 0.0, 0.0, 0.0
+        if st.docking_drives and self.docking is not None:
+            return self.docking.command()
         if st.teleop is not None:
             if now - st.teleop_t > CMD_VEL_TIMEOUT * st.clock.time_scale:
                 st.teleop = None  # stale: stop, as a velocity watchdog does
@@ -452,8 +521,11 @@ class SimRobot:
         st, nav = self.state, self.navigator
         st.t += dt
         m = st.motion
+        if self.docking is not None:
+            self.docking.step()
         if (
             st.teleop is None
+            and not st.docking_drives
             and nav.active is None
             and nav.pending is None
             and nav.plan_fut is None
@@ -508,24 +580,36 @@ class SimRobot:
 
     def _battery_drain(self, distance: float) -> None:
         st = self.state
-        st.battery = max(0.0, st.battery - distance / 4000.0)  # ~4 km of driving a charge
+        st.battery = max(0.0, st.battery - distance / DRIVE_RANGE)
 
     def _battery_tick(self, dt: float) -> None:
+        """Charge on a charger's contacts, standing still with nothing to do (the module's
+        docstring); else the electronics drain the battery."""
         st = self.state
         m = st.motion
-        hx, hy, _ = self.home
-        at_home = (
+        charging = (
             m.vx == 0.0
             and m.vy == 0.0
+            and m.wz == 0.0
             and self.navigator.active is None
             and st.teleop is None
-            and math.hypot(m.x - hx, m.y - hy) < 0.25
+            and not st.charge_off
+            and self._on_charger()
         )
-        st.charging = at_home
-        if at_home:
-            st.battery = min(1.0, st.battery + dt / 7200.0)  # full in 2 h
+        st.charging = charging
+        if charging:
+            st.battery = min(1.0, st.battery + dt / FULL_CHARGE)
         else:
-            st.battery = max(0.0, st.battery - dt / 43200.0)  # 12 h idle
+            st.battery = max(0.0, st.battery - dt / IDLE_DRAIN)
+
+    def _on_charger(self) -> bool:
+        """:func:`~serveur.sim.docking.on_charger`, kept while the robot stands still (a
+        parked fleet at a replay's time scale asks 20 times a simulated second)."""
+        pose = self.state.pose
+        cache = self._charger_cache
+        if cache is None or cache[0] != pose:
+            cache = self._charger_cache = (pose, on_charger(self.state) is not None)
+        return cache[1]
 
     # -- the tick: physics, then what falls due -----------------------------------------------
 

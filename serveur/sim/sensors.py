@@ -66,6 +66,9 @@ _CAMERA_TICKS: Final = 2  # 10 Hz of the robot's time...
 CAMERA_MAX_WALL_FPS: Final = 15.0
 CAMERA_TOPIC: Final = "/camera/image/compressed"
 
+#: Amperes a charger puts in (BatteryState's capacity, 20 Ah, over the 4.5 h of a full charge:
+#: serveur.sim.robot.FULL_CHARGE).
+CHARGE_CURRENT: Final = 20.0 / 4.5
 SCAN_RAYS: Final = 360
 SCAN_RANGE_MIN: Final = 0.12
 SCAN_RANGE_MAX: Final = 8.0
@@ -430,11 +433,16 @@ class Sensors:
         return out
 
     def _build_battery(self, seq: int, stamp: float) -> dict[str, Any]:
+        """sensor_msgs/BatteryState: CHARGING (1) with the charger's current on its contacts,
+        FULL (4) there once full (no current), DISCHARGING (2) elsewhere (the current
+        negative, as the message's convention is)."""
         m = self.state.motion
         pct = self.state.battery
         if self.state.charging:
             status, current = (
-                (rb.BatteryStatus.FULL, 0.0) if pct >= 1.0 else (rb.BatteryStatus.CHARGING, 5.0)
+                (rb.BatteryStatus.FULL, 0.0)
+                if pct >= 1.0
+                else (rb.BatteryStatus.CHARGING, CHARGE_CURRENT)
             )
         else:
             status, current = rb.BatteryStatus.DISCHARGING, -(1.5 + 4.0 * m.speed)

@@ -5,8 +5,9 @@ parts (:mod:`~serveur.sim.outbox`, :mod:`~serveur.sim.sensors`,
 :mod:`~serveur.sim.navigator`, :mod:`~serveur.sim.inbox`, :mod:`~serveur.sim.floor`); a part
 keeps what only it uses on itself. The state holds what two parts or more read or write — the
 robot's name, dialect and namespace, its clock, map and planner, its body (true motion,
-odometry, battery), the sim time of its last physics step, a teleop command, the two ROS 2
-faults every part obeys, the other robots sharing its floor — and the few reads all of them
+odometry, battery, the chargers it can charge on), the sim time of its last physics step, a
+teleop command, whether the docking server drives the base, the two ROS 2 faults every part
+obeys, the other robots sharing its floor — and the few reads all of them
 use (topic names under the namespace, the robot's ROS time, its true pose). :class:`Goal` is
 one move_base or Nav2 goal as the navigator tracks it.
 """
@@ -80,6 +81,13 @@ class RobotState:
         self.odom = odom
         self.battery = 1.0
         self.charging = False
+        #: The chargers' poses (x, y, yaw: the pose a robot stands in on its contacts): the
+        #: robot's own dock, and in a fleet every robot's (``Simulation``).
+        self.chargers: tuple[tuple[float, float, float], ...] = ()
+        #: The docking server switched the charger's current off (undocking).
+        self.charge_off = False
+        #: The docking server drives the base (onto or off a dock): teleop and move_base wait.
+        self.docking_drives = False
         self.t = clock.now()  # sim time of the last physics step
         #: A client's ``/cmd_vel`` driving the base (no goal), and when it came (wall-scaled).
         self.teleop: tuple[float, float, float] | None = None
