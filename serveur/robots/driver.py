@@ -7,8 +7,9 @@ rosbridge) and :class:`serveur.robots.ros2.link.Nav2Link` (ROS 2, Nav2's navigat
 rosbridge 2.x). :func:`serveur.robots.factory.make_driver` picks one from the robot's ``ros``
 option; this module never imports them (an interface does not know its implementations).
 
-The interface is small on purpose, like Equinor ISAR's robot interface: go to a pose, cancel,
-stop for good, steer, set the pose; reports of pose, battery, goal outcomes and liveness.
+The interface is small on purpose, like Equinor ISAR's robot interface: go to a pose, dock
+and leave the dock, cancel, stop for good, steer, set the pose; reports of pose, battery, goal
+outcomes and liveness.
 Goal outcomes use one vocabulary, :class:`~serveur.robots.rosbridge.GoalStatus` (actionlib's,
 the richer of the two): a driver for another stack maps its own outcomes onto it (Nav2's
 CANCELED is PREEMPTED, a goal that never got an answer is LOST).
@@ -16,6 +17,13 @@ CANCELED is PREEMPTED, a goal that never got an answer is LOST).
 A lost goal also says *why* it was lost, typed (:class:`GoalLoss`): the link failed (the table
 is fine), the robot never took the goal, or it navigated and could not finish: the ``cause``
 of :meth:`LinkListener.goal_lost`.
+
+**Docking** (issue 32): :meth:`RobotDriver.dock` drives the robot onto its charger and reports
+its end as a goal's (SUCCEEDED once docked); :meth:`RobotDriver.undock` takes it off before
+the next goal. A ROS 2 robot whose link options name a docking server (``docking=nav2``, Nav2's
+opennav_docking; ``docking=opennav``, its standalone package on Humble) docks through that
+server's ``dock_robot`` / ``undock_robot`` actions; every other robot (ROS1, ROS 2 without the
+option, the fake) docks with a plain goal to the dock's pose and has nothing to do to undock.
 """
 
 from __future__ import annotations
@@ -143,6 +151,26 @@ class RobotDriver(Protocol):
 
     async def send_goal(self, x: float, y: float, yaw: float) -> str:
         """Send the robot to a map pose; the handle its outcome will be reported under."""
+        ...
+
+    async def dock(self, x: float, y: float, yaw: float, dock_id: str) -> str:
+        """Drive onto the charging dock whose pose is (x, y, yaw) (map frame, the pose the
+        robot stands in when on the charger) and whose name is ``dock_id``; returns a goal
+        handle whose outcome is reported through :meth:`LinkListener.goal_done` /
+        :meth:`LinkListener.goal_lost` exactly like :meth:`send_goal`'s (SUCCEEDED once
+        docked). It replaces a goal under way as :meth:`send_goal` does, and
+        :meth:`cancel_goal` cancels it. Without a docking server it *is* a goal to the dock's
+        pose."""
+        ...
+
+    async def undock(self) -> None:
+        """Leave the dock before the next goal: returns when the robot is off the dock, or
+        at once where the robot has nothing to do for it (no docking server: its navigator
+        drives it off with the next goal). A goal under way (a dock still running) is
+        cancelled first, unreported, as by :meth:`cancel_goal`. Raises
+        :class:`~serveur.errors.LinkError` when the robot cannot be reached, and when its
+        docking server failed to take it off the dock or never answered (the text says why in
+        the robot's words): the robot may still stand on its dock then."""
         ...
 
     async def cancel_goal(self) -> None:

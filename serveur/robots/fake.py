@@ -28,6 +28,8 @@ What it does, as the core sees a real robot through a real driver:
   man's switch (:class:`~serveur.robots.deadman.DeadManSwitch`, the real drivers' own) stops the
   robot when no twist follows. While a goal runs the robot ignores it, as move_base and Nav2 do
   (their controller drives the base; the core cancels the goal before steering by hand).
+* **Docking**: a fake has no docking server: :meth:`FakeDriver.dock` is a goal to the dock's
+  pose (SUCCEEDED "Goal reached." there), :meth:`FakeDriver.undock` does nothing.
 * :meth:`FakeDriver.halt` forgets the goal, stops the robot and refuses every later command.
 * A goal that ends while the link is down is not reported (its result went to a connection
   that is gone, as with Nav2): the core re-sends the move when the link is back.
@@ -163,7 +165,8 @@ class FakeDriver:
         #: The robot's velocity now, in its own frame (vx, vy, wz), as it moved the last tick.
         self.velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
         #: Every command the robot was told, in order: ("goal", x, y, yaw), ("cancel",),
-        #: ("teleop", vx, vy, wz), ("initial_pose", x, y, yaw), ("halt",).
+        #: ("teleop", vx, vy, wz), ("initial_pose", x, y, yaw), ("halt",), ("dock", x, y,
+        #: yaw, dock_id), ("undock",).
         self.received: list[tuple[Any, ...]] = []
         self._twist = (0.0, 0.0, 0.0)  # the joystick's last velocity, held by the base
         self._goal: _Goal | None = None
@@ -247,12 +250,25 @@ class FakeDriver:
 
     async def send_goal(self, x: float, y: float, yaw: float) -> str:
         self._check()
+        self.received.append(("goal", x, y, yaw))
+        return self._new_goal(x, y, yaw)
+
+    def _new_goal(self, x: float, y: float, yaw: float) -> str:
         handle = f"fake-{self.name}-{next(self._seq)}"
         refused = self._refusals.pop(0) if self._refusals else None
         self._goal = _Goal(handle, x, y, _wrap(yaw), self._clock.now(), refused)
-        self.received.append(("goal", x, y, yaw))
         self._move()
         return handle
+
+    async def dock(self, x: float, y: float, yaw: float, dock_id: str) -> str:
+        """No docking server: a goal to the dock's pose (the faults of goals apply)."""
+        self._check()
+        self.received.append(("dock", x, y, yaw, dock_id))
+        return self._new_goal(x, y, yaw)
+
+    async def undock(self) -> None:
+        """Nothing to do: the next goal drives the robot off its dock."""
+        self.received.append(("undock",))
 
     async def cancel_goal(self) -> None:
         self._check()

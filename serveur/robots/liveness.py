@@ -46,6 +46,12 @@ result was lost (about once in 200 goals on the measured stack): a robot at the 
 arrived, elsewhere the goal is lost (:attr:`GoalLoss.NAVIGATION`). **Every lost goal is
 cancelled on the robot** (:class:`Cancel` follows every :class:`GoalLost`): a goal serveur
 has given up on must not drive on to a table.
+
+A goal may be one of another action of the same robot (a dock, :attr:`TrackedGoal.dock_id`:
+opennav_docking's ``dock_robot``): the same rules hold, in its own server's words
+(:attr:`TrackedGoal.stack`); a server whose progress comes in bursts says how long it may be
+silent while it works (:attr:`TrackedGoal.quiet`: the docking server reports nothing while
+Nav2 drives the robot to the dock's staging pose).
 """
 
 from __future__ import annotations
@@ -163,6 +169,14 @@ class TrackedGoal:
     #: Paced proofs since ``mark``.
     proofs: int = 0
     ids: list[str] = field(default_factory=list)
+    #: Its server in reports ("Nav2 dock_robot"); the tracker's ``stack`` by default.
+    stack: str = ""
+    #: Clock seconds its server may send no progress, once it took the goal, beyond the ack
+    #: timeout (a progress tracker's): 0 for a server that reports continuously.
+    quiet: float = 0.0
+    #: A dock goal (:meth:`~serveur.robots.driver.RobotDriver.dock`): the dock's name, and the
+    #: link sends it to its docking server; None for a goal to a pose.
+    dock_id: str | None = None
 
 
 class LinkTracker:
@@ -337,15 +351,38 @@ class LinkTracker:
         return tuple(self._recent)
 
     def new_goal(
-        self, now: float, x: float, y: float, yaw: float
+        self,
+        now: float,
+        x: float,
+        y: float,
+        yaw: float,
+        *,
+        dock_id: str | None = None,
+        stack: str = "",
+        quiet: float = 0.0,
     ) -> tuple[TrackedGoal, list[Instruction]]:
-        """A goal to send (the link sends it under ``goal.id``), after the instructions."""
+        """A goal to send (the link sends it under ``goal.id``), after the instructions.
+
+        ``dock_id``, ``stack`` and ``quiet`` describe a goal of another action (a dock): see
+        :class:`TrackedGoal`."""
         out: list[Instruction] = []
         old = self.goal
         if old is not None and self._cancel_replaced:
             out.append(Cancel(tuple(old.ids)))
         gid = self._new_id()
-        goal = TrackedGoal(gid, gid, x, y, yaw, now, mark=now, ids=[gid])
+        goal = TrackedGoal(
+            gid,
+            gid,
+            x,
+            y,
+            yaw,
+            now,
+            mark=now,
+            ids=[gid],
+            stack=stack or self.stack,
+            quiet=max(0.0, quiet),
+            dock_id=dock_id,
+        )
         self.goal = goal
         self._recent.append(gid)
         return goal, out
@@ -407,7 +444,7 @@ class LinkTracker:
             return []
         if not goal.acked:
             return self._resend(now, goal)
-        if not self._progress:
+        if not self._progress or self._paced_at - goal.mark <= self._ack_timeout + goal.quiet:
             return []
         # Progress stopped and no result came while the robot answered: where is it?
         self.goal = None
@@ -416,16 +453,16 @@ class LinkTracker:
         ):
             for i in goal.ids:
                 self._forget(i)
-            text = f"{self.stack} SUCCEEDED (no result came; the robot is at the goal)"
+            text = f"{goal.stack} SUCCEEDED (no result came; the robot is at the goal)"
             return [GoalDone(goal.handle, rb.GoalStatus.SUCCEEDED, text)]
-        reason = f"{self.stack} stopped sending feedback away from the goal and no result came"
+        reason = f"{goal.stack} stopped sending feedback away from the goal and no result came"
         return [GoalLost(goal.handle, reason, GoalLoss.NAVIGATION), Cancel(tuple(goal.ids))]
 
     def _resend(self, now: float, goal: TrackedGoal) -> list[Instruction]:
         if goal.attempts > self._ack_retries:
             self.goal = None
             reason = (
-                f"goal not acknowledged by {self.stack} after {goal.attempts} attempts"
+                f"goal not acknowledged by {goal.stack} after {goal.attempts} attempts"
                 f"{self._unacked_words}"
             )
             return [GoalLost(goal.handle, reason, GoalLoss.NOT_ACCEPTED), Cancel(tuple(goal.ids))]

@@ -9,6 +9,13 @@ with ``link``), stored with the robot, and used by its link for every topic it t
 Defaults are today's names. ``ns`` puts every default name under a namespace (as a ROS node
 pushed into that namespace resolves its relative names); each name can then be set alone,
 absolute (``/battery``) or relative (``battery``, resolved under ``ns``).
+
+``docking`` says a ROS 2 robot runs a docking server the link drives its dock goals through
+(:data:`DOCKING_SERVERS`): ``nav2`` (Nav2's opennav_docking, Jazzy and later, whose actions are
+``nav2_msgs/action/DockRobot`` and ``UndockRobot``) or ``opennav`` (the standalone
+open-navigation/opennav_docking a Humble robot runs, ``opennav_docking_msgs/action/...``).
+Its actions are ``dock_robot`` and ``undock_robot`` under ``ns`` (the docking server's own
+names). Without it (and on every ROS1 robot) a dock is a plain goal to the dock's pose.
 """
 
 from __future__ import annotations
@@ -18,7 +25,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 
-__all__ = ["OPTION_KEYS", "ROS_VERSIONS", "RosNames"]
+__all__ = ["DOCKING_SERVERS", "OPTION_KEYS", "ROS_VERSIONS", "RosNames"]
 
 #: Option key -> the default name, in the order docs/robots.md lists them: the move_base
 #: action (goal, cancel, status, result, feedback), joystick velocities, the localised pose,
@@ -51,9 +58,14 @@ _ROS2_DEFAULTS: dict[str, str] = {"cloud": "particle_cloud"}
 #: ``/amcl_pose`` only when its base frame is named (``base_link``, ``base_footprint``).
 #: ``camera_url`` instead names the robot's web_video_server stream (``http://robot:8080/
 #: stream?topic=/camera/image/compressed&type=ros_compressed``): the same JPEGs over HTTP.
-OPTION_KEYS = ("ros", "ns", *_DEFAULTS, "frame", "camera", "camera_url", "tf")
+#: ``docking`` has none either: a robot docks through a docking server only when it names one.
+OPTION_KEYS = ("ros", "ns", *_DEFAULTS, "frame", "camera", "camera_url", "tf", "docking")
 #: The ROS versions a robot may run: "1" (move_base) or "2" (Nav2).
 ROS_VERSIONS = ("1", "2")
+#: The docking servers a ROS 2 robot may run (its ``docking`` option): Nav2's opennav_docking
+#: (Jazzy and later: its actions are in nav2_msgs) or the standalone opennav_docking (Humble:
+#: opennav_docking_msgs).
+DOCKING_SERVERS = ("nav2", "opennav")
 _NAME = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
 _FRAME = re.compile(r"^[A-Za-z][A-Za-z0-9_/]*$")
 _URL = re.compile(r"^https?://[^\s/?#]+(/[^\s]*)?$", re.IGNORECASE)
@@ -90,6 +102,8 @@ class RosNames:
     tf_base: str = ""
     #: The robot's web_video_server stream URL (MJPEG), "" for none: a camera without rosbridge.
     camera_url: str = ""
+    #: The robot's docking server (:data:`DOCKING_SERVERS`), "" for none: docks are goals.
+    docking: str = ""
 
     @classmethod
     def from_options(cls, options: Mapping[str, str]) -> RosNames:
@@ -106,6 +120,13 @@ class RosNames:
                 if value not in ROS_VERSIONS:
                     raise ValueError(f"robot link option ros={value!r}: the robot runs ROS 1 or 2")
                 continue
+            if key == "docking":
+                if value not in DOCKING_SERVERS:
+                    raise ValueError(
+                        f"robot link option docking={value[:40]!r}: 'nav2' (Nav2's docking "
+                        "server, Jazzy and later) or 'opennav' (opennav_docking on Humble)"
+                    )
+                continue
             if key == "camera_url":
                 if not _URL.match(value) or len(value) > 256:
                     raise ValueError(
@@ -120,6 +141,11 @@ class RosNames:
             ns = "/" + ns
         ns = ns.rstrip("/")
         ros = int(options.get("ros", "1"))
+        if options.get("docking") and ros != 2:
+            raise ValueError(
+                "robot link option docking: a docking server's actions are ROS 2's (ros=2); "
+                "a ROS1 robot docks with a goal to its dock"
+            )
         defaults = {**_DEFAULTS, **_ROS2_DEFAULTS} if ros == 2 else _DEFAULTS
         names = {key: _resolve(ns, options.get(key, default)) for key, default in defaults.items()}
         camera = _resolve(ns, options["camera"]) if options.get("camera") else ""
@@ -130,6 +156,7 @@ class RosNames:
             camera=camera,
             tf_base=options.get("tf", ""),
             camera_url=options.get("camera_url", ""),
+            docking=options.get("docking", ""),
             **names,
         )
 
@@ -160,6 +187,9 @@ class RosNames:
             "/particlecloud": self.cloud,
             "/tf": self.tf_topic,
             "/tf_static": self.tf_static,
+            # the docking server's actions (ROS 2, ``docking``): its own names, under ``ns``
+            "/dock_robot": f"{self.ns}/dock_robot",
+            "/undock_robot": f"{self.ns}/undock_robot",
         }
 
     @cached_property

@@ -3,9 +3,10 @@
 The core drives every robot through :class:`~serveur.robots.driver.RobotDriver` and hears it
 through a :class:`~serveur.robots.driver.LinkListener`; it must not be able to tell the drivers
 apart. So the same assertions run against each: the ROS1 link and the ROS 2 link, each against
-a simulated robot of its dialect on a scaled clock, and the fake driver on a
-:class:`~serveur.clock.FakeClock` that the test moves (no socket, no wall time). Every driver is
-made by :func:`~serveur.robots.factory.make_driver`, as the core makes them.
+a simulated robot of its dialect on a scaled clock, the ROS 2 link once more with a docking
+server (``docking=nav2`` against a simulated robot running opennav_docking's), and the fake
+driver on a :class:`~serveur.clock.FakeClock` that the test moves (no socket, no wall time).
+Every driver is made by :func:`~serveur.robots.factory.make_driver`, as the core makes them.
 
 What is asserted is what the core relies on: the link comes up only with a pose; a goal ends
 SUCCEEDED at the goal; a goal the robot never takes is lost once, as not accepted; a blocked
@@ -14,7 +15,9 @@ robot stops; a goal replaced by another is never reported as a failure; halt sto
 and refuses what follows; a joystick command with none after it is stopped by the dead man's
 switch; a dropped link is reported down once and up once (what Home Assistant and the staff
 console show as availability); an initial pose puts the robot there; scans come only while
-wanted; close() leaves no task of the driver running.
+wanted; close() leaves no task of the driver running; a dock ends SUCCEEDED with the robot on
+its charger (charging, where the robot is simulated) and undock takes it off before the next
+goal; a cancelled dock is never reported and the robot stops.
 """
 
 from __future__ import annotations
@@ -104,14 +107,16 @@ class Recorder:
         return [(k, a) for k, a in self.events if k in ("done", "lost") and a[0] == handle]
 
 
-def driver_for(url: str, ros: int, listener: Recorder, clock: Clock) -> RobotDriver:
+def driver_for(
+    url: str, ros: int, listener: Recorder, clock: Clock, docking: str = ""
+) -> RobotDriver:
     """The driver ``make_driver`` picks for ``url``, with the tests' link settings."""
     return make_driver(
         "r1",
         url,
         listener,
         clock,
-        names=RosNames(ros=ros),
+        names=RosNames(ros=ros, docking=docking),
         heartbeat=2.0,
         ack_timeout=3.0,
         ack_retries=2,
@@ -133,8 +138,8 @@ class Rig:
     def __init__(self) -> None:
         self.rec = Recorder()
 
-    def make(self, url: str, ros: int) -> RobotDriver:
-        return driver_for(url, ros, self.rec, self.clock)
+    def make(self, url: str, ros: int, docking: str = "") -> RobotDriver:
+        return driver_for(url, ros, self.rec, self.clock, docking)
 
     async def until(self, cond: Callable[[], Any], seconds: float, what: str) -> None:
         """Wait until ``cond()`` holds, for at most ``seconds`` of the robot's clock."""
@@ -147,6 +152,10 @@ class Rig:
     def where(self) -> tuple[float, float, float]:
         """Where the robot really is."""
         raise NotImplementedError
+
+    def charging(self) -> bool | None:
+        """Whether the robot charges now (None: the robot has no battery model)."""
+        return None
 
     def speed(self) -> float:
         """How fast it really moves (m/s plus rad/s: turning on the spot counts)."""
@@ -175,11 +184,11 @@ class Rig:
 class SimRig(Rig):
     """A real driver against a simulated robot speaking its ROS, on a scaled clock."""
 
-    def __init__(self, sim: Simulation, clock: Clock, ros: int) -> None:
+    def __init__(self, sim: Simulation, clock: Clock, ros: int, docking: str = "") -> None:
         super().__init__()
         self.sim = sim
         self.clock = clock
-        self.driver = self.make(sim.urls[0], ros)
+        self.driver = self.make(sim.urls[0], ros, docking)
 
     async def until(self, cond: Callable[[], Any], seconds: float, what: str) -> None:
         # Nothing to wait on for the simulated robot's own state: polled, every 10 ms of the
@@ -196,6 +205,9 @@ class SimRig(Rig):
 
     def where(self) -> tuple[float, float, float]:
         return self.sim.robots[0].pose
+
+    def charging(self) -> bool | None:
+        return self.sim.robots[0].charging
 
     def speed(self) -> float:
         vx, vy, wz = self.sim.robots[0].velocity
@@ -265,19 +277,26 @@ class FakeRig(Rig):
         self.fake.restore_link()
 
 
-@pytest.fixture(params=["ros1", "ros2", "fake"])
+@pytest.fixture(params=["ros1", "ros2", "ros2-docking", "fake"])
 async def rig(request: pytest.FixtureRequest) -> AsyncIterator[Rig]:
-    """Each driver in turn, started, its robot at home1."""
+    """Each driver in turn, started, its robot at home1 (its dock)."""
     made: Rig
     if request.param == "fake":
         made = FakeRig()
     else:
         ros = 1 if request.param == "ros1" else 2
+        docking = request.param == "ros2-docking"
         clock = test_clock(TIME_SCALE)
         sim = await start_simulation(
-            1, port=0, map_path=demo_map_path(), clock=clock, ros=ros, amcl="real"
+            1,
+            port=0,
+            map_path=demo_map_path(),
+            clock=clock,
+            ros=ros,
+            amcl="real",
+            docking=docking,
         )
-        made = SimRig(sim, clock, ros)
+        made = SimRig(sim, clock, ros, "nav2" if docking else "")
     try:
         made.driver.start()
         yield made
@@ -493,3 +512,44 @@ async def test_close_ends_cleanly(rig: Rig) -> None:
     with pytest.raises(LinkError):
         await rig.driver.send_goal(*NEAR)
     await rig.driver.close()  # a second close is harmless
+
+
+async def test_a_dock_ends_succeeded_on_the_charger_and_undock_takes_it_off(rig: Rig) -> None:
+    await up(rig)
+    dock = (HOME.x, HOME.y, HOME.yaw)  # the simulated robot's charger: its home
+    away = await rig.driver.send_goal(*NEAR)
+    await rig.until(lambda: rig.rec.ends(away), 30.0, "the robot away from its dock")
+    assert rig.charging() in (False, None)
+    handle = await rig.driver.dock(*dock, "home1")
+    assert rig.driver.goal_id == handle
+    await rig.until(lambda: rig.rec.ends(handle), 60.0, "the dock's end")
+    [(kind, (_, status, text))] = rig.rec.ends(handle)
+    assert (kind, status) == ("done", rb.GoalStatus.SUCCEEDED), text
+    assert rig.driver.goal_id is None
+    assert distance(rig.where(), dock) < 0.05, rig.where()  # on the contacts
+    await rig.until(lambda: rig.charging() in (True, None), 2.0, "the robot charging")
+    # With a docking server the robot is off its dock when undock returns; without one there
+    # is nothing to do, and the next goal drives it off.
+    await rig.driver.undock()
+    assert rig.driver.goal_id is None
+    again = await rig.driver.send_goal(*NEAR)  # the next goal goes as any other
+    await rig.until(lambda: rig.rec.ends(again), 30.0, "the next goal's end")
+    assert rig.rec.ends(again)[0][1][1] is rb.GoalStatus.SUCCEEDED
+    assert rig.charging() in (False, None)
+    await rig.driver.undock()  # off the dock already: nothing to do, no error
+
+
+async def test_a_cancelled_dock_stops_the_robot_and_is_never_reported(rig: Rig) -> None:
+    await up(rig)
+    far = await rig.driver.send_goal(*FAR)
+    await rig.until(lambda: rig.rec.ends(far), 60.0, "the robot across the room")
+    handle = await rig.driver.dock(HOME.x, HOME.y, HOME.yaw, "home1")
+    await moving(rig)
+    await rig.driver.cancel_goal()
+    assert rig.driver.goal_id is None
+    await stopped(rig)
+    there = rig.where()
+    await rig.pass_time(2.0)
+    assert distance(rig.where(), there) < 0.02, "the robot drove on"
+    assert distance(there, (HOME.x, HOME.y)) > 1.0
+    assert rig.rec.ends(handle) == []

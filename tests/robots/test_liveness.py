@@ -285,6 +285,41 @@ def test_feedback_that_stops_at_the_goal_is_an_arrival() -> None:
     assert isinstance(done, GoalDone) and done.status is rb.GoalStatus.SUCCEEDED
 
 
+def test_a_dock_goal_may_be_silent_while_nav2_drives_to_its_staging_pose() -> None:
+    # opennav_docking sends one feedback as it starts the staging drive, then nothing until
+    # the dock's perception: its goal's silence is believed only after its ``quiet``.
+    t = ros2()
+    up(t)
+    goal, _ = t.new_goal(0.0, 4.0, 10.8, 1.57, dock_id="home1", stack="Nav2 dock_robot", quiet=30)
+    assert (goal.dock_id, goal.stack) == ("home1", "Nav2 dock_robot")
+    t.goal_progress(0.2, "g1")  # NAV_TO_STAGING_POSE: acknowledged
+    assert beat(t, 0.5, 30.0) == []  # 30 s of silence: the staging drive
+    [lost, cancel] = beat(t, 30.5, 34.0)
+    assert isinstance(lost, GoalLost) and lost.cause is GoalLoss.NAVIGATION
+    assert lost.reason.startswith("Nav2 dock_robot stopped sending feedback")
+    assert cancel == Cancel(("g1",))
+
+
+def test_a_dock_goal_is_resent_and_lost_in_its_own_servers_words() -> None:
+    t = ros2()
+    up(t)
+    t.new_goal(0.0, 4.0, 10.8, 1.57, dock_id="home1", stack="Nav2 dock_robot", quiet=300)
+    out = beat(t, 0.5, 20.0)  # no feedback at all: the quiet is not an ack's allowance
+    assert [type(i).__name__ for i in out] == [
+        "Cancel",
+        "SendGoal",
+        "Cancel",
+        "SendGoal",
+        "GoalLost",
+        "Cancel",
+    ]
+    resent = out[1]
+    assert isinstance(resent, SendGoal) and resent.goal.dock_id == "home1"
+    lost = out[4]
+    assert isinstance(lost, GoalLost) and lost.cause is GoalLoss.NOT_ACCEPTED
+    assert lost.reason == "goal not acknowledged by Nav2 dock_robot after 3 attempts (no feedback)"
+
+
 def test_a_link_going_down_cancels_the_goal_and_again_when_it_comes_back() -> None:
     # A goal nobody watches keeps running on the robot until someone cancels it.
     t = ros2()

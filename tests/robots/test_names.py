@@ -133,3 +133,16 @@ def test_a_camera_url_is_an_http_url() -> None:
             RosNames.from_options({"camera_url": bad})
     with pytest.raises(ValueError, match="tf"):
         RosNames.from_options({"tf": "base link"})
+
+
+def test_a_ros2_robot_names_its_docking_server() -> None:
+    n = RosNames.from_options({"ros": "2", "ns": "r2", "docking": "nav2"})
+    assert n.docking == "nav2" and "docking" in OPTION_KEYS
+    assert n.topic("/dock_robot") == "/r2/dock_robot"  # the docking server's own names
+    assert n.topic("/undock_robot") == "/r2/undock_robot"
+    assert RosNames.from_options({"ros": "2", "docking": "opennav"}).docking == "opennav"
+    assert RosNames.from_options({"ros": "2"}).docking == ""  # none: docks are goals
+    with pytest.raises(ValueError, match="docking='nav3'"):
+        RosNames.from_options({"ros": "2", "docking": "nav3"})
+    with pytest.raises(ValueError, match="ros=2"):
+        RosNames.from_options({"docking": "nav2"})  # a ROS1 robot has no such server

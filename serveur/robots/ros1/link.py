@@ -23,6 +23,8 @@ cancelled (``/move_base/cancel`` with its id) are decided by the tracker both dr
 :class:`~serveur.robots.liveness.LinkTracker`; this module reads frames into it and carries
 out what it says. A goal of an earlier connection is cancelled when the link reconnects.
 
+A dock (:meth:`RobotLink.dock`) is a move_base goal to the dock's pose; undock does nothing.
+
 Goals, cancels and initial poses carry a **zero stamp**. actionlib's SimpleActionServer
 cancels (RECALLED) any goal stamped earlier than the last goal it accepted, and a Raspberry Pi
 has no hardware clock: stamped with the server's time, every goal after a reboot would be
@@ -470,6 +472,14 @@ class RobotLink(Reconnecting):
         await self._update_rates()  # full rates before the robot starts to move
         await self._send(self._pub("/move_base/goal", self._goal_msg(goal)))
         return goal.handle
+
+    async def dock(self, x: float, y: float, yaw: float, dock_id: str) -> str:
+        """A ROS1 robot has no docking server serveur knows (opennav_docking is ROS 2's): a
+        dock is a move_base goal to the dock's pose, reported as any goal."""
+        return await self.send_goal(x, y, yaw)
+
+    async def undock(self) -> None:
+        """Nothing to do: move_base drives the robot off its dock with the next goal."""
 
     async def cancel_goal(self) -> None:
         """Cancel every goal on the robot (empty id), as a stop button must."""

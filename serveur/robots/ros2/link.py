@@ -40,6 +40,22 @@ from rosbridge_suite 2.x, Nav2 and a Jazzy stack measured in ../shared/notes/ros
   decisions are the shared :class:`~serveur.robots.liveness.LinkTracker`'s.
 * Goals, cancels and initial poses carry zero stamps in frame ``map`` (AMCL ignores an
   ``/initialpose`` in another frame), as on ROS1.
+* **Docking** (the robot's ``docking`` link option: ``nav2`` or ``opennav``; see
+  :mod:`serveur.robots.ros2.messages` for the actions, read in Nav2's sources):
+  :meth:`Nav2Link.dock` sends a DockRobot goal to ``dock_robot`` (``use_dock_id`` false, the
+  dock's pose in ``map``, ``navigate_to_staging_pose`` true) and tracks it as a navigate goal
+  is tracked — acknowledged by its first feedback, re-sent, lost, cancelled, replaced — by the
+  same :class:`~serveur.robots.liveness.LinkTracker`, in its own words (``Nav2 dock_robot``).
+  Its feedback stops while Nav2 drives to the staging pose, so its silence is believed only
+  after :data:`MAX_STAGING_TIME` (sent with the goal: the server gives up by then) and the
+  dock's perception time. A result with ``success`` false is ABORTED with its error code in
+  words. :meth:`Nav2Link.undock` sends an UndockRobot goal to ``undock_robot`` and waits for
+  its result (it has no feedback): SUCCEEDED, or ABORTED without an error code — opennav's
+  "Robot is not in the dock, no need to undock", which ends the goal unfinished and Nav2's
+  SimpleActionServer aborts — returns; any other end, or none within
+  :data:`MAX_UNDOCKING_TIME` and :data:`UNDOCK_GRACE`, raises :class:`LinkError` (the undock
+  cancelled). Without the option a dock is :meth:`Nav2Link.send_goal` to the dock's pose and
+  undock does nothing.
 """
 
 from __future__ import annotations
@@ -73,7 +89,7 @@ from serveur.robots.reconnect import Reconnecting, open_rosbridge
 from serveur.robots.ros2 import messages as m2
 from serveur.robots.sensor_reports import SensorReports, Streams
 
-__all__ = ["PING_PERIOD", "Nav2Link"]
+__all__ = ["MAX_STAGING_TIME", "MAX_UNDOCKING_TIME", "PING_PERIOD", "UNDOCK_GRACE", "Nav2Link"]
 
 log = logging.getLogger(__name__)
 
@@ -87,7 +103,19 @@ BATTERY_MS = 5000
 #: believed: after a stall of the server (or of a Pi's Wi-Fi) the pings and the feedback
 #: queued behind them arrive together, and time alone would misjudge a goal under way.
 SILENT_PINGS = 3
-#: Robot topics that prove it alive (their names are the defaults, see RosNames).
+#: Robot seconds a docking server may let Nav2 take to a dock's staging pose (sent as the
+#: DockRobot goal's ``max_staging_time``; Nav2's default is 1000 s): a restaurant's longest
+#: drive with waits for other robots, after which the server gives up (FAILED_TO_STAGE).
+MAX_STAGING_TIME = 300.0
+#: Robot seconds the docking server may stay silent after the dock's initial perception
+#: feedback (opennav_docking's ``initial_perception_timeout``, 5 s by default) and margin.
+DOCK_PERCEPTION = 15.0
+#: Robot seconds the docking server may take to back the robot off its dock (UndockRobot's
+#: ``max_undocking_time``, its default), and what is waited on top for its result.
+MAX_UNDOCKING_TIME = 30.0
+UNDOCK_GRACE = 5.0
+#: Goal ids whose action is remembered (to cancel each on its own action).
+_ACTIONS_KEPT = 64
 
 
 class Nav2Link(Reconnecting):
@@ -155,6 +183,12 @@ class Nav2Link(Reconnecting):
             lambda topic: rb.op_unsubscribe(self._t(topic)),
         )
         self._pings = 0
+        #: The docking server's (DockRobot, UndockRobot) types; None: docks are goals.
+        self._dock_types = m2.DOCK_ACTION_TYPES.get(self._names.docking)
+        #: The action (default name) each goal id we sent went to, for its cancel and result.
+        self._action_of: dict[str, str] = {}
+        #: Undock goals waiting for their result, by id.
+        self._undocks: dict[str, asyncio.Future[Mapping[str, Any]]] = {}
         self._cmd_vel_type: str | None = None  # /cmd_vel's type, once rosapi said it
         self._jobs: set[asyncio.Task[None]] = set()
         self.connects = 0
@@ -211,6 +245,9 @@ class Nav2Link(Reconnecting):
 
     def _closed(self) -> None:
         self._ctl = self._nav = None
+        for fut in self._undocks.values():
+            if not fut.done():
+                fut.set_exception(LinkError(f"robot {self.name}: connection lost while undocking"))
 
     def _connect_failed(self, reason: str) -> str:
         return connect_failed(self, self._listener, reason, log)
@@ -281,8 +318,7 @@ class Nav2Link(Reconnecting):
             with contextlib.suppress(websockets.exceptions.ConnectionClosed):
                 if isinstance(act, Cancel) and ctl is not None:
                     for gid in act.ids:
-                        op = m2.op_cancel_action_goal(self._t("/navigate_to_pose"), gid)
-                        await ctl.send(rb.encode(op))
+                        await ctl.send(rb.encode(self._cancel_op(gid)))
                 elif isinstance(act, SendGoal) and nav is not None:
                     log.warning("%s: goal not accepted, re-sent as %s", self.name, act.goal.id)
                     await nav.send(rb.encode(self._goal_op(act.goal)))
@@ -359,11 +395,18 @@ class Nav2Link(Reconnecting):
     def _on_result(self, op: Mapping[str, Any]) -> None:
         # A goal we replaced (Nav2 aborted it for the new one) or cancelled is ignored.
         gid = str(op.get("id"))
+        undock = self._undocks.get(gid)
+        if undock is not None:
+            if not undock.done():
+                undock.set_result(op)
+            return
+        dock = self._action_of.get(gid) == "/dock_robot"
         if op.get("result") is False:
-            reason = f"{m2.STACK}: the bridge could not run the goal: {op.get('values')}"
+            stack = m2.DOCK_STACK if dock else m2.STACK
+            reason = f"{stack}: the bridge could not run the goal: {op.get('values')}"
             self._apply(self._track.goal_failed(gid, reason))
             return
-        status, text = m2.outcome(op)
+        status, text = m2.dock_outcome(op) if dock else m2.outcome(op)
         self._apply(self._track.goal_state(gid, status, text))
 
     # -- outgoing ------------------------------------------------------------------------
@@ -397,9 +440,79 @@ class Nav2Link(Reconnecting):
         await self._send(self._goal_op(goal), nav=True)
         return goal.handle
 
+    async def dock(self, x: float, y: float, yaw: float, dock_id: str) -> str:
+        """A DockRobot goal to the docking server (the module's docstring), tracked as a
+        goal; without a docking server, a goal to the dock's pose."""
+        if self._dock_types is None:
+            return await self.send_goal(x, y, yaw)
+        goal, todo = self._track.new_goal(
+            self._clock.now(),
+            x,
+            y,
+            yaw,
+            dock_id=dock_id,
+            stack=m2.DOCK_STACK,
+            quiet=MAX_STAGING_TIME + DOCK_PERCEPTION,
+        )
+        await self._perform(todo)
+        await self._send(self._goal_op(goal), nav=True)
+        return goal.handle
+
+    async def undock(self) -> None:
+        """An UndockRobot goal, waited for (the module's docstring); nothing to do without a
+        docking server."""
+        if self._dock_types is None:
+            return
+        if self._track.goal is not None:  # a dock still running: the server runs one at once
+            await self.cancel_goal()
+        gid = str(uuid.uuid4())
+        action = self._remember(gid, "/undock_robot")
+        op = m2.op_send_undock_goal(
+            action, self._dock_types[1], gid, max_undocking_time=MAX_UNDOCKING_TIME
+        )
+        fut: asyncio.Future[Mapping[str, Any]] = asyncio.get_running_loop().create_future()
+        self._undocks[gid] = fut
+        try:
+            await self._send(op, nav=True)
+            wait = self._clock.wall(MAX_UNDOCKING_TIME + UNDOCK_GRACE)
+            try:
+                result = await asyncio.wait_for(fut, wait)
+            except TimeoutError:
+                with contextlib.suppress(LinkError):
+                    await self._send(m2.op_cancel_action_goal(action, gid))
+                raise LinkError(
+                    f"robot {self.name}: no result from {m2.UNDOCK_STACK} within "
+                    f"{MAX_UNDOCKING_TIME + UNDOCK_GRACE:g}s (cancelled)"
+                ) from None
+        finally:
+            self._undocks.pop(gid, None)
+        off, text = m2.undock_verdict(result)
+        if not off:
+            raise LinkError(f"robot {self.name} could not leave its dock: {text}")
+        log.info("%s: undocked (%s)", self.name, text)
+
+    def _remember(self, gid: str, action: str) -> str:
+        """Note that goal ``gid`` went to ``action`` (a default name); its wire name."""
+        self._action_of[gid] = action
+        while len(self._action_of) > _ACTIONS_KEPT:
+            del self._action_of[next(iter(self._action_of))]
+        return self._t(action)
+
     def _goal_op(self, goal: TrackedGoal) -> dict[str, Any]:
+        if goal.dock_id is not None and self._dock_types is not None:
+            return m2.op_send_dock_goal(
+                self._remember(goal.id, "/dock_robot"),
+                self._dock_types[0],
+                goal.id,
+                goal.x,
+                goal.y,
+                goal.yaw,
+                dock_id=goal.dock_id,
+                frame_id=self._names.frame,
+                max_staging_time=MAX_STAGING_TIME,
+            )
         return m2.op_send_action_goal(
-            self._t("/navigate_to_pose"),
+            self._remember(goal.id, "/navigate_to_pose"),
             goal.id,
             goal.x,
             goal.y,
@@ -407,9 +520,14 @@ class Nav2Link(Reconnecting):
             frame_id=self._names.frame,
         )
 
+    def _cancel_op(self, goal_id: str) -> dict[str, Any]:
+        """Cancel goal ``goal_id`` on the action it was sent to (navigate_to_pose if not
+        remembered: every goal of an earlier server run went there)."""
+        action = self._action_of.get(goal_id, "/navigate_to_pose")
+        return m2.op_cancel_action_goal(self._t(action), goal_id)
+
     async def _cancel(self, goal_id: str, *, halting: bool = False) -> None:
-        op = m2.op_cancel_action_goal(self._t("/navigate_to_pose"), goal_id)
-        await self._send(op, halting=halting)
+        await self._send(self._cancel_op(goal_id), halting=halting)
 
     async def cancel_goal(self) -> None:
         """Cancel our goals on the robot (on the control connection: never queued behind
@@ -421,7 +539,7 @@ class Nav2Link(Reconnecting):
         self._halted = True
         self._deadman.release()
         with contextlib.suppress(LinkError):
-            for gid in self._track.cancelled():
+            for gid in (*self._track.cancelled(), *self._undocks):
                 await self._cancel(gid, halting=True)
             await self._send(self._twist_op(0.0, 0.0, 0.0), halting=True)
 

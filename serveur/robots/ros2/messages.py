@@ -4,6 +4,21 @@ What differs from ROS1 on the wire (rosbridge_suite's ROSBRIDGE_PROTOCOL.md, sec
 actions, and ../shared/notes/ros2.md): actions are ops of their own (``send_action_goal``,
 ``cancel_action_goal``, ``action_feedback``, ``action_result``) instead of five topics; time
 is ``{sec, nanosec}``; a Header has no ``seq``; type names carry ``/msg/`` or ``/action/``.
+
+**Docking** (opennav_docking's docking server, read in ros-navigation/navigation2's
+``nav2_msgs/action/DockRobot.action`` and ``UndockRobot.action`` and
+``nav2_docking/opennav_docking/src/docking_server.cpp``, and open-navigation/opennav_docking's
+README and ``opennav_docking_msgs``): the ``dock_robot`` action's goal ``{use_dock_id, dock_id,
+dock_pose: PoseStamped, dock_type, max_staging_time, navigate_to_staging_pose}``, its result
+``{success, error_code, num_retries}`` (Jazzy and later add ``error_msg``), its feedback
+``{state, docking_time, num_retries}`` sent when each phase starts (NAV_TO_STAGING_POSE 1,
+INITIAL_PERCEPTION 2) and continuously only while it drives onto the dock (CONTROLLING 3) and
+waits for the charge (WAIT_FOR_CHARGE 4): nothing comes while Nav2 drives the robot to the
+staging pose. ``undock_robot``: goal ``{dock_type, max_undocking_time}``, result ``{success,
+error_code}``, no feedback at all. A failure ends the goal ABORTED with ``success`` false and
+the error code (:data:`DOCK_ERRORS`); a cancel ends it CANCELED. The types are Nav2's
+``nav2_msgs/action/...`` from Jazzy on (docking ships with Nav2), the standalone package's
+``opennav_docking_msgs/action/...`` on Humble (:data:`DOCK_ACTION_TYPES`).
 """
 
 from __future__ import annotations
@@ -17,23 +32,58 @@ from serveur.robots.liveness import DownCause
 
 __all__ = [
     "ACTION_STATUS",
+    "DOCK_ACTION_TYPES",
+    "DOCK_ERRORS",
+    "DOCK_STACK",
     "NAVIGATE_TO_POSE",
     "STACK",
     "TOPIC_TYPES",
+    "UNDOCK_STACK",
     "ActionStatus",
+    "dock_outcome",
     "header",
     "heartbeat_verdict",
     "op_cancel_action_goal",
     "op_send_action_goal",
+    "op_send_dock_goal",
+    "op_send_undock_goal",
     "outcome",
     "pose_with_covariance_stamped",
+    "result_of",
     "time",
     "twist_stamped",
+    "undock_verdict",
 ]
 
 NAVIGATE_TO_POSE: Final = "nav2_msgs/action/NavigateToPose"
 #: The goal's server, in every goal report (the core shows it as it is).
 STACK: Final = "Nav2 navigate_to_pose"
+
+#: The docking server's action types (DockRobot, UndockRobot), by the robot's ``docking`` link
+#: option (:data:`serveur.robots.names.DOCKING_SERVERS`).
+DOCK_ACTION_TYPES: Final[dict[str, tuple[str, str]]] = {
+    "nav2": ("nav2_msgs/action/DockRobot", "nav2_msgs/action/UndockRobot"),
+    "opennav": ("opennav_docking_msgs/action/DockRobot", "opennav_docking_msgs/action/UndockRobot"),
+}
+#: The docking server's actions in goal reports.
+DOCK_STACK: Final = "Nav2 dock_robot"
+UNDOCK_STACK: Final = "Nav2 undock_robot"
+#: DockRobot's and UndockRobot's result ``error_code`` in words (the constants of
+#: nav2_msgs/action/DockRobot.action: GOAL_REJECTED 1 and SEND_GOAL_FAILURE 2, the codes of the
+#: docking server's exceptions 901-906, TIMEOUT 907 in later releases, UNKNOWN 999).
+DOCK_ERRORS: Final[dict[int, str]] = {
+    0: "no error code",
+    1: "the goal was rejected",
+    2: "the goal could not be sent",
+    901: "the dock is not in the docking server's database",
+    902: "the dock is not valid",
+    903: "failed to reach the staging pose",
+    904: "failed to detect the dock",
+    905: "failed to control the robot",
+    906: "the robot did not start charging",
+    907: "timed out",
+    999: "unknown error",
+}
 
 TOPIC_TYPES: Final[dict[str, str]] = {
     "/amcl_pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
@@ -111,8 +161,78 @@ def op_send_action_goal(
     }
 
 
+def op_send_dock_goal(
+    action: str,
+    action_type: str,
+    goal_id: str,
+    x: float,
+    y: float,
+    yaw: float,
+    *,
+    dock_id: str,
+    frame_id: str,
+    max_staging_time: float,
+) -> dict[str, Any]:
+    """A DockRobot goal to the dock at this pose (``use_dock_id`` false: the server needs no
+    database of our docks; ``dock_id`` is sent for its logs), through Nav2 to the staging pose
+    first, with feedback (its first feedback, NAV_TO_STAGING_POSE, is the acknowledgement).
+    ``max_staging_time``: seconds the server lets Nav2 take to the staging pose before it gives
+    up (FAILED_TO_STAGE)."""
+    return {
+        "op": "send_action_goal",
+        "id": goal_id,
+        "action": action,
+        "action_type": action_type,
+        "args": {
+            "use_dock_id": False,
+            "dock_id": dock_id,
+            "dock_pose": {"header": header(0.0, frame_id), "pose": rb.pose_msg(x, y, yaw)},
+            "dock_type": "",
+            "max_staging_time": float(max_staging_time),
+            "navigate_to_staging_pose": True,
+        },
+        "feedback": True,
+    }
+
+
+def op_send_undock_goal(
+    action: str, action_type: str, goal_id: str, *, max_undocking_time: float
+) -> dict[str, Any]:
+    """An UndockRobot goal (``dock_type`` empty: the dock the server docked at, or its only
+    plugin). UndockRobot has no feedback: nothing is asked."""
+    return {
+        "op": "send_action_goal",
+        "id": goal_id,
+        "action": action,
+        "action_type": action_type,
+        "args": {"dock_type": "", "max_undocking_time": float(max_undocking_time)},
+        "feedback": False,
+    }
+
+
 def op_cancel_action_goal(action: str, goal_id: str) -> dict[str, Any]:
     return {"op": "cancel_action_goal", "id": goal_id, "action": action}
+
+
+def _status(op: Mapping[str, Any], stack: str) -> ActionStatus | str:
+    """The ``action_result``'s status, or the words for one it does not have."""
+    values = op.get("values")
+    raw = op.get("status")
+    if raw is None and isinstance(values, Mapping):
+        raw = values.get("status")
+    try:
+        return ActionStatus(int(raw))  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return f"{stack} ended with status {raw!r}"
+
+
+def result_of(op: Mapping[str, Any]) -> Mapping[str, Any]:
+    """The action's result message (older bridges nest it in ``values.result``)."""
+    values = op.get("values")
+    if not isinstance(values, Mapping):
+        return {}
+    inner = values.get("result", values)
+    return inner if isinstance(inner, Mapping) else {}
 
 
 def outcome(op: Mapping[str, Any]) -> tuple[rb.GoalStatus, str]:
@@ -123,23 +243,44 @@ def outcome(op: Mapping[str, Any]) -> tuple[rb.GoalStatus, str]:
     is an exception on the bridge (``values`` is its text). Jazzy's NavigateToPose result has
     ``error_code``/``error_msg``; Humble's is empty.
     """
-    values = op.get("values")
     if op.get("result") is False:
-        return rb.GoalStatus.ABORTED, f"{STACK} failed on the bridge: {values}"
-    raw = op.get("status")
-    if raw is None and isinstance(values, Mapping):
-        raw = values.get("status")
-    try:
-        status = ActionStatus(int(raw))  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        return rb.GoalStatus.ABORTED, f"{STACK} ended with status {raw!r}"
+        return rb.GoalStatus.ABORTED, f"{STACK} failed on the bridge: {op.get('values')}"
+    status = _status(op, STACK)
+    if isinstance(status, str):
+        return rb.GoalStatus.ABORTED, status
     mapped = ACTION_STATUS.get(status, rb.GoalStatus.ABORTED)
     text = f"{STACK} {status.name}"
-    if isinstance(values, Mapping):
-        inner = values.get("result", values)
-        if isinstance(inner, Mapping) and inner.get("error_msg"):
-            text += f": {inner['error_msg']} (error {inner.get('error_code')})"
+    inner = result_of(op)
+    if inner.get("error_msg"):
+        text += f": {inner['error_msg']} (error {inner.get('error_code')})"
     return mapped, text
+
+
+def dock_outcome(op: Mapping[str, Any], stack: str = DOCK_STACK) -> tuple[rb.GoalStatus, str]:
+    """A DockRobot (or UndockRobot, ``stack`` :data:`UNDOCK_STACK`) ``action_result``'s
+    outcome and words: SUCCEEDED only with ``success`` true (or absent); a result with
+    ``success`` false is ABORTED, whatever its status, and its text names the error code in
+    words ("Nav2 dock_robot ABORTED: failed to detect the dock (904)", then the server's
+    ``error_msg`` if it sent one); CANCELED is PREEMPTED, as a navigate goal's."""
+    if op.get("result") is False:
+        return rb.GoalStatus.ABORTED, f"{stack} failed on the bridge: {op.get('values')}"
+    status = _status(op, stack)
+    if isinstance(status, str):
+        return rb.GoalStatus.ABORTED, status
+    if status is ActionStatus.CANCELED:
+        return rb.GoalStatus.PREEMPTED, f"{stack} CANCELED"
+    inner = result_of(op)
+    if status is ActionStatus.SUCCEEDED and inner.get("success") is not False:
+        return rb.GoalStatus.SUCCEEDED, f"{stack} SUCCEEDED"
+    code = inner.get("error_code", 0)
+    try:
+        words = DOCK_ERRORS.get(int(code), "an error code it does not know")
+    except (TypeError, ValueError):
+        words = "an error code it does not know"
+    text = f"{stack} ABORTED: {words} ({code})"
+    if inner.get("error_msg"):
+        text += f": {inner['error_msg']}"
+    return rb.GoalStatus.ABORTED, text
 
 
 def heartbeat_verdict(op: Mapping[str, Any]) -> tuple[bool, str, DownCause]:
@@ -172,3 +313,19 @@ def heartbeat_verdict(op: Mapping[str, Any]) -> tuple[bool, str, DownCause]:
             why = values.get("message") or "not ready"
             return False, f"the robot's heartbeat says: {why}", DownCause.NOT_READY
     return False, f"the heartbeat's answer is not understood: {values!r}", DownCause.NOT_READY
+
+
+def undock_verdict(op: Mapping[str, Any]) -> tuple[bool, str]:
+    """Is the robot off its dock after this UndockRobot ``action_result``? (True, words)
+    for SUCCEEDED, and for ABORTED without an error code: opennav_docking's "Robot is not in
+    the dock, no need to undock" returns from the server's callback without a verdict, which
+    Nav2's SimpleActionServer ends ABORTED (seen on a real robot after the docking server
+    restarted: it no longer knew it had docked). (False, words) for every other end: a
+    failure with its error code, a cancel, a bridge error."""
+    status, text = dock_outcome(op, UNDOCK_STACK)
+    if status is rb.GoalStatus.SUCCEEDED:
+        return True, text
+    code = result_of(op).get("error_code", 0)
+    if status is rb.GoalStatus.ABORTED and code == 0 and op.get("result") is not False:
+        return True, f"{text}: the robot was not on a dock"
+    return False, text
