@@ -23,8 +23,9 @@ README), one step per physics tick like the navigator:
   contacts at :data:`APPROACH_SPEED` (more than :data:`DOCK_APPROACH_TIMEOUT`:
   FAILED_TO_CONTROL, 905), then WAIT_FOR_CHARGE (4) every tick until the robot charges (more
   than :data:`WAIT_CHARGE_TIMEOUT`: FAILED_TO_CHARGE, 906). Success: status 4 and ``success``
-  true; a failure: status 6 ABORTED, ``success`` false and the code (and on Jazzy and later
-  ``error_msg``, the exception's text).
+  true; a failure: status 6 ABORTED, ``success`` false and the code (and, but on Humble,
+  ``error_msg``, the exception's text: Nav2's current DockRobot has the field; that Jazzy's
+  has it too is assumed, not checked).
 * **Undock.** A robot on no charger: ABORTED with ``success`` false and no error code (the
   server's "Robot is not in the dock, no need to undock" returns without a verdict, and Nav2's
   SimpleActionServer aborts the goal). Otherwise the charger's current is switched off and the

@@ -10,7 +10,7 @@ is ``{sec, nanosec}``; a Header has no ``seq``; type names carry ``/msg/`` or ``
 ``nav2_docking/opennav_docking/src/docking_server.cpp``, and open-navigation/opennav_docking's
 README and ``opennav_docking_msgs``): the ``dock_robot`` action's goal ``{use_dock_id, dock_id,
 dock_pose: PoseStamped, dock_type, max_staging_time, navigate_to_staging_pose}``, its result
-``{success, error_code, num_retries}`` (Jazzy and later add ``error_msg``), its feedback
+``{success, error_code, num_retries}`` (Nav2's newer releases add ``error_msg``), its feedback
 ``{state, docking_time, num_retries}`` sent when each phase starts (NAV_TO_STAGING_POSE 1,
 INITIAL_PERCEPTION 2) and continuously only while it drives onto the dock (CONTROLLING 3) and
 waits for the charge (WAIT_FOR_CHARGE 4): nothing comes while Nav2 drives the robot to the
