@@ -6,6 +6,7 @@ alert. Real server, real simulator, virtual time."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from tests.conftest import Client, Restaurant, restaurant
 from tests.core.test_service_day import owner_of, site
@@ -85,3 +86,49 @@ async def test_a_dock_that_does_not_charge_raises_an_alert(tmp_path: Path) -> No
         await c.until(alert, timeout=1200, what="the not-charging alert")
         await c.ok("work", robot="r1")
         await c.until(lambda: not alert(), timeout=60, what="the alert cleared")
+
+
+async def test_a_nav2_robot_docks_with_its_docking_server(tmp_path: Path) -> None:
+    # A charger away from home, a ROS 2 robot whose Nav2 has opennav_docking: the server
+    # sends DockRobot (staging pose, approach, on the contacts) and UndockRobot, not a goal.
+    dock = (2.6, 10.8, 1.570796)
+    config = site(charge_below=0.4, charge_until=0.41)
+    async with restaurant(
+        tmp_path,
+        robots=1,
+        config=config,
+        ros=2,
+        docking=True,
+        docks={"r1": dock},
+        link={"docking": "nav2"},
+    ) as r:
+        robot = r.sim.robots[0]
+        server = robot.docking
+        assert server is not None
+        asked: list[str] = []
+        dock_robot, undock_robot = server.dock, server.undock
+
+        def docked(*a: Any) -> None:
+            asked.append("dock_robot")
+            dock_robot(*a)
+
+        def undocked(*a: Any) -> None:
+            asked.append("undock_robot")
+            undock_robot(*a)
+
+        server.dock, server.undock = docked, undocked  # type: ignore[method-assign]
+        c = await staff(r)
+        await c.ok(
+            "create", type="waypoint", name="dock1", x=dock[0], y=dock[1], yaw=dock[2], kind="dock"
+        )
+        owner = await owner_of(r)
+        await owner.ok("site", action="edit_robot", robot="r1", dock="dock1")
+        robot.battery = 0.395
+        await activate(c, "r1")
+        await c.status("r1", "Charging", timeout=300)
+        assert asked == ["dock_robot"]
+        assert abs(robot.pose[0] - dock[0]) < 0.06 and abs(robot.pose[1] - dock[1]) < 0.06
+        await c.status("r1", "Awaiting", timeout=1200)
+        assert asked == ["dock_robot", "undock_robot"]
+        home = r.app.core.places.waypoint("home1")  # type: ignore[union-attr]
+        assert abs(robot.pose[0] - home.x) < 0.4 and abs(robot.pose[1] - home.y) < 0.4
