@@ -48,7 +48,7 @@ function first(obj, keys) {
 }
 
 function notFound(d, req) {
-  const hit = first(d, ["robot", "waypoint", "table", "zone", "user", "order", "task", "alert", "token"]);
+  const hit = first(d, ["robot", "waypoint", "table", "zone", "user", "order", "task", "alert", "token", "call", "button"]);
   if (!hit) return t("errors.notFound");
   const [what, name] = hit;
   if (what === "robot") return t("errors.notFound.robot", { name });
@@ -58,6 +58,8 @@ function notFound(d, req) {
   if (what === "order") return t("errors.notFound.order");
   if (what === "task") return t("errors.notFound.trip");
   if (what === "alert") return t("errors.notFound.alert");
+  if (what === "call") return t("errors.notFound.call");
+  if (what === "button") return t("errors.notFound.button", { name });
   return req && req.clientmsg === "account" ? t("errors.notFound.token") : t("errors.notFound");
 }
 
@@ -79,7 +81,14 @@ function unreachable(d) {
   return t(UNREACHABLE[d.reason] || "errors.unreachable");
 }
 
+// Why a guest's call cannot be closed: it already was (details.state).
+const CALL_CLOSED = { answered: "errors.conflict.callAnswered", cancelled: "errors.conflict.callCancelled" };
+
 function conflict(d, req) {
+  if (d.reason === "no_dish_return") return t("errors.conflict.noDishReturn");
+  if (d.reason === "no_dock") return t("errors.conflict.noDock", { name: d.robot || (req && req.robot) || "" });
+  if (d.call !== undefined) return t(CALL_CLOSED[d.state] || "errors.conflict.callClosed");
+  if (d.button) return t("errors.conflict.buttonTaken", { name: d.button });
   if (d.acked_by) return t("errors.conflict.seen", { who: d.acked_by });
   if (d.forecast !== undefined) return t("errors.conflict.forecast");
   if (d.order !== undefined && d.status) return t("errors.conflict.dish", { status: dishState(d.status) });
@@ -108,6 +117,10 @@ function rateLimited(d) {
 
 function invalid(d) {
   if (d.field === "language") return t("errors.invalid.language");
+  if (d.field === "trays") return d.trays ? t("errors.invalid.trays", { trays: d.trays }) : t("errors.invalid.traysAny");
+  if (d.field === "table" && d.table) return t("errors.invalid.notTable", { name: d.table });
+  const types = Array.isArray(d.errors) ? d.errors.map((e) => e && e.type) : [];
+  if (types.includes("charge_levels")) return t("errors.invalid.chargeLevels");
   if (d.field === "start" || d.field === "end") return t("errors.invalid.dates");
   return t("errors.invalid");
 }

@@ -1,15 +1,15 @@
 // Alerts on every tab (the `alerts` topic): a badge in the header with the number nobody has
 // acknowledged yet, a banner listing the active ones with an Acknowledge button each ("seen by
 // Ana at 19:42" once someone has), and a chime for each new critical alert, made with WebAudio
-// (no audio file), that can be muted on this device. A cleared alert leaves the banner.
+// (no audio file), that can be muted on this device (ring.js). A cleared alert leaves the
+// banner. A guest's call nobody answered (`call_waiting`, subject "T3/waiter") reads as what
+// the table asked for (callwords.js).
 
 import { act, el, formatTime, KeyedList } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
 import { blockWords, troubleWords } from "./trouble.js";
-import { Chime } from "../sound.js";
-import { keep, kept } from "../keep.js";
-
-const MUTE_KEY = "serveur.alertsMuted";
+import { consoleSound } from "./ring.js";
+import { callAlertWords } from "./callwords.js";
 
 // The headline of each kind, from its subject (a robot or a table), in the page's language; the
 // detail is the cause as the live records tell it (the robot's error, why the table is blocked,
@@ -23,11 +23,8 @@ const KINDS = {
   table_unreachable: "alerts.kind.tableUnreachable",
   zone_wait: "alerts.kind.zoneWait",
   robot_lost: "alerts.kind.robotLost",
+  not_charging: "alerts.kind.notCharging",
 };
-
-// Kept as "1" or "0" (keep.js writes 1 as "1"); storage disabled: until the page is reloaded.
-const loadMuted = () => kept(MUTE_KEY) === 1;
-const saveMuted = (muted) => keep(MUTE_KEY, muted ? 1 : 0);
 
 /** Who acknowledged: a person's name, or the device token's number. */
 function whoSaw(actor) {
@@ -44,13 +41,9 @@ export class AlertsPanel {
     this.mute = mute;
     this.conn = conn;
     this.live = live;
-    this.muted = loadMuted();
-    // Two short tones (sound.js, as the robot and table screens ring); browsers allow sound
-    // once the person has touched the page, so each touch or key lets it run.
-    this.chime = new Chime([880, 660]);
-    const wake = () => this.chime.unlock();
-    window.addEventListener("pointerdown", wake, { capture: true });
-    window.addEventListener("keydown", wake, { capture: true });
+    // Two short falling tones (sound.js, as the robot and table screens ring), under the
+    // console's one sound choice (ring.js: a guest's call rings under it too).
+    this.chime = consoleSound.chime([880, 660]);
     this.chimes = 0; // how many were sounded (banner's data-chimes: what a test can read)
     this.heard = new Set(); // alert ids already seen by this page: a chime once per alert
     this.list = el("ul", { class: "alert-list" });
@@ -60,11 +53,8 @@ export class AlertsPanel {
       build: (alert) => this._row(alert),
     });
     this.banner.append(this.list);
-    this.mute.addEventListener("click", () => {
-      this.muted = !this.muted;
-      saveMuted(this.muted);
-      this._showMute();
-    });
+    this.mute.addEventListener("click", () => consoleSound.setMuted(!consoleSound.muted));
+    consoleSound.onChange(() => this._showMute());
     live.addEventListener("change", (e) => {
       if (["alerts", "robots", "blocks", "leases"].includes(e.detail.topic)) this.render();
     });
@@ -79,9 +69,10 @@ export class AlertsPanel {
 
   _showMute() {
     // The words say the state ("Sound off"); the hint says what a press does.
-    this.mute.dataset.muted = String(this.muted);
-    this.mute.textContent = this.muted ? t("alerts.soundOff") : t("alerts.soundOn");
-    this.mute.title = this.muted ? t("alerts.unmuteHint") : t("alerts.muteHint");
+    const muted = consoleSound.muted;
+    this.mute.dataset.muted = String(muted);
+    this.mute.textContent = muted ? t("alerts.soundOff") : t("alerts.soundOn");
+    this.mute.title = muted ? t("alerts.unmuteHint") : t("alerts.muteHint");
   }
 
   render() {
@@ -96,7 +87,7 @@ export class AlertsPanel {
       }
     }
     this.rows.update(alerts);
-    if (fresh && !this.muted) {
+    if (fresh && !consoleSound.muted) {
       this.chime.play();
       this.chimes += 1;
       this.banner.dataset.chimes = String(this.chimes);
@@ -114,6 +105,7 @@ export class AlertsPanel {
    * the zones a robot waits for ("Waiting for aisle (held by r2)").
    */
   _detail(alert) {
+    if (alert.kind === "call_waiting") return t("alerts.callWaitingWhat");
     if (alert.kind === "table_unreachable") {
       const block = this.live.blocks.get(alert.subject);
       return block ? blockWords(block) : null;
@@ -127,6 +119,7 @@ export class AlertsPanel {
     if (alert.kind === "waiting_at_table") return this.live.destination(alert.subject);
     if (alert.kind === "zone_wait") return this._zoneWait(robot);
     if (alert.kind === "robot_lost") return t("robots.lost");
+    if (alert.kind === "not_charging") return t("alerts.notChargingWhat");
     return null;
   }
 
@@ -151,7 +144,10 @@ export class AlertsPanel {
 
   _content(alert) {
     const detail = this._detail(alert);
-    const headline = t(KINDS[alert.kind] || "alerts.kind.other", { subject: alert.subject });
+    const headline =
+      alert.kind === "call_waiting"
+        ? callAlertWords(alert.subject)
+        : t(KINDS[alert.kind] || "alerts.kind.other", { subject: alert.subject });
     const since = t("alerts.since", { time: formatTime(alert.raised_at) });
     const parts = [
       el("span", { class: "alert-severity" }, alert.severity === "critical" ? t("alerts.critical") : t("alerts.warning")),

@@ -11,22 +11,52 @@ export function dishLabel(order) {
   let text = order.dish;
   if (order.quantity > 1) text = t("dish.quantity", { dish: text, quantity: order.quantity });
   if (order.note) text = t("dish.withNote", { dish: text, note: order.note });
+  if (order.special) text = t("dish.special", { dish: text });
   return text;
 }
 
-/** The trays of a trip: "Tray 1 → T7: Laksa ×2 (no chilli), Satay". */
+/**
+ * What is on each tray of a trip: [{tray, table, orders: [{order, table}]}]. A dish is on the tray
+ * staff chose for it (`order.tray`), else on its stop's (tray k: the stop of seq k-1); `table` is
+ * the tray's one table, or null when staff put dishes of several tables on it.
+ */
+export function trayContents(live, taskId) {
+  const trays = new Map();
+  const tray = (n) => {
+    if (!trays.has(n)) trays.set(n, { tray: n, tables: new Set(), orders: [] });
+    return trays.get(n);
+  };
+  for (const stop of live.trays(taskId)) {
+    if (!stop.orders.length) tray(stop.tray).tables.add(stop.table); // dishes still to come
+    for (const order of stop.orders) {
+      const on = tray(order.tray ?? stop.tray);
+      on.tables.add(stop.table);
+      on.orders.push({ order, table: stop.table });
+    }
+  }
+  return [...trays.values()]
+    .sort((a, b) => a.tray - b.tray)
+    .map((x) => ({ tray: x.tray, table: x.tables.size === 1 ? [...x.tables][0] : null, orders: x.orders }));
+}
+
+/** The trays of a trip: "Tray 1 → T7: Laksa ×2 (no chilli), Satay", "Tray 2: Tea (T3), Soup (T5)". */
 export function trayList(live, taskId) {
-  const trays = live.trays(taskId);
   return el(
     "ul",
     { class: "trays", "aria-label": t("loading.trays") },
-    trays.map((tray) =>
+    trayContents(live, taskId).map((tray) =>
       el(
         "li",
         { "data-tray": tray.tray },
-        el("span", { class: "tray-no" }, t("loading.tray", { tray: tray.tray, table: tray.table })),
+        el("span", { class: "tray-no" }, tray.table ? t("loading.tray", { tray: tray.tray, table: tray.table }) : t("loading.trayMixed", { tray: tray.tray })),
         " ",
-        el("span", { class: "tray-dishes" }, tray.orders.length ? tray.orders.map(dishLabel).join(", ") : "…"),
+        el(
+          "span",
+          { class: "tray-dishes" },
+          tray.orders.length
+            ? tray.orders.map(({ order, table }) => (tray.table ? dishLabel(order) : t("loading.dishFor", { dish: dishLabel(order), table }))).join(", ")
+            : "…",
+        ),
       ),
     ),
   );
@@ -34,7 +64,7 @@ export function trayList(live, taskId) {
 
 /** A signature of what trayList draws, so a view redraws only when it changed. */
 export function traySignature(live, taskId) {
-  return JSON.stringify(live.trays(taskId).map((tray) => [tray.table, tray.orders.map(dishLabel)]));
+  return JSON.stringify(trayContents(live, taskId).map((tray) => [tray.tray, tray.table, tray.orders.map(({ order, table }) => [table, dishLabel(order)])]));
 }
 
 /** The big Go button of a robot loaded at the pass: it leaves on the trip this screen shows. */

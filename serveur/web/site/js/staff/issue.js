@@ -6,22 +6,23 @@
 // dispatch the same dishes twice. A dish whose table is a stop of a trip still at the pass (queued,
 // or its robot loading) goes on that trip instead (`create task` with `task`), as a waiter would
 // put the plate on the robot being loaded; the row and its table's button say so beforehand.
+// Staff may choose a dish's tray in the cart (cartrays.js): the cart then leaves as one trip,
+// with `trays`, and joins no trip at the pass.
 
 import { act, byName, el, formatDuration, KeyedList, newKey, toast } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
 import { dishLabel, dishStep, editButtons, goButton, trayList, traySignature, voidDish } from "./dishes.js";
 import { blockWords, technicalNote } from "./trouble.js";
 import { keep, kept } from "../keep.js";
+import { CartTrays } from "./cartrays.js";
+import { tripKind } from "./trips.js";
+import { TripList } from "./triplist.js";
 
 const CART_KEY = "serveur.keep.cart"; // the cart and its key, kept across a reload (keep.js)
 
 /** What a row shows of the trip its dishes would go on: redrawn only when that changes. */
 function tripSignature(trip) {
   return trip ? [trip.id, trip.robot] : null;
-}
-
-function taskStatus(status) {
-  return status === "queued" ? t("task.queued") : status === "active" ? t("task.active") : status;
 }
 
 export class IssuePanel {
@@ -34,6 +35,17 @@ export class IssuePanel {
     const ok = saved && Array.isArray(saved.ids) && saved.ids.every(Number.isInteger) && typeof saved.key === "string";
     this.cart = ok ? saved.ids : [];
     this.key = ok ? saved.key : newKey("cart");
+    // The trays staff chose in the cart: a new choice is a new cart (its key names the trays).
+    this.trays = new CartTrays(live, (renew, focusId) => {
+      if (renew) {
+        this.key = newKey("cart");
+        this._keepCart();
+      }
+      this._renderCart();
+      const row = focusId === undefined ? null : this.cartRows.node(focusId);
+      if (row && (!document.activeElement || document.activeElement === document.body)) row.querySelector(".cart-dish")?.focus();
+    });
+    if (ok) this.trays.load(saved.trays);
     this.ordersSeen = false; // the orders snapshot came: the cart can be checked against it
     this.sending = new Set(); // ids of a cart being sent: their leaving "pending" is expected
     this.atPass = new Map(); // table -> the trip still at the pass that serves it (render's)
@@ -44,7 +56,7 @@ export class IssuePanel {
     this.sendBar = el("div", { class: "send-ready" }, this.sendAllBtn, this.tableSends);
     this.cartList = el("ul", { class: "cart-list", "data-i18n-aria-label": "issue.cart" });
     this.sendBtn = el("button", { class: "primary big", "data-needs-online": true, onclick: () => this._send() });
-    this.trips = el("ul", { class: "trips", "data-i18n-aria-label": "issue.trips" });
+    this.trips = new TripList(live);
     this.loadingList = el("ul", { class: "loading-list", "data-i18n-aria-label": "loading.atPass" });
     this.returnedList = el("ul", { class: "dish-list", "data-i18n-aria-label": "returned.title" });
     this.blockedList = el("ul", { class: "dish-list", "data-i18n-aria-label": "blocks.title" });
@@ -104,9 +116,10 @@ export class IssuePanel {
           { class: "card cart", "aria-labelledby": "cart-title" },
           el("h2", { id: "cart-title", "data-i18n": "issue.cart" }),
           this.cartList,
+          this.trays.bar,
           el("div", { class: "cart-actions" }, el("button", { class: "secondary", onclick: () => this._clear(), "data-i18n": "issue.emptyCart" }), this.sendBtn),
           el("h2", { id: "trips-title", "data-i18n": "issue.trips" }),
-          this.trips,
+          this.trips.list,
         ),
       ),
     );
@@ -147,15 +160,9 @@ export class IssuePanel {
     });
     this.cartRows = new KeyedList(this.cartList, {
       key: (o) => o.id,
-      signature: (o) => [dishLabel(o), o.table],
+      signature: (o) => [dishLabel(o), o.table, this.trays.signature(o)],
       build: (o) => this._cartRow(o),
       empty: () => el("li", { class: "muted" }, t("issue.cartEmpty")),
-    });
-    this.tripRows = new KeyedList(this.trips, {
-      key: (trip) => trip.id,
-      signature: (trip) => [trip.status, trip.robot, trip.stops.map((s) => [s.table, s.orders.length])],
-      build: (trip) => this._tripRow(trip),
-      empty: () => el("li", { class: "muted" }, t("issue.noTrips")),
     });
     live.addEventListener("change", (e) => {
       if (e.detail.topic === "orders") this.ordersSeen = true;
@@ -164,7 +171,7 @@ export class IssuePanel {
     // Waiting times tick; only their text changes.
     setInterval(() => this._tick(), 1000);
     onLangChange(() => {
-      for (const list of [this.pendingRows, this.tableSendRows, this.loadingRows, this.returnedRows, this.blockedRows, this.cartRows, this.tripRows]) {
+      for (const list of [this.pendingRows, this.tableSendRows, this.loadingRows, this.returnedRows, this.blockedRows, this.cartRows, this.trips.rows]) {
         list.invalidate();
       }
       this.render();
@@ -186,6 +193,7 @@ export class IssuePanel {
     const gone = this.ordersSeen ? this.cart.filter((id) => !pendingIds.has(id)) : [];
     if (gone.length) {
       this.cart = this.cart.filter((id) => pendingIds.has(id));
+      this.trays.keepOnly(this.cart);
       this.key = newKey("cart");
       const surprising = gone.filter((id) => !this.sending.has(id)).length;
       if (surprising) toast(t("issue.leftCart", { count: surprising }));
@@ -205,7 +213,7 @@ export class IssuePanel {
     this.blockedRows.update(blocked);
     this.blockedCard.hidden = !blocked.length;
     this._renderCart();
-    this._renderTrips();
+    this.trips.render();
   }
 
   _pendingRow(o) {
@@ -309,7 +317,7 @@ export class IssuePanel {
   _tripsAtPass() {
     const loading = (trip) => trip.status === "active" && Boolean(trip.robot) && this.live.robots.get(trip.robot)?.status === "Loading";
     const trips = [...this.live.tasks.values()]
-      .filter((trip) => trip.status === "queued" || loading(trip))
+      .filter((trip) => tripKind(trip) === "delivery" && (trip.status === "queued" || loading(trip)))
       .sort((a, b) => Number(loading(b)) - Number(loading(a)) || a.id - b.id);
     const byTable = new Map();
     for (const trip of trips) {
@@ -383,13 +391,14 @@ export class IssuePanel {
         })
       : t("issue.send");
     this.sendBtn.disabled = !items.length;
+    this.trays.renderBar();
   }
 
   _cartRow(o) {
     return el(
       "li",
       {},
-      el("span", { class: "dish" }, dishLabel(o)),
+      this.trays.dishButton(o),
       el("span", { class: "table-tag" }, o.table),
       el("button", {
         class: "secondary",
@@ -400,28 +409,16 @@ export class IssuePanel {
     );
   }
 
-  _renderTrips() {
-    this.tripRows.update([...this.live.tasks.values()].filter((t) => t.status === "queued" || t.status === "active"));
-  }
-
-  _tripRow(trip) {
-    return el(
-      "li",
-      {},
-      (trip.robot ? t("issue.tripRobot", { id: trip.id, status: taskStatus(trip.status), robot: trip.robot }) : t("issue.trip", { id: trip.id, status: taskStatus(trip.status) })) + " · ",
-      trip.stops.map((s) => `${s.table} (${s.orders.length})`).join(" → "),
-    );
-  }
-
   _setCart(ids) {
     this.cart = ids;
+    this.trays.keepOnly(ids);
     this.key = newKey("cart"); // new content, new key: a key names exactly one cart
     this._keepCart();
     this.render();
   }
 
   _keepCart() {
-    keep(CART_KEY, this.cart.length ? { ids: this.cart, key: this.key } : null);
+    keep(CART_KEY, this.cart.length ? { ids: this.cart, key: this.key, trays: this.trays.saved() } : null);
   }
 
   _clear() {
@@ -431,7 +428,7 @@ export class IssuePanel {
   async _send() {
     const orders = [...this.cart];
     if (!orders.length) return;
-    const reply = await this._dispatch(this.sendBtn, orders, this.key);
+    const reply = await this._dispatch(this.sendBtn, orders, this.key, this.trays.request(orders));
     this._renderCart(); // act() re-enabled the button whatever the cart holds now
     if (reply && this.cart.join() === orders.join()) this._setCart([]);
   }
@@ -443,8 +440,9 @@ export class IssuePanel {
    * meanwhile (`stale`: Go was pressed). One toast says where the dishes went. The reply of the
    * whole (its `tasks`: the new trips), or null after an error was shown.
    */
-  async _dispatch(button, orders, key) {
-    const atPass = this._tripsAtPass();
+  async _dispatch(button, orders, key, trays = null) {
+    // Trays chosen: the cart is one trip of its own (a trip at the pass keeps its plan).
+    const atPass = trays ? new Map() : this._tripsAtPass();
     const joins = new Map(); // trip id -> {trip, ids}
     const cart = [];
     for (const id of orders) {
@@ -467,7 +465,9 @@ export class IssuePanel {
         }
       }
       if (!cart.length) return { tasks: [] };
-      return this.conn.request({ clientmsg: "create", type: "task", orders: cart, key }, { resend: true });
+      const msg = { clientmsg: "create", type: "task", orders: cart, key };
+      if (trays) msg.trays = trays;
+      return this.conn.request(msg, { resend: true });
     });
     orders.forEach((id) => this.sending.delete(id));
     if (reply && reply.tasks.length) {

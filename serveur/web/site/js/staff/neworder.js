@@ -1,5 +1,6 @@
 // New order: pick a table and dishes from the menu (the `menu` topic: by category, dishes that
-// ran out hidden), each with a quantity and a note for the kitchen; "Send to the kitchen"
+// ran out hidden), each with a quantity and a note for the kitchen, and may be a special
+// delivery with a message (a birthday: special.js); "Send to the kitchen"
 // makes one `create order` per line, status "ordered" (the kitchen marks it ready). Every line
 // has its own client-made key, so sending again after a dropped connection never makes a dish
 // twice.
@@ -7,6 +8,7 @@
 import { act, byName, el, KeyedList, newKey, toast } from "../ui.js";
 import { onLangChange, t } from "../i18n.js";
 import { keep, kept } from "../keep.js";
+import { specialControls, validSpecial } from "./special.js";
 
 const DRAFT_KEY = "serveur.keep.order"; // the new order's draft, kept across a reload
 
@@ -15,7 +17,7 @@ function validLine(l) {
   return (
     l && typeof l.dish === "string" && l.dish.trim() && typeof l.table === "string" &&
     Number.isInteger(l.quantity) && l.quantity >= 1 && l.quantity <= 99 &&
-    typeof l.note === "string" && typeof l.key === "string"
+    typeof l.note === "string" && typeof l.key === "string" && validSpecial(l.special)
   );
 }
 
@@ -150,7 +152,7 @@ export class NewOrderPanel {
   }
 
   _keep() {
-    const lines = this.lines.map(({ dish, table, quantity, note, key }) => ({ dish, table, quantity, note, key }));
+    const lines = this.lines.map(({ dish, table, quantity, note, key, special }) => ({ dish, table, quantity, note, key, special: special ?? null }));
     keep(DRAFT_KEY, this.table || lines.length ? { table: this.table, lines } : null);
   }
 
@@ -170,14 +172,14 @@ export class NewOrderPanel {
       return;
     }
     // The same dish again for the same table, no note yet: one more of it.
-    const same = this.lines.find((l) => l.dish === d && l.table === this.table && !l.note);
+    const same = this.lines.find((l) => l.dish === d && l.table === this.table && !l.note && l.special == null);
     if (same && same.quantity < 99) {
       same.quantity += 1;
       this._showQuantity(same);
       this._keep();
       return;
     }
-    this.lines.push({ dish: d, table: this.table, quantity: 1, note: "", key: newKey("dish") });
+    this.lines.push({ dish: d, table: this.table, quantity: 1, note: "", key: newKey("dish"), special: null });
     this._renderLines();
   }
 
@@ -228,6 +230,7 @@ export class NewOrderPanel {
         text: t("order.remove"),
       }),
       note,
+      specialControls(line, () => this._keep()),
     );
   }
 
@@ -241,6 +244,12 @@ export class NewOrderPanel {
     const sent = [];
     // One line at a time, so a refusal stops there and the unsent lines stay on screen.
     for (const line of [...this.lines]) {
+      if (line.special != null && !line.special.trim()) {
+        // Ticked without a message: the robot would have nothing to show.
+        toast(t("order.specialEmpty", { dish: line.dish, table: line.table }), { kind: "error" });
+        line.specialInput?.focus();
+        break;
+      }
       const msg = {
         clientmsg: "create",
         type: "order",
@@ -252,6 +261,7 @@ export class NewOrderPanel {
       };
       const note = line.note.trim();
       if (note) msg.note = note;
+      if (line.special != null) msg.special = line.special.trim();
       const reply = await act(this.sendBtn, () => this.conn.request(msg, { resend: true }));
       if (!reply) break;
       this.lines = this.lines.filter((l) => l !== line);

@@ -1,12 +1,16 @@
 // The robots list: status, battery, current trip, and the instructions the robot's status
 // allows (status.js). A refusal from the server (the status changed meanwhile) is shown.
 // A robot waiting for a zone (waiting_for) says which, and which robot is in it (the leases).
+// A trip is worded by its kind and stop (trips.js: plates, a cruise, a birthday); a free robot
+// may go to charge (with a dock) or cruise (cruise.js), a charging one back to work.
 
 import { act, confirmDialog, el, formatClock, KeyedList, refocus } from "../ui.js";
 import { allowed, statusColour } from "../status.js";
-import { onLangChange, statusName, t } from "../i18n.js";
+import { onLangChange, t } from "../i18n.js";
 import { goButton, trayList, traySignature } from "./dishes.js";
 import { technicalNote, troubleWords } from "./trouble.js";
+import { cruising, nextKey, statusWords, tripWords } from "./trips.js";
+import { endCruise, pickCruise } from "./cruise.js";
 
 // [action, label key, request]. `ready` takes a robot out of Manual (staff are done driving it)
 // or out of Auto (it stops taking trips): its words depend on which (readyKey).
@@ -14,9 +18,11 @@ import { technicalNote, troubleWords } from "./trouble.js";
 // nearly every status in one step, last.
 const ACTIONS = [
   ["auto", "robots.auto", (r) => ({ clientmsg: "control", robot: r, action: "auto" })],
+  ["work", "robots.work", (r) => ({ clientmsg: "work", robot: r })],
   ["next", "robots.collected", (r, at) => ({ clientmsg: "next", robot: r, ...at })],
   ["continue", "robots.continue", (r, at) => ({ clientmsg: "continue", robot: r, ...at })],
   ["ready", "robots.pause", (r) => ({ clientmsg: "ready", robot: r })],
+  ["charge", "robots.charge", (r) => ({ clientmsg: "charge", robot: r })],
   ["stop", "robots.stop", (r, at) => ({ clientmsg: "stop", robot: r, ...at })],
   ["skip", "robots.skip", (r, at) => ({ clientmsg: "skip", robot: r, ...at })],
   ["cancel", "robots.cancel", (r, at) => ({ clientmsg: "cancel", robot: r, ...at })],
@@ -44,6 +50,7 @@ export class RobotsPanel {
         return [
           robot.status, robot.mode, battery(robot), this._trip(robot), this.selection.name === robot.name, robot.last_error,
           loading, robot.status_since, this.live.destination(robot.name), this._waiting(robot), Boolean(robot.lost),
+          statusWords(this.live, robot), nextKey(this.live, robot), robot.dock ?? null,
         ];
       },
       build: (robot) => this._row(robot),
@@ -76,23 +83,22 @@ export class RobotsPanel {
   }
 
   _trip(robot) {
-    if (robot.current_task === null) return t("robots.noTrip");
-    const task = this.live.tasks.get(robot.current_task);
-    if (!task) return t("robots.tripId", { id: robot.current_task });
-    const tables = task.stops.map((s) => s.table).join(", ");
-    const here = task.stops[task.current_stop];
-    return here
-      ? t("robots.tripNow", { id: task.id, tables, now: here.table })
-      : t("robots.trip", { id: task.id, tables });
+    return tripWords(this.live, robot);
   }
 
   _content(robot, trip, selected) {
     const name = robot.name;
     const onTrip = robot.current_task !== null && robot.current_task !== undefined;
-    // Skip needs a table to leave: only on a trip.
-    const offered = ([action]) => allowed(robot.status, action) && (action !== "skip" || onTrip);
+    const cruise = cruising(this.live, robot);
+    // Skip needs a table to leave: only on a trip. Charging needs a charger. A cruise ends
+    // with "Back to deliveries", not by skipping or cancelling a place.
+    const offered = ([action]) =>
+      allowed(robot.status, action) &&
+      (action !== "skip" || onTrip) &&
+      (action !== "charge" || Boolean(robot.dock)) &&
+      !(cruise && (action === "skip" || action === "cancel"));
     const buttons = ACTIONS.filter(offered).map(([action, actionKey, make]) => {
-      const key = action === "ready" ? readyKey(robot) : actionKey;
+      const key = action === "ready" ? readyKey(robot) : action === "next" ? nextKey(this.live, robot) : actionKey;
       return el("button", {
         class: action === "stop" || action === "cancel" ? "danger" : action === "skip" ? "secondary" : "",
         "data-needs-online": true,
@@ -103,6 +109,10 @@ export class RobotsPanel {
         text: t(key),
       });
     });
+    // "Cruise…", "Back to deliveries": before "Take control", which stays last.
+    const last = buttons.length && buttons[buttons.length - 1].dataset.focusKey === "manual" ? buttons.pop() : null;
+    buttons.push(...this._modeButtons(robot, cruise));
+    if (last) buttons.push(last);
     return [
       el(
         "button",
@@ -119,7 +129,7 @@ export class RobotsPanel {
         "span",
         { class: "status-badge", "data-status": robot.status },
         el("span", { class: "dot", "aria-hidden": "true", style: { background: statusColour(robot.status) } }),
-        statusName(robot.status),
+        statusWords(this.live, robot),
       ),
       el("span", { class: "battery" }, t("robots.battery", { value: battery(robot) })),
       el("span", { class: "trip" }, trip),
@@ -132,6 +142,36 @@ export class RobotsPanel {
       robot.status === "Loading" ? this._loading(robot) : null,
       el("div", { class: "actions", role: "group", "aria-label": t("robots.actions", { name }) }, buttons),
     ];
+  }
+
+  /** "Cruise…" for a free robot, "Back to deliveries" for a cruising one. */
+  _modeButtons(robot, cruise) {
+    const name = robot.name;
+    const made = [];
+    if (allowed(robot.status, "cruise")) {
+      made.push(
+        el("button", {
+          class: "secondary",
+          "data-needs-online": true,
+          "data-focus-key": "cruise",
+          "aria-label": t("robots.actionFor", { action: t("robots.cruise"), name }),
+          text: t("robots.cruise"),
+          onclick: () => pickCruise(this.conn, this.live, name),
+        }),
+      );
+    }
+    if (cruise) {
+      made.push(
+        el("button", {
+          "data-needs-online": true,
+          "data-focus-key": "deliveries",
+          "aria-label": t("robots.actionFor", { action: t("robots.backToDeliveries"), name }),
+          text: t("robots.backToDeliveries"),
+          onclick: (e) => endCruise(this.conn, this.live, e.currentTarget, name),
+        }),
+      );
+    }
+    return made;
   }
 
   /** What went wrong, in words (trouble.js), with the robot's own text folded underneath. */

@@ -4,8 +4,7 @@
 import { act, byName, confirmDialog, el, KeyedList, toast } from "../ui.js";
 import { allowed } from "../status.js";
 import { onLangChange, t } from "../i18n.js";
-
-const KINDS = ["table", "home", "pass", "other"];
+import { kindName, PLACE_KINDS } from "./kinds.js";
 
 export class WaypointsPanel {
   constructor(root, conn, live, selection) {
@@ -13,7 +12,7 @@ export class WaypointsPanel {
     this.live = live;
     this.selection = selection;
     this.name = el("input", { id: "wp-name", type: "text", maxlength: 64, required: true, autocomplete: "off" });
-    this.kind = el("select", { id: "wp-kind" }, KINDS.map((k) => el("option", { value: k, "data-i18n": `wp.kind.${k}` })));
+    this.kind = el("select", { id: "wp-kind" }, PLACE_KINDS.map((k) => el("option", { value: k, text: kindName(k) })));
     this.saveBtn = el("button", { type: "submit", "data-needs-online": true, "data-i18n": "wp.save" });
     this.list = el("ul", { class: "goto-list", "data-i18n-aria-label": "wp.gotoList" });
     const form = el(
@@ -50,6 +49,7 @@ export class WaypointsPanel {
     });
     selection.onChange(() => this.render());
     onLangChange(() => {
+      for (const option of this.kind.options) option.textContent = kindName(option.value);
       this.rows.invalidate(); // same list, new words
       this.render();
     });
