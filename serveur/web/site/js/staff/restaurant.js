@@ -1,12 +1,13 @@
-// Restaurant (the owner's): the robots (address, ROS, drive, home, trays, status, why the server
-// cannot reach one; edit, remove), the tables and places (rename, move, remove after seeing what
-// depends on them), the zones robots take turns through, and the site's settings (time at a
-// table, trays, leaving without Go, the languages the pages offer). Everything goes through the
+// Restaurant (the owner's): the robots (address, ROS, drive, home, charger, trays, status, why the
+// server cannot reach one; edit, remove), the tables and places (add, rename, move, remove after
+// seeing what depends on them), the zones robots take turns through, the Wi-Fi call buttons, and
+// the site's settings (time at a table, trays, leaving without Go, the languages the pages
+// offer, calls, plates, charging, cruising). Everything goes through the
 // protocol's `site` verb (the server refuses anyone but an owner), `create waypoint` and
 // `create zone` with `replace`.
 //
 // This module is the panel: it lays out the sections (restaurant/robots.js, places.js, zones.js,
-// settings.js, map.js, plan.js, align.js, backups.js) and keeps them live. It also follows the `settings` topic (every role may read
+// buttons.js, settings.js, map.js, plan.js, align.js, backups.js) and keeps them live. It also follows the `settings` topic (every role may read
 // it): the language pickers offer the site's languages and a device with no choice of its own
 // speaks the site's default.
 
@@ -20,6 +21,7 @@ import { MapSection } from "./restaurant/map.js";
 import { PlanSection } from "./restaurant/plan.js";
 import { BackupsSection } from "./restaurant/backups.js";
 import { AlignSection } from "./restaurant/align.js";
+import { ButtonsSection } from "./restaurant/buttons.js";
 
 export class RestaurantPanel {
   constructor(root, conn, live) {
@@ -29,6 +31,7 @@ export class RestaurantPanel {
     this.robots = new RobotsSection(conn, live, () => this.settings.siteTrays());
     this.places = new PlacesSection(conn, live);
     this.zones = new ZonesSection(conn, live);
+    this.buttons = new ButtonsSection(conn, live);
     // The site's trays changed: each robot's row says how many it has.
     this.settings = new SettingsSection(conn, () => {
       this.robots.rows.invalidate();
@@ -46,6 +49,7 @@ export class RestaurantPanel {
         this.robots.section,
         this.places.section,
         this.zones.section,
+        this.buttons.section,
         this.settings.section,
         this.map.section,
         this.plan.section,
@@ -69,6 +73,8 @@ export class RestaurantPanel {
       this.places.rows.invalidate();
       this.zones.rows.invalidate();
       this.backups.rows.invalidate();
+      this.buttons.rows.invalidate();
+      this.buttons.fillKinds();
       this.settings.fillLanguage();
       this.render();
     });
@@ -80,6 +86,7 @@ export class RestaurantPanel {
   async shown() {
     this.render();
     this.backups.load();
+    this.buttons.load();
     try {
       const reply = await this.conn.request({ clientmsg: "site", action: "settings" });
       this.settings.got(reply.settings); // a form the owner began filling meanwhile is kept
@@ -92,5 +99,6 @@ export class RestaurantPanel {
     this.robots.render();
     this.places.render();
     this.zones.render();
+    this.buttons.render();
   }
 }

@@ -12,13 +12,15 @@ export function rowButton(text, label, onclick, { danger = false } = {}) {
   return el("button", { class: danger ? "danger" : "secondary", "data-needs-online": true, "aria-label": label, text, onclick });
 }
 
-/** The row's Remove, asked first: `question` and `detail` in the dialog, then `run()` on the
- *  button (act: disabled meanwhile, a refusal shown) and `done` said when it succeeded. */
-export async function confirmRemove(button, { question, detail, run, done }) {
-  const yes = await confirmDialog(question, { detail, yes: t("owner.remove"), no: t("owner.cancel") });
-  if (!yes) return;
+/** The row's Remove, asked first: `question` and `detail` in the dialog (`yes`: the words of
+ *  its yes, "Remove" by default), then `run()` on the button (act: disabled meanwhile, a refusal
+ *  shown) and `done` said when it succeeded. Resolves true when it was done. */
+export async function confirmRemove(button, { question, detail, run, done, yes = t("owner.remove") }) {
+  const sure = await confirmDialog(question, { detail, yes, no: t("owner.cancel") });
+  if (!sure) return false;
   const reply = await act(button, run);
   if (reply) toast(done);
+  return Boolean(reply);
 }
 
 /** A section listing one kind of thing by name: its card (the title, the note, the list, then

@@ -1,14 +1,20 @@
-// The Restaurant tab's tables and places: rename one (`site rename_waypoint`), move it
-// (`create waypoint` with `replace`), or remove it after seeing what depends on it (`site
-// dependents`, then `site remove_waypoint`). Its own module so that the panel (restaurant.js)
+// The Restaurant tab's tables and places: add one where a robot stands (`create waypoint` with
+// `robot`: a dish return, a charger's dock...), rename one (`site rename_waypoint`), move it or
+// change its kind (`create waypoint` with `replace`), or remove it after seeing what depends on
+// it (`site dependents`, then `site remove_waypoint`). Its own module so that the panel (restaurant.js)
 // only lays the sections out.
 
 import { act, byName, describeError, el, toast } from "../../ui.js";
 import { t } from "../../i18n.js";
 import { field, formDialog } from "../forms.js";
 import { listSection, rowButton } from "./form.js";
+import { kindName, PLACE_KINDS } from "../kinds.js";
 
-const KINDS = ["table", "home", "pass", "other"];
+function kindSelect(id, value) {
+  const select = el("select", { id }, ...PLACE_KINDS.map((k) => el("option", { value: k, text: kindName(k) })));
+  select.value = value;
+  return select;
+}
 
 function fixed(v, digits = 2) {
   return v === null || v === undefined || !Number.isFinite(Number(v)) ? "?" : Number(v).toFixed(digits);
@@ -37,12 +43,12 @@ export class PlacesSection {
       none: "owner.places.none",
       signature: (w) => [w.kind, w.x, w.y, w.yaw],
       build: (w) => this._row(w),
-    }));
+    }, el("div", { class: "form-buttons" }, el("button", { type: "button", class: "secondary", "data-needs-online": true, "data-i18n": "owner.places.add", onclick: () => this._add() }))));
   }
 
   render() {
     this.rows.update(
-      [...this.live.waypoints.values()].sort((a, b) => KINDS.indexOf(a.kind) - KINDS.indexOf(b.kind) || byName(a.name, b.name)),
+      [...this.live.waypoints.values()].sort((a, b) => PLACE_KINDS.indexOf(a.kind) - PLACE_KINDS.indexOf(b.kind) || byName(a.name, b.name)),
     );
   }
 
@@ -51,7 +57,7 @@ export class PlacesSection {
       "li",
       { "data-waypoint": w.name, class: "rest-place" },
       el("span", { class: "rest-name", text: w.name }),
-      el("span", { class: "rest-kind", text: t(`wp.kind.${w.kind}`) }),
+      el("span", { class: "rest-kind", text: kindName(w.kind) }),
       el("span", { class: "muted rest-pos", text: t("owner.places.position", { x: fixed(w.x), y: fixed(w.y), yaw: degrees(w.yaw) }) }),
       el(
         "div",
@@ -86,6 +92,7 @@ export class PlacesSection {
     const x = num("mw-x", fixed(w.x), "0.01");
     const y = num("mw-y", fixed(w.y), "0.01");
     const yaw = el("input", { id: "mw-yaw", type: "number", step: 1, min: -180, max: 360, required: true, inputmode: "numeric", value: degrees(w.yaw) });
+    const kind = kindSelect("mw-kind", w.kind);
     await formDialog({
       title: t("owner.places.moveTitle", { name }),
       yes: t("owner.places.move"),
@@ -93,6 +100,7 @@ export class PlacesSection {
         field("mw-x", "owner.places.x", x),
         field("mw-y", "owner.places.y", y),
         field("mw-yaw", "owner.places.yaw", yaw),
+        field("mw-kind", "owner.places.kind", kind),
         el("p", { class: "muted rest-hint", text: t("owner.places.moveNote") }),
       ],
       submit: async () => {
@@ -103,11 +111,35 @@ export class PlacesSection {
           x: Number(x.value),
           y: Number(y.value),
           yaw: radians(yaw.value),
-          kind: w.kind,
+          kind: kind.value,
           replace: true,
         };
         await this.conn.request(msg);
         toast(t("owner.places.moved", { name, x: fixed(msg.x), y: fixed(msg.y) }));
+        return true;
+      },
+    });
+  }
+
+  /** A new place where a robot stands now (the owner drove it there, or it is parked there). */
+  async _add() {
+    const name = el("input", { id: "ap-name", type: "text", maxlength: 64, required: true, autocomplete: "off" });
+    const kind = kindSelect("ap-kind", "dish_return");
+    const robots = [...this.live.robots.values()].sort((a, b) => byName(a.name, b.name));
+    const robot = el("select", { id: "ap-robot", required: true }, ...robots.map((r) => el("option", { value: r.name, text: r.name })));
+    await formDialog({
+      title: t("owner.places.addTitle"),
+      yes: t("owner.places.add"),
+      fields: [
+        field("ap-name", "owner.places.newName", name),
+        field("ap-kind", "owner.places.kind", kind),
+        field("ap-robot", "owner.places.where", robot),
+        el("p", { class: "muted rest-hint", text: t("owner.places.addNote") }),
+      ],
+      submit: async () => {
+        const msg = { clientmsg: "create", type: "waypoint", name: name.value.trim(), robot: robot.value, kind: kind.value };
+        const reply = await this.conn.request(msg);
+        toast(t("owner.places.added", { name: reply.waypoint.name, kind: kindName(reply.waypoint.kind) }));
         return true;
       },
     });

@@ -1,12 +1,14 @@
-// The Restaurant tab's robots: each robot's address, ROS, drive, home, trays, status and why the
-// server cannot reach it; edit one (`site edit_robot`) or remove it (`site remove_robot`). Its
+// The Restaurant tab's robots: each robot's address, ROS, drive, home, charger (its dock), trays,
+// status and why the server cannot reach it; edit one (`site edit_robot`) or remove it (`site
+// remove_robot`). Its
 // own module so that the panel (restaurant.js) only lays the sections out.
 
 import { byName, el, toast } from "../../ui.js";
-import { statusName, t } from "../../i18n.js";
+import { t } from "../../i18n.js";
 import { field, formDialog } from "../forms.js";
 import { confirmRemove, listSection, rowButton } from "./form.js";
 import { MAX_TRAYS } from "./settings.js";
+import { statusWords } from "../trips.js";
 
 const KINEMATICS = { omni: "owner.drive.omni", diff: "owner.drive.diff" };
 
@@ -25,7 +27,7 @@ export class RobotsSection {
       title: "owner.robots.title",
       note: "owner.robots.note",
       none: "owner.robots.none",
-      signature: (r) => [r.url, r.link, r.kinematics, r.home, r.trays, r.status, r.link_error, r.current_task, this.siteTrays()],
+      signature: (r) => [r.url, r.link, r.kinematics, r.home, r.dock, r.trays, statusWords(live, r), r.link_error, r.current_task, this.siteTrays()],
       build: (r) => this._row(r),
     }));
   }
@@ -44,7 +46,7 @@ export class RobotsSection {
         "div",
         { class: "rest-head" },
         el("span", { class: "rest-name", text: r.name }),
-        el("span", { class: "rest-status", text: statusName(r.status) }),
+        el("span", { class: "rest-status", text: statusWords(this.live, r) }),
       ),
       el(
         "dl",
@@ -53,6 +55,7 @@ export class RobotsSection {
         detail("owner.robots.ros", t("owner.ros.n", { n: rosOf(r) })),
         detail("owner.robots.drive", t(KINEMATICS[r.kinematics] || "owner.drive.omni")),
         detail("owner.robots.home", r.home || t("owner.robots.noHome")),
+        detail("owner.robots.dock", r.dock || t("owner.robots.noDock")),
         detail("owner.robots.trays", trays),
       ),
       r.link_error ? el("p", { class: "rest-error", "data-testid": "link-error", text: t("owner.robots.linkError", { error: r.link_error }) }) : null,
@@ -80,6 +83,15 @@ export class RobotsSection {
       ...homes.map((w) => el("option", { value: w.name, text: w.kind === "home" ? w.name : t("owner.places.nameKind", { name: w.name, kind: t(`wp.kind.${w.kind}`) }) })),
     );
     home.value = r.home || "";
+    // Its charger: a place of kind dock (the robot goes there to charge).
+    const docks = [...this.live.waypoints.values()].filter((w) => w.kind === "dock").sort((a, b) => byName(a.name, b.name));
+    const dock = el(
+      "select",
+      { id: "er-dock" },
+      el("option", { value: "", text: t("owner.robots.noDock") }),
+      ...docks.map((w) => el("option", { value: w.name, text: w.name })),
+    );
+    dock.value = docks.some((w) => w.name === r.dock) ? r.dock : "";
     const drive = el("select", { id: "er-drive" }, ...Object.entries(KINEMATICS).map(([v, key]) => el("option", { value: v, text: t(key) })));
     drive.value = r.kinematics;
     const ros = el("select", { id: "er-ros" }, ...["1", "2"].map((n) => el("option", { value: n, text: t("owner.ros.n", { n }) })));
@@ -98,6 +110,7 @@ export class RobotsSection {
       fields: [
         field("er-url", "owner.robots.address", url),
         field("er-home", "owner.robots.home", home),
+        field("er-dock", "owner.robots.dock", dock, docks.length ? null : el("p", { class: "muted rest-hint", text: t("owner.robots.noDocks") })),
         field("er-drive", "owner.robots.drive", drive),
         field("er-ros", "owner.robots.ros", ros),
         field("er-trays", "owner.robots.trays", trays),
@@ -108,6 +121,7 @@ export class RobotsSection {
         const newUrl = url.value.trim();
         if (newUrl !== r.url) msg.url = newUrl;
         if ((home.value || null) !== (r.home || null)) msg.home = home.value || null;
+        if ((dock.value || null) !== (r.dock || null)) msg.dock = dock.value || null;
         if (drive.value !== r.kinematics) msg.kinematics = drive.value;
         if (ros.value !== rosOf(r)) {
           const link = { ...(r.link || {}) };

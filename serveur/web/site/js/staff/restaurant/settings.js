@@ -1,12 +1,14 @@
 // The Restaurant tab's site settings: time at a table (or for ever), trays per robot, leaving
 // without Go, the cameras, the target wait (what the Statistics tab's forecast aims at), the
-// languages the pages offer and the default one (`site set_settings`). Its own
+// languages the pages offer and the default one, and what robots do besides delivering
+// (modesettings.js: calls, plates, charging, cruising) (`site set_settings`). Its own
 // module so that the panel (restaurant.js) only lays the sections out; the form keeps the
 // owner's unsaved changes when the settings change elsewhere.
 
 import { act, el, toast } from "../../ui.js";
 import { LANGS, t } from "../../i18n.js";
 import { field } from "../forms.js";
+import { ModeFields } from "./modesettings.js";
 
 export const MAX_TRAYS = 12;
 const TARGET_MINUTES = [1, 60]; // the target wait the server accepts (60-3600 s), in minutes
@@ -26,6 +28,7 @@ export class SettingsSection {
     this.target = el("input", { id: "set-target", type: "number", min: TARGET_MINUTES[0], max: TARGET_MINUTES[1], step: 1, inputmode: "numeric", required: true });
     this.langBoxes = Object.fromEntries(LANGS.map((l) => [l, el("input", { id: `set-lang-${l}`, type: "checkbox", value: l })]));
     this.language = el("select", { id: "set-language" });
+    this.modes = new ModeFields();
     this.saveBtn = el("button", { type: "submit", class: "primary", "data-needs-online": true, "data-i18n": "owner.settings.save" });
     const form = el(
       "form",
@@ -47,6 +50,7 @@ export class SettingsSection {
         ...LANGS.map((l) => el("label", { class: "check" }, this.langBoxes[l], el("span", { lang: l === "zh" ? "zh-Hans" : l, "data-i18n": `lang.${l}` }))),
       ),
       field("set-language", "owner.settings.language", this.language),
+      ...this.modes.nodes,
       el("div", { class: "form-buttons" }, this.saveBtn),
     );
     form.addEventListener("submit", (e) => {
@@ -89,6 +93,7 @@ export class SettingsSection {
     this.target.value = String(Math.round((settings.target_wait ?? 600) / 60));
     for (const l of LANGS) this.langBoxes[l].checked = settings.languages.includes(l);
     this.fillLanguage(settings.language);
+    this.modes.fill(settings);
     this._sync();
   }
 
@@ -122,6 +127,7 @@ export class SettingsSection {
       target_wait: Number(this.target.value) * 60,
       languages,
       language: this.language.value,
+      ...this.modes.values(),
     };
     const reply = await act(this.saveBtn, () => this.conn.request(msg));
     if (!reply) return;
