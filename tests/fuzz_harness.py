@@ -91,6 +91,13 @@ PAYLOAD = {
     "stats trips": "stats",
     "stats forecast": "forecast",
     "stats forecast_cancel": "forecast",
+    "call open": "call",
+    "call answer": "call",
+    "call cancel": "call",
+    "create bussing": "task",
+    "site add_button": "token",
+    "site buttons": "buttons",
+    "site revoke_button": "button",
 }
 #: The owner's verbs: a fuzz connection (staff) sending one well formed is always refused
 #: ``forbidden`` (or ``rate_limited``), so no robot or table is ever edited or removed, and no

@@ -356,6 +356,7 @@ def create_order(draw: st.DrawFn) -> Obj:
             "quantity": _quantity,
             "note": _note,
             "status": st.sampled_from(("ordered", "pending")),
+            "special": st.sampled_from(("Happy birthday, Ana!", "\u751f\u65e5\u5feb\u4e50")),
         },
     )
 
@@ -422,7 +423,10 @@ def create_task(draw: st.DrawFn) -> Obj:
     orders: list[Node] = [Ref("order", b) for b in draw(_backs)]
     if draw(st.integers(0, 9)) == 0:
         orders.append(_pick(draw, (2**53, 10**6 + 7)))  # never created
-    return _with(draw, {"clientmsg": "create", "type": "task", "orders": orders}, {"key": _key})
+    fields: dict[str, st.SearchStrategy[Any]] = {"key": _key}
+    if draw(st.integers(0, 3)) == 0:  # staff chose a tray for the first dish
+        fields["trays"] = st.integers(1, 5).map(lambda t: [obj(order=orders[0], tray=t)])
+    return _with(draw, {"clientmsg": "create", "type": "task", "orders": orders}, fields)
 
 
 _backs = st.lists(st.integers(0, 12), min_size=1, max_size=6, unique=True)
@@ -572,6 +576,7 @@ _EDIT_ROBOT: dict[str, st.SearchStrategy[Any]] = {
     "kinematics": st.sampled_from(("omni", "diff")),
     "link": st.sampled_from((Obj(()), obj(ns="/r1"), obj(ros="2"))),
     "trays": _TRAYS,
+    "dock": st.none() | st.sampled_from(("dock1", "T3", "T17")),
 }
 _SET_SETTINGS: dict[str, st.SearchStrategy[Any]] = {
     "table_timeout": st.none() | st.floats(10, 3600),
@@ -580,7 +585,17 @@ _SET_SETTINGS: dict[str, st.SearchStrategy[Any]] = {
     "languages": _LANGUAGES,
     "language": st.sampled_from(P.LANGUAGES),
     "target_wait": st.floats(60, 3600),
+    "call_escalate": st.floats(15, 3600),
+    "bussing_wait": st.floats(10, 1800),
+    "bussing_max_delay": st.floats(0, 1800),
+    # Never crossing (charge_until <= charge_below is refused, as it should be).
+    "charge_below": st.floats(0.05, 0.5),
+    "charge_until": st.floats(0.55, 1.0),
+    "cruise_pause": st.floats(0, 600),
+    "cruise_resume": st.floats(5, 600),
 }
+_CALL_KINDS = st.sampled_from(("plates", "waiter", "bill"))
+_tables = st.lists(st.sampled_from(TABLES[:6] + UNKNOWN_WAYPOINTS[:1]), min_size=1, max_size=3)
 
 
 def _some_of(fields: dict[str, st.SearchStrategy[Any]]) -> st.SearchStrategy[dict[str, Any]]:
@@ -714,6 +729,33 @@ VERB_STRATEGIES: dict[str, st.SearchStrategy[Obj]] = {
         robots=st.lists(st.integers(1, 12), min_size=1, max_size=6, unique=True),
     ),
     "stats forecast_cancel": _stats("forecast_cancel"),
+    "call open": st.builds(
+        lambda t, k: obj(clientmsg="call", id=IdSlot(), action="open", table=t, kind=k),
+        _table,
+        _CALL_KINDS,
+    ),
+    "call answer": st.builds(
+        lambda c: obj(clientmsg="call", id=IdSlot(), action="answer", call=c), st.integers(1, 20)
+    ),
+    "call cancel": st.builds(
+        lambda c: obj(clientmsg="call", id=IdSlot(), action="cancel", call=c), st.integers(1, 20)
+    ),
+    "create bussing": st.builds(
+        lambda ts: obj(clientmsg="create", id=IdSlot(), type="bussing", tables=ts),
+        _tables.map(lambda ts: list(dict.fromkeys(ts))),
+    ),
+    "charge": _robot_verb("charge"),
+    "work": _robot_verb("work"),
+    "cruise": st.builds(
+        lambda r, ts: obj(clientmsg="cruise", id=IdSlot(), robot=r, route=ts),
+        _any_robot,
+        _tables.map(lambda ts: list(dict.fromkeys(ts))),
+    ),
+    "site add_button": _site(
+        "add_button", name=st.sampled_from(("b1", "b2")), table=_table, kind=_CALL_KINDS
+    ),
+    "site buttons": _site("buttons"),
+    "site revoke_button": _site("revoke_button", name=st.sampled_from(("b1", "b2", "b9"))),
 }
 
 
