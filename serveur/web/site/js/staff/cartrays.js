@@ -20,6 +20,7 @@ export class CartTrays {
     this.choice = new Map(); // order id -> tray
     this.picking = null; // the order whose tray is being chosen, or null
     this.bar = el("div", { class: "tray-bar", role: "group", "data-testid": "tray-bar", hidden: true });
+    this.drawn = null; // what the bar shows now: drawn again only when that changes
   }
 
   /** How many trays a robot has (the site's setting). */
@@ -99,16 +100,19 @@ export class CartTrays {
     this.changed(true, id);
   }
 
-  /** The tray numbers for the dish being placed (hidden when none is). */
-  renderBar() {
+  /** The tray numbers for the dish being placed (hidden when none is); `force`: new words. */
+  renderBar(force = false) {
     const order = this.picking === null ? null : this.live.orders.get(this.picking);
+    const label = order ? t("cart.putOn", { dish: dishLabel(order), table: order.table }) : "";
+    const now = order ? this.choice.get(order.id) ?? null : null;
+    const drawn = JSON.stringify([label, now, this.count()]);
+    if (drawn === this.drawn && !force) return; // a button is not replaced under a finger
+    this.drawn = drawn;
     this.bar.hidden = !order;
     if (!order) {
       this.bar.replaceChildren();
       return;
     }
-    const label = t("cart.putOn", { dish: dishLabel(order), table: order.table });
-    const now = this.choice.get(order.id) ?? null;
     this.bar.setAttribute("aria-label", label);
     const numbers = Array.from({ length: this.count() }, (_, i) => i + 1).map((n) =>
       el("button", {

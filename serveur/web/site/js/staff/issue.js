@@ -171,6 +171,7 @@ export class IssuePanel {
     // Waiting times tick; only their text changes.
     setInterval(() => this._tick(), 1000);
     onLangChange(() => {
+      this.trays.renderBar(true);
       for (const list of [this.pendingRows, this.tableSendRows, this.loadingRows, this.returnedRows, this.blockedRows, this.cartRows, this.trips.rows]) {
         list.invalidate();
       }
