@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from serveur.replay.client import ReplayError
@@ -27,6 +28,20 @@ def _ros_list(text: str) -> tuple[int, ...]:
     if not versions or any(v not in (1, 2) for v in versions):
         raise argparse.ArgumentTypeError(f"--ros wants 1, 2 or a list like 1,2, not {text!r}")
     return versions
+
+
+def _pair(what: str) -> Callable[[str], tuple[float, float]]:
+    """An option's parser for two numbers, ``A,B``."""
+
+    def parse(text: str) -> tuple[float, float]:
+        try:
+            a, b = (float(v) for v in text.split(","))
+        except ValueError:
+            msg = f"{what} wants two numbers like 1,2, not {text!r}"
+            raise argparse.ArgumentTypeError(msg) from None
+        return a, b
+
+    return parse
 
 
 def _cmd_replay(ns: argparse.Namespace) -> int:
@@ -51,6 +66,10 @@ def _replay_command(ns: argparse.Namespace) -> int:
             ("--table-timeout", ns.table_timeout >= 0),
             ("--conflict-distance", ns.conflict_distance > 0),
             ("--deadlock-after", ns.deadlock_after > 0),
+            ("--calls-plates", 0 <= ns.calls_plates <= 1),
+            ("--calls-waiter", 0 <= ns.calls_waiter <= 1),
+            ("--calls-bill", 0 <= ns.calls_bill <= 1),
+            ("--eat", 0 <= ns.eat[0] <= ns.eat[1]),
         )
         if not ok
     ]
@@ -80,6 +99,12 @@ def _replay_command(ns: argparse.Namespace) -> int:
         leases=not ns.no_leases,
         conflict_distance=ns.conflict_distance,
         deadlock_after=ns.deadlock_after,
+        calls=not ns.no_calls,
+        call_plates=ns.calls_plates,
+        call_waiter=ns.calls_waiter,
+        call_bill=ns.calls_bill,
+        eat=(60.0 * ns.eat[0], 60.0 * ns.eat[1]),
+        dish_return=ns.dish_return,
     )
     from serveur.replay.service import run_replay
     from serveur.replay.traffic import load_zones
@@ -99,6 +124,14 @@ def _replay_command(ns: argparse.Namespace) -> int:
     except (OrderLogError, ReplayError) as exc:
         print(f"serveur replay: {exc}", file=sys.stderr)
         return 2
+    has_return = any(w.kind == "dish_return" for w in waypoints.values())
+    if opts.calls and ns.map is not None and not has_return and opts.dish_return is None:
+        print(
+            f"serveur replay: {ns.map} has no dish return (a waypoint of kind dish_return) for "
+            "the bussing robots: add one, say where with --dish-return X,Y, or --no-calls",
+            file=sys.stderr,
+        )
+        return 2
     policies = list(POLICIES) if ns.policy == "both" else [ns.policy]
     try:
         results = run_replay(orders, opts, policies)
@@ -110,7 +143,8 @@ def _replay_command(ns: argparse.Namespace) -> int:
     text = write_outputs(results, ns.log, opts, Path(ns.out))
     print(text, end="")
     print(f"report, summary and plots in {ns.out}/")
-    return 0 if all(r.undelivered == 0 for r in results.values()) else 1
+    runs = [*results.values(), *(r.alone for r in results.values() if r.alone is not None)]
+    return 0 if all(r.undelivered == 0 for r in runs) else 1
 
 
 def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -119,8 +153,11 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "replay",
         help="replay an order log through the server and simulated robots",
         description="Run the real server and N simulated robots on one accelerated clock, "
-        "feed the log's dishes at their times, play staff and guests, and write report.json, "
-        "summary.txt and PNG plots to --out. Exit 1 if any dish was left undelivered.",
+        "feed the log's dishes at their times, play staff and guests (who also call for "
+        "their plates to be cleared, a waiter and the bill, unless --no-calls: the same "
+        "service is then replayed with deliveries alone too, for the waits side by side), "
+        "and write report.json, summary.txt and PNG plots to --out. Exit 1 if any dish was "
+        "left undelivered.",
     )
     p.add_argument("log", help="order log CSV (ready_at,table,dish)")
     p.add_argument("--robots", type=int, default=3, help="simulated robots (default 3)")
@@ -243,6 +280,55 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
         default=d.deadlock_after,
         help="a deadlock: robots with goals, within 1.5 m of each other, none moving 0.1 m "
         f"for this many s (default {d.deadlock_after:g})",
+    )
+    g = p.add_argument_group(
+        "guests' calls and bussing (on by default: each policy's service is then replayed "
+        "again with deliveries alone, for the dish waits side by side)"
+    )
+    g.add_argument(
+        "--no-calls",
+        action="store_true",
+        help="deliveries alone: no guest calls, no bussing robots (one run per policy)",
+    )
+    g.add_argument(
+        "--calls-plates",
+        type=float,
+        default=d.call_plates,
+        metavar="P",
+        help="share of parties that call for their plates to be cleared after the meal, "
+        f"answered by a bussing robot (default {d.call_plates:g})",
+    )
+    g.add_argument(
+        "--calls-waiter",
+        type=float,
+        default=d.call_waiter,
+        metavar="P",
+        help="share of parties that call a waiter once during the meal "
+        f"(default {d.call_waiter:g})",
+    )
+    g.add_argument(
+        "--calls-bill",
+        type=float,
+        default=d.call_bill,
+        metavar="P",
+        help="share of parties that call for the bill 3-12 min after the meal "
+        f"(default {d.call_bill:g})",
+    )
+    g.add_argument(
+        "--eat",
+        type=_pair("--eat"),
+        default=(d.eat[0] / 60.0, d.eat[1] / 60.0),
+        metavar="MIN,MAX",
+        help="minutes from a party's last dish collected to its plates call (uniform; "
+        f"default {d.eat[0] / 60:g},{d.eat[1] / 60:g})",
+    )
+    g.add_argument(
+        "--dish-return",
+        type=_pair("--dish-return"),
+        default=None,
+        metavar="X,Y",
+        help="where the bussing robots are emptied, if the map has no waypoint of kind "
+        "dish_return (default in the demo room: beside the pass, 9,10.8)",
     )
     p.add_argument("--out", default="replay-out", help="output directory (default replay-out)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

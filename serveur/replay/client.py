@@ -83,10 +83,11 @@ class ProtocolClient:
 class Console:
     """What the staff console shows, shared by everyone the replay plays.
 
-    The robots and trips as the server's updates last described them (the service fills
-    :attr:`robots` and :attr:`tasks` and sets :attr:`changed` on each update), the service's
-    clock (:meth:`now`: seconds since opening, once :attr:`t0` is set), the path distances
-    staff know the floor by, and the connection instructions go through.
+    The robots, trips and calls as the server's updates last described them (the service
+    fills :attr:`robots`, :attr:`tasks` and :attr:`calls` and sets :attr:`changed` on each
+    update), the service's clock (:meth:`now`: seconds since opening, once :attr:`t0` is
+    set), the path distances staff know the floor by, and the connection instructions go
+    through.
     """
 
     def __init__(self, clock: Any) -> None:
@@ -96,6 +97,7 @@ class Console:
         self.distance: Callable[[str, str], float] = lambda a, b: 0.0
         self.robots: dict[str, dict[str, Any]] = {}
         self.tasks: dict[int, dict[str, Any]] = {}
+        self.calls: dict[int, dict[str, Any]] = {}  # guests' calls (with calls on)
         self.changed = asyncio.Event()
 
     def now(self) -> float:
@@ -121,3 +123,10 @@ class Console:
             await asyncio.wait_for(wait(), wall)
         except TimeoutError:
             raise ReplayError(f"timed out waiting for {what}") from None
+
+    async def settled(self, cond: Callable[[], bool]) -> None:
+        """Wait, however long it takes, for the console to show ``cond`` (a service that
+        never settles is ended by the service's own limit)."""
+        while not cond():
+            self.changed.clear()
+            await self.changed.wait()

@@ -200,6 +200,9 @@ class Forecaster:
             "--out",
             str(out),
             "--quiet",
+            # The day's dishes as recorded; guests' calls and bussing are not replayed (the
+            # site's map may have no dish return, and the owner asks about deliveries).
+            "--no-calls",
         ]
         proc = await asyncio.create_subprocess_exec(
             *args, stdout=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.PIPE

@@ -24,6 +24,27 @@ is an assumption, stated here; loading and absences have options for a site's ow
   3-12 minutes (uniform). A robot that arrives meanwhile waits; if they are not back within
   the server's ``table_timeout`` (180 s, the server's default) it skips the table and the
   dishes go back to the pass, for staff to send again. Also an assumption: no source.
+
+With ``calls`` on (``serveur replay``'s default, ``--no-calls`` off), guests also call, and a
+robot clears the plates (issue 32). Each party's calls and their times come from
+:func:`serveur.replay.orders.guest_calls` (the meal 12-30 min from the last dish collected,
+then the plates call for 80 % of parties, a waiter once during the meal for 30 %, the bill
+3-12 min after the meal for 50 %); the rest is here. ``../shared/notes/field.md`` says what
+call systems do (a button bound to a table, call -> answer timed, unanswered calls escalated)
+and that restaurant robots bus dishes to a dish return, but gives no figure for any of it:
+every number below is an assumption, sized by what the step involves.
+
+* **staff answering a waiter or bill call** (:func:`answer_delay`): 15 s to see it and finish
+  the plate in hand, plus a walk and a wait for a free moment, log-normal with a median of
+  40 s (half of the calls answered within 55 s, one in ten after about 1 min 45 s: beyond
+  the server's ``call_escalate`` of 120 s a few times an evening), 10 min at most;
+* **guests putting their plates on a bussing robot** (:func:`plates_dwell`): 8 s to notice
+  it, 3 s a plate, a tail to a minute (mean 8 s more); 15 % of parties (``forget_done``)
+  stack their plates and turn back to the table without pressing Done: the robot goes on
+  after the server's ``bussing_wait`` (120 s);
+* **emptying a bussing robot at the dish return** (:func:`unload_time`): staff by the
+  dishwasher take ``unload_fixed`` (20 s: see it, walk over) plus ``unload_per_table``
+  (10 s: a table's plates off a tray), times the loading's seeded spread, then press Done.
 """
 
 from __future__ import annotations
@@ -34,23 +55,30 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from serveur.replay.orders import LogOrder, parties
+from serveur.replay.orders import EAT, PAY, LogOrder, parties
 
 __all__ = [
+    "CALL_KINDS",
     "POLICIES",
     "Absence",
     "PolicyResult",
     "ReplayOptions",
     "absences",
+    "answer_delay",
     "dish_dwell",
+    "forgets_done",
     "loading_time",
     "peak_utilisation",
     "percentile",
+    "plates_dwell",
     "service_events",
     "stop_dwell",
+    "unload_time",
 ]
 
 POLICIES = ("baseline", "serveur")
+#: What guests call for (serveur.domain.CallKind's values).
+CALL_KINDS = ("plates", "waiter", "bill")
 
 
 @dataclass(frozen=True)
@@ -87,6 +115,21 @@ class ReplayOptions:
     leases: bool = True  # CoreConfig.leases: False ignores the zones
     conflict_distance: float = 0.45  # m between centres: 2 x robot radius + 5 cm
     deadlock_after: float = 20.0  # s of sim time without progress, robots near each other
+    # Guests' calls and bussing (issue 32; the module's docstring). Off here, so that a
+    # forecast or a test replays deliveries alone unless it asks; ``serveur replay`` turns
+    # them on (``--no-calls``: off) and replays the same service without them beside it.
+    calls: bool = False
+    call_plates: float = 0.8  # share of parties that call for their plates to be cleared
+    call_waiter: float = 0.3  # ... that call a waiter once during the meal
+    call_bill: float = 0.5  # ... that call for the bill
+    eat: tuple[float, float] = EAT  # s from a party's last dish collected to its plates call
+    pay: tuple[float, float] = PAY  # s from the end of the meal to the bill call
+    forget_done: float = 0.15  # share of parties that never press Done on a bussing robot
+    unload_fixed: float = 20.0  # staff at the dish return: s to empty a bussing robot ...
+    unload_per_table: float = 10.0  # ... plus this per table it collected at
+    #: Where the replay adds a dish return (x, y) when the map has none; None: beside the
+    #: demo room's pass (9.0, 10.8), and a map of one's own must have one or say where.
+    dish_return: tuple[float, float] | None = None
 
 
 def dish_dwell(seed: int, line: int) -> float:
@@ -117,6 +160,43 @@ def loading_time(opts: ReplayOptions, key: int, dishes: int) -> float:
         rng = random.Random(f"load:{opts.seed}:{key}")
         factor = min(3.0, max(0.5, rng.lognormvariate(0.0, opts.load_spread)))
     return round(base * factor, 1)
+
+
+def _spread(opts: ReplayOptions, key: str) -> float:
+    """The loading's seeded log-normal factor (``load_spread``), between 0.5 and 3."""
+    if opts.load_spread <= 0.0:
+        return 1.0
+    rng = random.Random(f"{key}:{opts.seed}")
+    return min(3.0, max(0.5, rng.lognormvariate(0.0, opts.load_spread)))
+
+
+def answer_delay(seed: int, key: str) -> float:
+    """Seconds staff take to answer a waiter or bill call (seeded by ``key``: the party's
+    first line and the call's kind, so the same call is answered as fast under either
+    policy). 15 s plus a log-normal of median 40 s (sigma 0.6), 600 s at most."""
+    rng = random.Random(f"answer:{seed}:{key}")
+    return round(min(600.0, 15.0 + 40.0 * rng.lognormvariate(0.0, 0.6)), 1)
+
+
+def plates_dwell(seed: int, line: int, plates: int) -> float:
+    """Seconds a party (keyed by its first line) takes to put ``plates`` used plates on a
+    bussing robot before pressing Done: 8 s, 3 s a plate, an exponential tail (mean 8 s),
+    90 s at most."""
+    rng = random.Random(f"plates:{seed}:{line}")
+    return round(min(90.0, 8.0 + 3.0 * plates + rng.expovariate(1 / 8.0)), 1)
+
+
+def forgets_done(seed: int, line: int, share: float) -> bool:
+    """Does this party (keyed by its first line) leave its plates on the robot without
+    pressing Done (the robot then goes on after the server's ``bussing_wait``)?"""
+    return random.Random(f"forget:{seed}:{line}").random() < share
+
+
+def unload_time(opts: ReplayOptions, key: int, tables: int) -> float:
+    """Seconds staff take to empty a bussing robot that collected at ``tables`` tables and
+    press Done at the dish return (seeded by ``key``, the trip's id)."""
+    base = opts.unload_fixed + opts.unload_per_table * tables
+    return round(max(0.0, base) * _spread(opts, f"unload:{key}"), 1)
 
 
 #: How long a party is away when it is (seconds, uniform): see the module's docstring.
@@ -262,15 +342,103 @@ class PolicyResult:
     zone_waits: dict[str, Any] = field(default_factory=dict)
     wait_places: list[dict[str, Any]] = field(default_factory=list)
     zones: list[dict[str, Any]] = field(default_factory=list)
+    #: Guests' calls and bussing (``ReplayOptions.calls``), read back from the server's
+    #: records (service seconds): ``calls``, each call (id, table, kind, source, opened,
+    #: answered, by, after, escalated, cancelled, task); ``bussing``, each bussing trip (id,
+    #: robot, status, created, started, finished, unloaded, and its ``stops``: table, arrived,
+    #: done, the call it answered and ``call_to_robot``, s from that call to the robot there);
+    #: ``dish_return``, the place they unloaded at; ``callers``, what the players did.
+    calls: list[dict[str, Any]] = field(default_factory=list)
+    bussing: list[dict[str, Any]] = field(default_factory=list)
+    dish_return: str | None = None
+    callers: dict[str, Any] = field(default_factory=dict)
+    #: The same service replayed without calls and bussing (``serveur replay`` with calls
+    #: on), for the dish waits side by side (:meth:`modes`).
+    alone: PolicyResult | None = None
 
     def waits(self) -> list[float]:
         return [o["wait"] for o in self.orders if o["wait"] is not None]
+
+    def deliveries(self) -> list[dict[str, Any]]:
+        """The delivery trips finished (bussing trips are :attr:`bussing`'s)."""
+        return [
+            t
+            for t in self.trips
+            if t["status"] == "done" and t.get("kind", "delivery") == "delivery"
+        ]
+
+    def dish_waits(self) -> dict[str, Any]:
+        """The dishes' waits (ready -> collected): count, mean, p50, p95, max."""
+        waits = self.waits()
+        return {
+            "delivered": len(waits),
+            "undelivered": self.undelivered,
+            "mean": sum(waits) / len(waits) if waits else math.nan,
+            "p50": percentile(waits, 50),
+            "p95": percentile(waits, 95),
+            "max": max(waits) if waits else math.nan,
+        }
+
+    def modes(self) -> dict[str, Any]:
+        """Waits per mode: the dish waits of this service beside those of the same service
+        with deliveries alone (:attr:`alone`, None if it was not run), each kind of call
+        (how many, who answered, seconds to answer: mean, p50, p90, max) and the bussing
+        trips (how many, and seconds from a plates call to the robot at the table)."""
+        kinds: dict[str, Any] = {}
+        for kind in CALL_KINDS:
+            mine = [c for c in self.calls if c["kind"] == kind]
+            after = [c["after"] for c in mine if c["answered"] is not None]
+            robot = sum(1 for c in mine if str(c.get("by") or "").startswith("robot:"))
+            kinds[kind] = {
+                "calls": len(mine),
+                "answered": len(after),
+                "by_robot": robot,
+                "by_staff": len(after) - robot,
+                "cancelled": sum(1 for c in mine if c["cancelled"] is not None),
+                "open": sum(1 for c in mine if c["answered"] is None and c["cancelled"] is None),
+                "escalated": sum(1 for c in mine if c["escalated"] is not None),
+                "presses": sum(c.get("presses", 1) for c in mine),
+                "answer_mean": sum(after) / len(after) if after else math.nan,
+                "answer_p50": percentile(after, 50),
+                "answer_p90": percentile(after, 90),
+                "answer_max": max(after) if after else math.nan,
+            }
+        reach = [
+            s["call_to_robot"]
+            for b in self.bussing
+            for s in b["stops"]
+            if s.get("call_to_robot") is not None
+        ]
+        done = [b for b in self.bussing if b["status"] == "done"]
+        return {
+            "dish_waits": {
+                "calls_and_bussing": self.dish_waits(),
+                "deliveries_alone": None if self.alone is None else self.alone.dish_waits(),
+            },
+            "calls": kinds,
+            "escalated": sum(1 for c in self.calls if c["escalated"] is not None),
+            "bussing": {
+                "trips": len(self.bussing),
+                "done": len(done),
+                "tables": sum(len(b["stops"]) for b in self.bussing),
+                "robot_s": sum(
+                    b["finished"] - b["started"]
+                    for b in done
+                    if b["finished"] is not None and b["started"] is not None
+                ),
+                "call_to_robot_mean": sum(reach) / len(reach) if reach else math.nan,
+                "call_to_robot_p50": percentile(reach, 50),
+                "call_to_robot_p90": percentile(reach, 90),
+                "call_to_robot_max": max(reach) if reach else math.nan,
+            },
+            "dish_return": self.dish_return,
+        }
 
     def stats(self) -> dict[str, Any]:
         """The figures the summary prints (raw floats; the text rounds them)."""
         waits = self.waits()
         bounds = [o["lower_bound"] for o in self.orders]
-        trips = [t for t in self.trips if t["status"] == "done"]
+        trips = self.deliveries()
         mean_wait = sum(waits) / len(waits) if waits else math.nan
         mean_lb = sum(bounds) / len(bounds) if bounds else math.nan
         return {

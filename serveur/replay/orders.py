@@ -16,6 +16,9 @@ arrive as a Poisson process whose rate has a lunch and a dinner peak, each party
 free table of the map, and the kitchen sends a party's dishes out together (a few seconds
 apart), which is what makes batching tables on one trip worth anything. Everything is drawn
 from one ``random.Random(seed)``: the same arguments give the same log, byte for byte.
+
+:func:`guest_calls` adds what no log says: what each party calls for once served (the plates
+cleared, a waiter, the bill) and when, seeded per party, for the replay's calls and bussing.
 """
 
 from __future__ import annotations
@@ -36,10 +39,12 @@ __all__ = [
     "HEADER",
     "LogOrder",
     "OrderLogError",
+    "PartyCalls",
     "add_orders_parser",
     "demo_tables",
     "format_orders",
     "generate_orders",
+    "guest_calls",
     "map_tables",
     "parse_orders",
     "parties",
@@ -281,6 +286,77 @@ def generate_orders(
                 orders.append(LogOrder(ready, table, dish))
     orders.sort(key=lambda o: (o.ready_at, _natural(o.table), o.dish))
     return orders
+
+
+# -- the guests' calls -------------------------------------------------------------------------
+
+#: Minutes from a party's last dish collected to its call for the plates to be cleared: the
+#: meal (uniform). With the kitchen's 12-25 min and a table kept 45-80 min (above), the plates
+#: go 25-55 min after sitting down and the bill after them, before the party leaves.
+EAT = (12 * 60.0, 30 * 60.0)
+#: Seconds from the end of the meal (its plates call, made or not) to the call for the bill.
+PAY = (3 * 60.0, 12 * 60.0)
+#: Seconds after the food at the earliest that a party calls a waiter (another drink, a
+#: question); at the latest, the end of the meal.
+WAITER_FROM = 120.0
+
+
+@dataclass(frozen=True, slots=True)
+class PartyCalls:
+    """What one party calls for once its last dish was collected: each call's kind and
+    seconds after that moment. ``line``: its first dish's log line (the party's key);
+    ``lines``: all its dishes' lines; ``plates``: how many plates it has to clear."""
+
+    table: str
+    line: int
+    lines: tuple[int, ...]
+    calls: tuple[tuple[float, str], ...]
+
+    @property
+    def plates(self) -> int:
+        return len(self.lines)
+
+
+def guest_calls(
+    orders: Sequence[LogOrder],
+    seed: int,
+    *,
+    plates: float = 0.8,
+    waiter: float = 0.3,
+    bill: float = 0.5,
+    eat: tuple[float, float] = EAT,
+    pay: tuple[float, float] = PAY,
+) -> list[PartyCalls]:
+    """The calls of every party of the log (:func:`parties`), seeded per party by its first
+    dish's line: the same guests call the same way whatever the fleet or the policy.
+
+    Each party eats for ``eat`` seconds (uniform) from its last dish collected; then, with
+    probability ``plates``, it calls for the plates to be cleared (a robot comes when the
+    restaurant has a dish return); with probability ``waiter`` it calls a waiter once during
+    the meal (from :data:`WAITER_FROM` s on, uniform); with probability ``bill`` it calls for
+    the bill ``pay`` seconds after the meal (the others pay at the counter or ask in passing).
+    None of it is measured: these are assumptions (docs/statistics.md, *the replay's calls*).
+    """
+    out = []
+    for party in parties(orders):
+        first = party[0]
+        rng = random.Random(f"calls:{seed}:{first.line}")
+        meal = rng.uniform(*eat)
+        # Every draw is made whatever the probabilities, so that switching one kind of call
+        # off leaves the others' times as they were.
+        wants = [rng.random() for _ in range(3)]
+        at_waiter = rng.uniform(min(WAITER_FROM, meal / 2), meal)
+        at_bill = meal + rng.uniform(*pay)
+        calls = []
+        if wants[0] < plates:
+            calls.append((round(meal, 1), "plates"))
+        if wants[1] < waiter:
+            calls.append((round(at_waiter, 1), "waiter"))
+        if wants[2] < bill:
+            calls.append((round(at_bill, 1), "bill"))
+        calls.sort()
+        out.append(PartyCalls(first.table, first.line, tuple(o.line for o in party), tuple(calls)))
+    return out
 
 
 # -- command line ------------------------------------------------------------------------------

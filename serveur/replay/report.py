@@ -26,6 +26,8 @@ from typing import TYPE_CHECKING, Any
 
 from PIL import Image, ImageDraw, ImageFont
 
+from serveur.replay.model import CALL_KINDS
+
 if TYPE_CHECKING:
     from serveur.replay.model import PolicyResult, ReplayOptions
 
@@ -384,6 +386,16 @@ def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOpti
         + "; leases "
         + ("on" if opts.leases else "off")
         + ".",
+        *(
+            [
+                "Guests call (plates, waiter, bill) and bussing robots clear the plates: the "
+                "figures above are",
+                "that service's (trips: deliveries). The same service with deliveries alone is "
+                "beside it below.",
+            ]
+            if opts.calls
+            else []
+        ),
         "",
         " " * width + "".join(f"{n:>{colw}}" for n in names),
     ]
@@ -392,7 +404,111 @@ def summary_text(results: dict[str, PolicyResult], source: str, opts: ReplayOpti
         b, s = stats["baseline"]["wait_mean"], stats["serveur"]["wait_mean"]
         if b > 0 and math.isfinite(s):
             lines += ["", f"serveur mean wait vs baseline: {round(100 * (s - b) / b):+d} %"]
+    if opts.calls:
+        lines += ["", *_modes_text(results, opts)]
     return "\n".join(lines) + "\n"
+
+
+def _three(values: Sequence[float]) -> str:
+    return " / ".join(_fmt_s(v) for v in values)
+
+
+def _modes_text(results: dict[str, PolicyResult], opts: ReplayOptions) -> list[str]:
+    """Waits per mode: each policy's service with calls and bussing, and alone."""
+    names = list(results)
+    modes = {n: results[n].modes() for n in names}
+    cols: list[tuple[str, str]] = []  # (policy, "calls" | "alone")
+    for n in names:
+        cols.append((n, "calls"))
+        if results[n].alone is not None:
+            cols.append((n, "alone"))
+
+    def waits(n: str, mode: str) -> dict[str, Any]:
+        w = modes[n]["dish_waits"]["calls_and_bussing" if mode == "calls" else "deliveries_alone"]
+        return dict(w)
+
+    def calls_only(fn: Any) -> list[str]:
+        return [fn(modes[n]) if mode == "calls" else "-" for n, mode in cols]
+
+    rows: list[tuple[str, list[str]]] = [
+        (f"dish wait {k}", [_fmt_s(waits(n, mode)[k]) for n, mode in cols])
+        for k in ("mean", "p50", "p95", "max")
+    ]
+    rows.append(("dishes undelivered", [str(waits(n, mode)["undelivered"]) for n, mode in cols]))
+    rows.append(
+        (
+            "calls: plates / waiter / bill",
+            calls_only(lambda m: " / ".join(str(m["calls"][k]["calls"]) for k in CALL_KINDS)),
+        )
+    )
+    rows.append(
+        (
+            "plates answered: robot / staff / open",
+            calls_only(
+                lambda m: (
+                    f"{m['calls']['plates']['by_robot']} / "
+                    f"{m['calls']['plates']['by_staff']} / {m['calls']['plates']['open']}"
+                )
+            ),
+        )
+    )
+    for k in CALL_KINDS:
+        rows.append(
+            (
+                f"time to answer {k}: p50 / p90 / max",
+                calls_only(
+                    lambda m, k=k: _three(
+                        [m["calls"][k][f"answer_{q}"] for q in ("p50", "p90", "max")]
+                    )
+                ),
+            )
+        )
+    rows.append(("calls escalated (past call_escalate)", calls_only(lambda m: str(m["escalated"]))))
+    rows.append(
+        (
+            "bussing trips: done / sent",
+            calls_only(lambda m: f"{m['bussing']['done']} / {m['bussing']['trips']}"),
+        )
+    )
+    rows.append(
+        (
+            "plates call -> robot at table: p50 / p90 / max",
+            calls_only(
+                lambda m: _three(
+                    [m["bussing"][f"call_to_robot_{q}"] for q in ("p50", "p90", "max")]
+                )
+            ),
+        )
+    )
+    rows.append(
+        (
+            "robots on bussing trips (taken -> emptied)",
+            calls_only(lambda m: f"{m['bussing']['robot_s'] / 60:.1f} min"),
+        )
+    )
+    width = max(len(r[0]) for r in rows) + 2
+    colw = max(16, *(len(v) + 2 for _, vals in rows for v in vals))
+    dish_return = next((m["dish_return"] for m in modes.values() if m["dish_return"]), None)
+    out = [
+        f"Calls and bussing: once served, {100 * opts.call_plates:g} % of parties call for their "
+        f"plates to be cleared {opts.eat[0] / 60:g}-{opts.eat[1] / 60:g} min",
+        f"after their last dish, {100 * opts.call_waiter:g} % call a waiter during the meal, "
+        f"{100 * opts.call_bill:g} % the bill; staff answer waiter and bill",
+        f"calls, bussing robots take the plates to {dish_return or 'the dish return'!r}. "
+        "Times to answer, from a plates call",
+        "to the robot at the table: the server's records. Dish waits (ready -> collected) "
+        "beside the same",
+        "service with deliveries alone:",
+        "",
+        " " * width + "".join(f"{n:>{colw}}" for n, _ in cols),
+        " " * width
+        + "".join(
+            f"{'calls+bussing' if mode == 'calls' else 'deliveries alone':>{colw}}"
+            for _, mode in cols
+        ),
+    ]
+    out += [f"{k:<{width}}" + "".join(f"{v:>{colw}}" for v in vals) for k, vals in rows]
+    return out
 
 
 def _report(results: dict[str, PolicyResult], source: str, opts: ReplayOptions) -> dict[str, Any]:
@@ -412,8 +528,31 @@ def _report(results: dict[str, PolicyResult], source: str, opts: ReplayOptions) 
                 "zone_waits": r.zone_waits,
                 "wait_places": r.wait_places,
                 "zones": r.zones,
+                **(_modes_report(r) if opts.calls else {}),
             }
             for name, r in results.items()
+        },
+    }
+
+
+def _modes_report(r: PolicyResult) -> dict[str, Any]:
+    """Calls and bussing: the waits per mode, every call and bussing trip, the same
+    service with deliveries alone."""
+    alone = r.alone
+    return {
+        "modes": r.modes(),
+        "calls": r.calls,
+        "bussing": r.bussing,
+        "callers": r.callers,
+        "alone": None
+        if alone is None
+        else {
+            "summary": alone.stats(),
+            "orders": alone.orders,
+            "trips": alone.trips,
+            "robots": alone.robots,
+            "sim_seconds": alone.sim_seconds,
+            "wall_seconds": alone.wall_seconds,
         },
     }
 

@@ -25,7 +25,15 @@ the staff console. The replay itself is only a client of the websocket protocol
 * **the guests** press "Food collected" (``next``) a seeded dwell time after the robot stops
   (:mod:`serveur.replay.guests`); a few parties are away when their food comes
   (:func:`~serveur.replay.model.absences`), and the server's ``table_timeout`` sends the
-  robot on without them.
+  robot on without them;
+* with calls on (``ReplayOptions.calls``, ``serveur replay``'s default), **the guests** also
+  call once served — the plates cleared, a waiter, the bill
+  (:func:`~serveur.replay.orders.guest_calls`, :class:`~serveur.replay.guests.Callers`) — and
+  put their plates on the bussing robot a plates call sends; **the floor staff** answer the
+  waiter and bill calls and empty bussing robots at the dish return
+  (:class:`~serveur.replay.staff.Floor`), a place the replay adds beside the demo room's pass
+  as staff would (``create waypoint``). Each policy's service is then replayed once more
+  without calls, with deliveries alone, for the dish waits side by side.
 
 The server runs with ``CoreConfig(policy=...)``: ``baseline`` visits tables in cart order,
 ``serveur`` plans trips by area and stops by shortest route. Waits (ready -> collected) come
@@ -68,7 +76,7 @@ from websockets.asyncio.client import connect
 
 from serveur.domain import StopStatus
 from serveur.replay.client import WAIT, Console, ProtocolClient, ReplayError
-from serveur.replay.guests import Guests
+from serveur.replay.guests import Callers, Guests
 from serveur.replay.model import (
     POLICIES,
     PolicyResult,
@@ -81,8 +89,8 @@ from serveur.replay.model import (
     service_events,
     stop_dwell,
 )
-from serveur.replay.orders import LogOrder
-from serveur.replay.staff import Staff
+from serveur.replay.orders import LogOrder, guest_calls
+from serveur.replay.staff import Floor, Staff
 from serveur.replay.traffic import TrafficWatch, load_zones, zone_waits
 from serveur.replay.vtime import LoopClock, VirtualTimeLoop
 from serveur.replay.world import load_world, server_config, zones_path
@@ -108,6 +116,11 @@ log = logging.getLogger(__name__)
 
 #: When a virtual-time service opens: 2026-01-01 00:00 UTC.
 VIRTUAL_EPOCH = 1_767_225_600.0
+#: Where the replay puts a dish return in the demo room (it has none): beside the pass
+#: (8.0, 10.8), a metre towards the kitchen's other end, clear of robots parked at home1-3.
+DEMO_DISH_RETURN = (9.0, 10.8)
+#: Its name, as staff would type it.
+DISH_RETURN = "dish return"
 
 
 # -- one service -------------------------------------------------------------------------------
@@ -123,24 +136,47 @@ class _Service:
     """
 
     def __init__(
-        self, orders: Sequence[LogOrder], opts: ReplayOptions, policy: str, clock: Any
+        self,
+        orders: Sequence[LogOrder],
+        opts: ReplayOptions,
+        policy: str,
+        clock: Any,
+        label: str | None = None,
     ) -> None:
         self.log = list(orders)
         self.opts = opts
         self.policy = policy
+        self.label = label or policy  # its database's and progress bar's name
         self.clock = clock
         # Timeouts are sized for wall-clock jitter times the scale; virtual time has none.
         self._scale = opts.time_scale or 1.0
         self.console = Console(clock)
-        self.finished = asyncio.Event()
+        self.finished = asyncio.Event()  # the service is over (or a player failed)
+        self.dishes_done = asyncio.Event()  # every dish collected
         self.staff = Staff(self.console, self.log, opts, policy, self.finished, self._spawn)
+        self.callers: Callers | None = None
+        self.floor: Floor | None = None
+        if opts.calls:
+            calls = guest_calls(
+                self.log,
+                opts.seed,
+                plates=opts.call_plates,
+                waiter=opts.call_waiter,
+                bill=opts.call_bill,
+                eat=opts.eat,
+                pay=opts.pay,
+            )
+            self.callers = Callers(self.console, calls, self.staff.line_of, self._spawn)
+            self.floor = Floor(self.console, opts, self._spawn)
         self.guests = Guests(
             self.console,
             opts.seed,
             self.staff.line_of,
             len(self.log),
-            self.finished,
+            self.dishes_done,
             absences(self.log, opts.seed, opts.away),
+            served=None if self.callers is None else self.callers.served,
+            forget_done=opts.forget_done,
         )
         self.busy: dict[str, float] = {}
         self.busy_since: dict[str, float] = {}
@@ -173,10 +209,17 @@ class _Service:
     def on_update(self, topic: str, data: Any) -> None:
         if topic == "tasks":
             self.console.tasks[data["id"]] = data
+            bussing = data.get("kind") == "bussing"
+            if self.floor is not None and bussing and data["status"] == "cancelled":
+                self.floor.trip_cancelled(data["id"])  # nobody comes for those plates
         elif topic == "orders":
             self.staff.on_order(data)
         elif topic == "robots":
             self._on_robot(data)
+        elif topic == "calls":
+            self.console.calls[data["id"]] = data
+            if self.floor is not None:
+                self.floor.on_call(data)
         self.console.changed.set()
 
     def _on_robot(self, robot: dict[str, Any]) -> None:
@@ -208,14 +251,72 @@ class _Service:
                 key = (task["id"], stop["seq"])
                 if key not in self.served:
                     self.served.add(key)
-                    self._spawn(
-                        self.guests.collect(
-                            name, task["id"], stop["seq"], stop["table"], stop["orders"]
-                        )
-                    )
+                    self._at_stop(name, task, stop)
         elif status == "Error":
             self.nav_errors += 1
             self._spawn(self.staff.rescue(name))
+
+    def _at_stop(self, name: str, task: dict[str, Any], stop: dict[str, Any]) -> None:
+        """A robot stopped: guests take their dishes, or put their plates on a bussing
+        robot; at the dish return staff empty it."""
+        purpose = stop.get("purpose", "deliver")
+        if purpose == "deliver":
+            job = self.guests.collect(name, task["id"], stop["seq"], stop["table"], stop["orders"])
+        elif purpose == "collect" and self.callers is not None:
+            party = self.callers.party_of(task["id"], stop["table"])
+            job = self.guests.put_plates(name, task["id"], stop["seq"], party)
+        elif purpose == "unload" and self.floor is not None:
+            tables = sum(1 for s in task["stops"] if s.get("purpose") == "collect")
+            job = self.floor.unload(name, task["id"], stop["seq"], tables)
+        else:
+            return
+        self._spawn(job)
+
+    async def _close(self) -> None:
+        """The service is over once every dish is collected and, with calls on, every party
+        has called, every call is closed and every bussing trip is over."""
+        await self.dishes_done.wait()
+        callers, c = self.callers, self.console
+
+        def over() -> bool:
+            assert callers is not None
+            closed = all(
+                x.get("answered_at") is not None or x.get("cancelled_at") is not None
+                for x in c.calls.values()
+            )
+            bussing = any(
+                t.get("kind") == "bussing" and t["status"] in ("queued", "active")
+                for t in c.tasks.values()
+            )
+            return callers.done() and closed and not bussing
+
+        if callers is not None:
+            await c.settled(over)
+        self.finished.set()
+
+    async def _dish_return(self, sim: Any, waypoints: dict[str, Any]) -> str:
+        """The restaurant's dish return: the map's, or one the replay adds as staff would
+        (``create waypoint``, kind ``dish_return``) at ``opts.dish_return`` or, in the demo
+        room, beside the pass (:data:`DEMO_DISH_RETURN`)."""
+        found = sorted(n for n, w in waypoints.items() if w.kind == "dish_return")
+        if found:
+            return found[0]
+        spot = self.opts.dish_return
+        if spot is None:
+            if self.opts.map_path is not None:
+                raise ReplayError(
+                    "the map has no dish return (a waypoint of kind dish_return) for the "
+                    "bussing robots: add one, say where (--dish-return X,Y) or --no-calls"
+                )
+            spot = DEMO_DISH_RETURN
+        name = DISH_RETURN
+        while name in waypoints:
+            name += "'"
+        await sim.warm_plans([spot])
+        await self.console.call(
+            "create", type="waypoint", name=name, x=spot[0], y=spot[1], kind="dish_return"
+        )
+        return name
 
     def _waiting_for(self, name: str, zones: list[str] | None) -> None:
         """Where and how long each robot waited for zones, from its record (the plot)."""
@@ -346,7 +447,7 @@ class _Service:
         ]
         cfg, security = server_config(opts, self.policy)
         app = App(
-            workdir / f"{self.policy}.db",
+            workdir / f"{self.label}.db",
             port=0,
             clock=self.clock,
             nav_map=nav_map,
@@ -376,7 +477,10 @@ class _Service:
                 app.url, max_size=2**24, additional_headers={"Authorization": f"Bearer {token}"}
             )
             console.client = client = ProtocolClient(ws, self.on_update)
-            snap = await client.call("data", topics=["robots", "tasks", "orders"])
+            topics = ["robots", "tasks", "orders"]
+            if self.callers is not None:
+                topics.append("calls")
+            snap = await client.call("data", topics=topics)
             for r in snap["data"]["robots"]:
                 self._on_robot(r)
             names = [s.name for s in specs]
@@ -386,14 +490,19 @@ class _Service:
             await console.until(
                 lambda: all(console.robots[n]["status"] == "Awaiting" for n in names), "auto"
             )
+            if self.callers is not None:
+                result.dish_return = await self._dish_return(sim, waypoints)
             console.t0 = float(self.clock.now())
             epoch0 = float(self.clock.epoch())
             watch.start()
             bg.append(asyncio.create_task(self._sample(sim, result.paths)))
             if opts.progress:
-                bg.append(asyncio.create_task(self._progress(self.policy)))
+                bg.append(asyncio.create_task(self._progress(self.label)))
             self._spawn(self.staff.run())
+            self._spawn(self._close())
             limit = (self.log[-1].ready_at if self.log else 0.0) + opts.overtime
+            if self.callers is not None:  # the last party's meal and bill come after its food
+                limit += opts.eat[1] + opts.pay[1]
             await asyncio.wait_for(self.finished.wait(), self.clock.wall(limit) + WAIT)
             if self.failure is not None:
                 raise ReplayError(f"the replay failed: {self.failure!r}") from self.failure
@@ -442,12 +551,14 @@ class _Service:
         store = app.store
         by_line = {o.line: o for o in self.log}
         robot_of: dict[int, str | None] = {}
-        for t in await store.tasks.list_tasks():
+        tasks = await store.tasks.list_tasks()
+        for t in tasks:
             stops = t.stops
             robot_of[t.id] = t.robot
             result.trips.append(
                 {
                     "id": t.id,
+                    "kind": t.kind.value,
                     "robot": t.robot,
                     "status": t.status.value,
                     "tables": len(stops),
@@ -519,6 +630,8 @@ class _Service:
             "guests_missed": len(self.guests.missed),
             "parties_away": sum(len(a) for a in self.guests.away.values()),
         }
+        if self.callers is not None and self.floor is not None:
+            await self._collect_calls(store, result, epoch0, tasks)
         for name in sorted(robots):
             pts = result.paths.get(name, [])
             dist = sum(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in itertools.pairwise(pts))
@@ -527,23 +640,105 @@ class _Service:
             if name in self.busy_since:
                 busy += self.now() - self.busy_since[name]
                 spans.append((self.busy_since[name], self.now()))
-            trips = sum(1 for t in result.trips if t["robot"] == name and t["status"] == "done")
+            trips = sum(1 for t in result.deliveries() if t["robot"] == name)
+            bussing = sum(1 for b in result.bussing if b["robot"] == name and b["status"] == "done")
             result.robots.append(
                 {
                     "name": name,
                     "distance": dist,
                     "busy": busy,
                     "trips": trips,
+                    "bussing": bussing,
                     "loading": ev.loading.get(name, 0.0),
                     "busy_spans": [[round(a, 1), round(b, 1)] for a, b in spans],
                 }
             )
 
+    async def _collect_calls(
+        self, store: Any, result: PolicyResult, epoch0: float, tasks: Sequence[Any]
+    ) -> None:
+        """The guests' calls and the bussing trips, from the server's records."""
+        from serveur.domain import StopPurpose, TaskKind
+
+        def at(ts: float | None) -> float | None:
+            return None if ts is None else round(ts - epoch0, 3)
+
+        calls = await store.calls.calls_between(0.0, 1e11)  # all of them
+        for call in calls:
+            end = call.answered_at if call.answered_at is not None else call.cancelled_at
+            result.calls.append(
+                {
+                    "id": call.id,
+                    "table": call.table,
+                    "kind": call.kind.value,
+                    "source": call.source,
+                    "presses": call.presses,
+                    "opened": at(call.opened_at),
+                    "answered": at(call.answered_at),
+                    "by": call.answered_by,
+                    "after": None if end is None else round(end - call.opened_at, 3),
+                    "escalated": at(call.escalated_at),
+                    "cancelled": at(call.cancelled_at),
+                    "task": call.task_id,
+                }
+            )
+        sent_for = {(c.task_id, c.table): c for c in calls if c.task_id is not None}
+        for t in tasks:
+            if t.kind is not TaskKind.BUSSING:
+                continue
+            stops = []
+            for st in t.stops:
+                if st.purpose is not StopPurpose.COLLECT:
+                    continue
+                call = sent_for.get((t.id, st.table))
+                reach = None
+                if call is not None and st.arrived_at is not None:
+                    reach = round(st.arrived_at - call.opened_at, 3)
+                stops.append(
+                    {
+                        "table": st.table,
+                        "status": st.status.value,
+                        "arrived": at(st.arrived_at),
+                        "done": at(st.done_at),
+                        "call": None if call is None else call.id,
+                        "call_to_robot": reach,
+                    }
+                )
+            unload = [st for st in t.stops if st.purpose is StopPurpose.UNLOAD]
+            result.bussing.append(
+                {
+                    "id": t.id,
+                    "robot": t.robot,
+                    "status": t.status.value,
+                    "created": at(t.created_at),
+                    "started": at(t.started_at),
+                    "finished": at(t.finished_at),
+                    "unloaded": at(unload[0].done_at) if unload else None,
+                    "stops": stops,
+                }
+            )
+        assert self.callers is not None and self.floor is not None
+        result.callers = {
+            "calls_made": len(self.callers.made),
+            "merged": sum(1 for m in self.callers.made if m["merged"]),
+            "answered_by_staff": len(self.floor.answered),
+            "answer_s": round(sum(self.floor.answered.values()), 1),
+            "plates_done_pressed": self.guests.plates_done,
+            "plates_left_to_the_wait": self.guests.plates_left,
+            "unloaded": len(self.floor.unloaded),
+            "unload_s": round(sum(self.floor.unloaded.values()), 1),
+        }
+
 
 async def replay_policy(
-    orders: Sequence[LogOrder], opts: ReplayOptions, policy: str, workdir: Path
+    orders: Sequence[LogOrder],
+    opts: ReplayOptions,
+    policy: str,
+    workdir: Path,
+    label: str | None = None,
 ) -> PolicyResult:
-    """Replay ``orders`` once with ``policy`` (a fresh server, database and fleet)."""
+    """Replay ``orders`` once with ``policy`` (a fresh server, database and fleet): the
+    database is ``<label>.db`` in ``workdir`` (default: the policy's name)."""
     from serveur.clock import ScaledClock
 
     if policy not in POLICIES:
@@ -559,7 +754,7 @@ async def replay_policy(
         clock = LoopClock(start_epoch=VIRTUAL_EPOCH)
     else:
         clock = ScaledClock(opts.time_scale)
-    return await _Service(_numbered(orders), opts, policy, clock).run(workdir)
+    return await _Service(_numbered(orders), opts, policy, clock, label).run(workdir)
 
 
 def _numbered(orders: Sequence[LogOrder]) -> list[LogOrder]:
@@ -570,15 +765,40 @@ def _numbered(orders: Sequence[LogOrder]) -> list[LogOrder]:
     return [o if o.line else replace(o, line=i + 2) for i, o in enumerate(orders)]
 
 
+#: The label of a policy's run with deliveries alone, beside its run with calls and bussing.
+ALONE = "{}-alone"
+
+
+def _runs(opts: ReplayOptions, policies: Sequence[str]) -> list[tuple[str, str, ReplayOptions]]:
+    """(policy, label, options) of each run: with calls on, each policy's service is run
+    again without calls and bussing (its dish waits beside: :meth:`PolicyResult.modes`)."""
+    out = []
+    for p in policies:
+        out.append((p, p, opts))
+        if opts.calls:
+            out.append((p, ALONE.format(p), replace(opts, calls=False)))
+    return out
+
+
+def _gather(results: Sequence[tuple[str, str, PolicyResult]]) -> dict[str, PolicyResult]:
+    out: dict[str, PolicyResult] = {}
+    for policy, label, r in results:
+        if label == policy:
+            out[policy] = r
+        else:
+            out[policy].alone = r
+    return out
+
+
 async def replay(
     orders: Sequence[LogOrder], opts: ReplayOptions, policies: Sequence[str]
 ) -> dict[str, PolicyResult]:
     """Each policy in turn on the same log (one after the other: they must not share CPU)."""
-    out: dict[str, PolicyResult] = {}
+    done = []
     with tempfile.TemporaryDirectory(prefix="serveur-replay-") as tmp:
-        for p in policies:
-            out[p] = await replay_policy(orders, opts, p, Path(tmp))
-    return out
+        for p, label, o in _runs(opts, policies):
+            done.append((p, label, await replay_policy(orders, o, p, Path(tmp), label)))
+    return _gather(done)
 
 
 # -- command line ------------------------------------------------------------------------------
@@ -589,14 +809,15 @@ def run_replay(
 ) -> dict[str, PolicyResult]:
     """Each policy in turn, each on a fresh event loop of the kind ``opts`` needs.
 
-    Virtual time unless ``time_scale`` is set. A fresh loop per policy starts each service at
-    loop time 0, so a policy's report does not depend on which ran before it (float rounding
-    of a larger clock would move its stamps in the last digits).
+    Virtual time unless ``time_scale`` is set; with ``calls`` on, each policy's service is
+    also run with deliveries alone (its result's ``alone``). A fresh loop per run starts each
+    service at loop time 0, so a policy's report does not depend on which ran before it
+    (float rounding of a larger clock would move its stamps in the last digits).
     """
     factory = VirtualTimeLoop if opts.time_scale is None else None
-    out: dict[str, PolicyResult] = {}
+    done = []
     with tempfile.TemporaryDirectory(prefix="serveur-replay-") as tmp:
-        for p in policies:
+        for p, label, o in _runs(opts, policies):
             with asyncio.Runner(loop_factory=factory) as runner:
-                out[p] = runner.run(replay_policy(orders, opts, p, Path(tmp)))
-    return out
+                done.append((p, label, runner.run(replay_policy(orders, o, p, Path(tmp), label))))
+    return _gather(done)

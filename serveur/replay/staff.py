@@ -20,22 +20,29 @@ at the pass again, staff send it again (``dish`` ``ready``: pending, then a new 
 * the ``serveur`` staff follow :func:`serveur.scheduler.suggest_carts`: each table on the
   trip that collects it soonest (a free robot now, or one due back from its trip), with a
   hold for a table's next dish seen on the kitchen display.
+
+With calls on, :class:`Floor` is the staff on the floor: they answer the guests' waiter and
+bill calls the console shows (:func:`serveur.replay.model.answer_delay`) and empty bussing
+robots at the dish return (:func:`serveur.replay.model.unload_time`). The pass counts only
+delivery trips as waiting for a robot, and never puts a dish on a bussing trip.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import itertools
 import math
 from collections.abc import Callable, Coroutine, Sequence
+from functools import partial
 from typing import Any
 
-from serveur.replay.client import Console, ReplayError
-from serveur.replay.model import ReplayOptions, loading_time
+from serveur.replay.client import WAIT, Console, ReplayError
+from serveur.replay.model import ReplayOptions, answer_delay, loading_time, unload_time
 from serveur.replay.orders import LogOrder
 from serveur.scheduler import Dish, TripEstimate, fifo_cart, suggest_carts
 
-__all__ = ["MAX_CART", "Staff"]
+__all__ = ["MAX_CART", "Floor", "Staff"]
 
 MAX_CART = 50  # dishes in one ``create task`` (protocol limit)
 
@@ -224,6 +231,8 @@ class Staff:
         c = self.console
         trip_of: dict[str, int] = {}
         for t in c.tasks.values():
+            if t.get("kind", "delivery") != "delivery":
+                continue  # a bussing trip carries no dishes out
             robot = c.robots.get(t.get("robot") or "", {})
             if t["status"] == "queued" or (
                 t["status"] == "active" and robot.get("status") == "Loading"
@@ -279,12 +288,17 @@ class Staff:
             self.created += 1
 
     def free_robots(self) -> int:
-        """Robots Awaiting with no trip, less the trips already queued for them."""
+        """Robots Awaiting with no trip, less the delivery trips already queued for them (a
+        queued bussing trip goes after the dishes: :func:`serveur.scheduler.may_bus`)."""
         c = self.console
         idle = sum(
             1 for r in c.robots.values() if r["status"] == "Awaiting" and r["current_task"] is None
         )
-        return idle - sum(1 for t in c.tasks.values() if t["status"] == "queued")
+        return idle - sum(
+            1
+            for t in c.tasks.values()
+            if t["status"] == "queued" and t.get("kind", "delivery") == "delivery"
+        )
 
     def carts(self, now: float) -> list[list[int]]:
         """The carts this policy's staff confirm at ``now`` (order ids, one list per trip)."""
@@ -330,10 +344,13 @@ class Staff:
 
     def tables_taken(self) -> set[str]:
         """Tables a robot is on its way to or standing at (a stop of a queued or active
-        trip not yet done or skipped)."""
+        trip not yet done or skipped; a bussing trip's once a robot took it: one still
+        queued may wait long, and would hold the table's dishes back)."""
         out: set[str] = set()
         for t in self.console.tasks.values():
             if t.get("status") not in ("queued", "active"):
+                continue
+            if t.get("kind", "delivery") != "delivery" and t.get("status") != "active":
                 continue
             for stop in t.get("stops", []):
                 if stop.get("status") in ("pending", "arrived"):
@@ -396,3 +413,87 @@ class Staff:
         await c.call("control", robot=robot, action="teleop", vx=0.0, vy=0.0, wz=0.0)
         await c.call("ready", robot=robot)
         await c.call("control", robot=robot, action="auto")
+
+
+class Floor:
+    """The staff on the floor, with calls on: they answer the guests' waiter and bill calls
+    the console shows and empty bussing robots at the dish return. Plates calls are the
+    robots' (the restaurant has a dish return): staff leave them be, unless the bussing trip
+    sent for one was cancelled before a robot reached the table (its table blocked by a robot
+    that could not get there, or the robot taken in manual control): nobody is coming then,
+    and staff take the plates by hand (:meth:`trip_cancelled`).
+
+    A call is answered :func:`~serveur.replay.model.answer_delay` after staff saw it, keyed
+    by its table, kind and how many such calls the table made before (the same party's call
+    is answered as fast under either policy); a bussing robot at the dish return is emptied
+    in :func:`~serveur.replay.model.unload_time`, then staff press Done. :attr:`answered`
+    (call id -> s staff took) and :attr:`unloaded` (trip -> s) say what they did.
+    """
+
+    def __init__(
+        self,
+        console: Console,
+        opts: ReplayOptions,
+        spawn: Callable[[Coroutine[Any, Any, None]], None],
+    ) -> None:
+        self.console = console
+        self.opts = opts
+        self.spawn = spawn
+        self._seen: set[int] = set()
+        self._count: dict[tuple[str, str], int] = {}
+        self.answered: dict[int, float] = {}
+        self.unloaded: dict[int, float] = {}
+
+    def on_call(self, call: dict[str, Any]) -> None:
+        """A call as the console shows it (the ``calls`` topic)."""
+        trip = self.console.tasks.get(call.get("task_id") or -1, {})
+        if call["kind"] != "plates" or trip.get("status") == "cancelled":
+            self._take(call)
+
+    def trip_cancelled(self, task_id: int) -> None:
+        """A bussing trip was cancelled: an open plates call it was sent for is staff's."""
+        for call in list(self.console.calls.values()):
+            if call["kind"] == "plates" and call.get("task_id") == task_id:
+                self._take(call)
+
+    def _take(self, call: dict[str, Any]) -> None:
+        if call["id"] in self._seen:
+            return
+        if call.get("answered_at") is not None or call.get("cancelled_at") is not None:
+            return
+        self._seen.add(call["id"])
+        key = (call["table"], call["kind"])
+        n = self._count[key] = self._count.get(key, 0) + 1
+        self.spawn(self._answer(call["id"], f"{key[0]}:{key[1]}:{n}"))
+
+    async def _answer(self, call_id: int, key: str) -> None:
+        c = self.console
+        delay = answer_delay(self.opts.seed, key)
+        await c.clock.sleep(delay)
+        try:
+            await c.call("call", action="answer", call=call_id)
+        except ReplayError as exc:
+            if exc.code != "conflict":  # closed meanwhile (the guest's screen cancelled it)
+                raise
+            return
+        self.answered[call_id] = delay
+
+    async def unload(self, robot: str, task_id: int, seq: int, tables: int) -> None:
+        """A bussing robot at the dish return (stop ``seq`` of trip ``task_id``), with the
+        plates of ``tables`` tables: staff empty it, then press Done."""
+        c = self.console
+        secs = unload_time(self.opts, task_id, tables)
+        await c.clock.sleep(secs)
+        for attempt in itertools.count():
+            try:
+                await c.call("next", robot=robot, task=task_id, stop=seq)
+                break
+            except ReplayError as exc:
+                if exc.code == "stale":  # it moved on (cancelled by staff): nothing to do
+                    return
+                # Its link dropped meanwhile (a stalled host at a high time scale): it
+                # comes back Delivered at the dish return, and staff press again.
+                if attempt >= 5:
+                    raise
+                await c.until(partial(c.status_is, robot, "Delivered"), f"{robot} back", 4 * WAIT)
+        self.unloaded[task_id] = secs

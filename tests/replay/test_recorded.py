@@ -57,7 +57,7 @@ def test_a_recorded_night_is_an_order_log_the_replay_plays_again(
     path = tmp_path / "tuesday.csv"
     path.write_text(log)
     out = tmp_path / "one-robot"
-    replay = ["replay", str(path), "--robots", "1", "--policy", "serveur", "--quiet"]
+    replay = ["replay", str(path), "--robots", "1", "--policy", "serveur", "--quiet", "--no-calls"]
     assert main([*replay, "--seed", "2", "--out", str(out)]) == 0
     summary = json.loads((out / "report.json").read_text())["policies"]["serveur"]["summary"]
     assert summary["orders"] == summary["delivered"] == 4

@@ -46,7 +46,8 @@ LOG = """ready_at,table,dish
 250.0,T12,Otak-otak
 251.0,T12,Roti prata
 """
-ARGS = ["--robots", "2", "--seed", "3", "--quiet"]
+# Deliveries alone: guests' calls and bussing have their own tests (test_modes.py).
+ARGS = ["--robots", "2", "--seed", "3", "--quiet", "--no-calls"]
 
 
 def test_dwell_is_seeded_per_dish() -> None:
@@ -125,6 +126,9 @@ def test_short_replay_both_policies_and_again(tmp_path: Path) -> None:
         assert row in summary
     opts = report["options"]
     assert opts["table_timeout"] == 180.0 and opts["away"] == 0.03
+    # --no-calls: deliveries alone, one run per policy, no calls' section.
+    assert opts["calls"] is False and "calls+bussing" not in summary
+    assert all("modes" not in pol and "alone" not in pol for pol in report["policies"].values())
     assert opts["load_fixed"] == 10.0 and opts["load_per_dish"] == 4.0
 
     # Again (serveur only): the very same service, to the last digit.
@@ -153,7 +157,7 @@ def test_a_replay_on_the_wall_clock_waits_like_one_in_virtual_time(tmp_path: Pat
     rush = tmp_path / "rush.csv"
     rush.write_text("".join(LOG.splitlines(keepends=True)[:4]))
     virtual_out, scaled_out = tmp_path / "virtual", tmp_path / "scaled"
-    args = [str(rush), "--robots", "2", "--seed", "3", "--policy", "serveur"]
+    args = [str(rush), "--robots", "2", "--seed", "3", "--policy", "serveur", "--no-calls"]
     assert main(["replay", *args, "--quiet", "--out", str(virtual_out)]) == 0
     cmd = [sys.executable, "-m", "serveur.cli", "replay", *args, "--time-scale", "10"]
     run = subprocess.run(
