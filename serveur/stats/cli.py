@@ -67,8 +67,8 @@ def _grid(title: str, head: Sequence[str], rows: Sequence[Sequence[str]]) -> str
 
 
 def render(rows: Sequence[Figures], total: Figures) -> str:
-    """The figures as three readable tables: dishes, trips, robots (each period, then the
-    total when there are several)."""
+    """The figures as readable tables: dishes, trips, robots (each period, then the total
+    when there are several), and calls and bussing trips when the range has any."""
     every = [*rows, total] if len(rows) != 1 else list(rows)
     dishes = [
         [
@@ -115,58 +115,103 @@ def render(rows: Sequence[Figures], total: Figures) -> str:
         for f in every
         for r in f.robots
     ]
-    return "\n".join(
+    tables = [
+        _grid(
+            "Dishes (wait: first ready at the pass -> food collected; on the pass: ready "
+            "-> a robot took its trip)",
+            [
+                "period",
+                "delivered",
+                "wait mean",
+                "p50",
+                "p95",
+                "max",
+                "on pass mean",
+                "p95",
+                "returned",
+                "re-sent",
+                "voided",
+            ],
+            dishes,
+        ),
+        _grid(
+            "Trips (deliveries finished; loading: robots Loading at the pass until Go)",
+            [
+                "period",
+                "trips",
+                "cancelled",
+                "tables/trip",
+                "dishes/trip",
+                "loading",
+                "per trip",
+                "timeouts",
+                "skips",
+            ],
+            trips,
+        ),
+        _grid(
+            "Robots (busy: on a trip or going home; share of the time online; distance: "
+            "the server's odometer)",
+            [
+                "period",
+                "robot",
+                "busy",
+                "busy %",
+                "loading",
+                "trips",
+                "errors",
+                "link drops",
+                "distance",
+            ],
+            robots,
+        ),
+    ]
+    if any(f.calls or f.bussing_trips or f.bussing_cancelled for f in every):
+        tables.append(_calls_grid(every))
+    return "\n".join(tables)
+
+
+def _p(p50: float, p90: float) -> str:
+    return f"{_s(p50)} / {_s(p90)}"
+
+
+def _calls_grid(every: Sequence[Figures]) -> str:
+    """Guests' calls and bussing trips (shown only when the range has any)."""
+    rows = [
         [
-            _grid(
-                "Dishes (wait: first ready at the pass -> food collected; on the pass: ready "
-                "-> a robot took its trip)",
-                [
-                    "period",
-                    "delivered",
-                    "wait mean",
-                    "p50",
-                    "p95",
-                    "max",
-                    "on pass mean",
-                    "p95",
-                    "returned",
-                    "re-sent",
-                    "voided",
-                ],
-                dishes,
-            ),
-            _grid(
-                "Trips (finished; loading: robots Loading at the pass until Go)",
-                [
-                    "period",
-                    "trips",
-                    "cancelled",
-                    "tables/trip",
-                    "dishes/trip",
-                    "loading",
-                    "per trip",
-                    "timeouts",
-                    "skips",
-                ],
-                trips,
-            ),
-            _grid(
-                "Robots (busy: on a trip or going home; share of the time online; distance: "
-                "the server's odometer)",
-                [
-                    "period",
-                    "robot",
-                    "busy",
-                    "busy %",
-                    "loading",
-                    "trips",
-                    "errors",
-                    "link drops",
-                    "distance",
-                ],
-                robots,
-            ),
+            f.period.label,
+            str(f.calls_plates),
+            str(f.calls_waiter),
+            str(f.calls_bill),
+            _p(f.answer_p50, f.answer_p90),
+            _p(f.answer_p50_plates, f.answer_p90_plates),
+            _p(f.answer_p50_waiter, f.answer_p90_waiter),
+            _p(f.answer_p50_bill, f.answer_p90_bill),
+            str(f.calls_escalated),
+            str(f.calls_cancelled),
+            str(f.bussing_trips),
+            _p(f.call_to_robot_p50, f.call_to_robot_p90),
         ]
+        for f in every
+    ]
+    return _grid(
+        "Calls (opened, per kind; answer: p50 / p90 from the call to its answer, per kind) and "
+        "bussing trips (finished; robot: p50 / p90 from a plates call to the robot at the table)",
+        [
+            "period",
+            "plates",
+            "waiter",
+            "bill",
+            "answer: all",
+            "plates",
+            "waiter",
+            "bill",
+            "escalated",
+            "cancelled",
+            "bussing",
+            "robot",
+        ],
+        rows,
     )
 
 
@@ -187,11 +232,16 @@ def render_trips(log: ServiceLog, tz: tzinfo | None, start: float | None, end: f
         who = t.robot or "-"
         if t.handed_over:
             who += f" (handed over from {', '.join(t.handed_over)})"
+        if t.kind == "delivery":
+            kind, what = "", f"{t.tables} table(s), {t.delivered} delivered, {t.returned} returned"
+        else:  # a bussing trip's tables (then the dish return), a cruise's places
+            kind = f"{t.kind}  "
+            n = sum(1 for s in t.stops if s.purpose in ("collect", "visit"))
+            what = f"{n} {'table' if t.kind == 'bussing' else 'place'}(s)"
         out.append(
-            f"trip {t.id}  {who}  {t.status}  created {_when(t.created, tz)}  "
+            f"trip {t.id}  {kind}{who}  {t.status}  created {_when(t.created, tz)}  "
             f"started {_clock(t.started, tz)}  left the pass {_clock(t.left, tz)} "
-            f"(loading {_s(t.loading)})  ended {_clock(t.ended, tz)}  "
-            f"{t.tables} table(s), {t.delivered} delivered, {t.returned} returned"
+            f"(loading {_s(t.loading)})  ended {_clock(t.ended, tz)}  {what}"
         )
         for i, s in enumerate(t.stops):
             names = ", ".join(
@@ -199,8 +249,9 @@ def render_trips(log: ServiceLog, tz: tzinfo | None, start: float | None, end: f
                 for oid in s.orders
             )
             why = f" ({s.reason})" if s.outcome == "skipped" and s.reason else ""
+            to = "" if s.purpose == "deliver" else f" ({s.purpose})"
             out.append(
-                f"  {i + 1}. {s.table:<6} arrived {_clock(s.arrived, tz)}  "
+                f"  {i + 1}. {s.table:<6}{to} arrived {_clock(s.arrived, tz)}  "
                 f"{s.outcome}{why} {_clock(s.ended, tz)}  dishes: {names or '-'}"
             )
     return "\n".join(out) + ("\n" if out else "no trip in this range\n")
@@ -218,6 +269,7 @@ def trip_rows(
             rows.append(
                 {
                     "trip": t.id,
+                    "kind": t.kind,
                     "robot": t.robot or "",
                     "status": t.status,
                     "created": _when(t.created, tz),
@@ -227,6 +279,7 @@ def trip_rows(
                     "loading_s": t.loading,
                     "stop": i + 1,
                     "table": s.table,
+                    "purpose": s.purpose,
                     "arrived": _when(s.arrived, tz),
                     "stop_ended": _when(s.ended, tz),
                     "outcome": s.outcome,
@@ -344,8 +397,9 @@ def add_stats_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -
         "stats",
         help="statistics and trip history of past services, from the events table",
         description="Dishes delivered, waits, time on the pass, loading, returned and voided "
-        "dishes, trips, each robot's busy share and errors, per hour or service day, from "
-        "the server's events table (docs/statistics.md). Safe while the server runs.",
+        "dishes, trips, each robot's busy share and errors, guests' calls and the time to "
+        "answer them, bussing trips, per hour or service day, from the server's events table "
+        "(docs/statistics.md). Safe while the server runs.",
     )
     p.add_argument(
         "--db",

@@ -2,7 +2,8 @@
 
 :func:`read_events` replays the ``events`` table (oldest first) into a :class:`ServiceLog`:
 every dish (first ready, on the pass, delivered, returned, sent again, voided), every trip
-with its stops, every robot's status spells. :func:`figures` gives the figures of one period
+with its stops (deliveries, bussing trips, cruises), every guest's call (opened, answered,
+cancelled, escalated), every robot's status spells. :func:`figures` gives the figures of one period
 ``[start, end)``, :func:`table` those of each hour or service day of a range and the range's
 total. Nothing here reads a database or the clock: :mod:`serveur.stats.load` fetches the
 events, and the tests feed hand-made ones.
@@ -25,6 +26,8 @@ from serveur.stats.periods import Period, period_of
 
 __all__ = [
     "BUSY",
+    "CALL_KINDS",
+    "CallRecord",
     "Dish",
     "Figures",
     "RobotFigures",
@@ -41,6 +44,8 @@ __all__ = [
 #: Statuses in which a robot is out on service work (not free for a new trip): at the pass
 #: being loaded, on its way, at a table, halted or failed on the way, going home.
 BUSY = frozenset({"Loading", "Delivering", "Delivered", "Stopped", "Transit", "Error"})
+#: What guests call for (serveur.domain.CallKind's values), in the figures' order.
+CALL_KINDS = ("plates", "waiter", "bill")
 #: Events a starting server writes before anything else: not a sign it was running before.
 _STARTUP = frozenset(
     {"robot.restored", "robot.added", "robot.updated", "robot.trays", "waypoint.saved"}
@@ -91,6 +96,7 @@ class Stop:
 
     table: str
     orders: list[int] = field(default_factory=list)
+    purpose: str = "deliver"  # deliver, or a bussing trip's collect / unload, a cruise's visit
     arrived: float | None = None
     ended: float | None = None
     outcome: str = "pending"
@@ -101,10 +107,12 @@ class Stop:
 @dataclass
 class Trip:
     """One task. ``started``: a robot took it (it is Loading at the pass from then);
-    ``left``: Go (or an immediate dispatch); ``ended``: finished or cancelled."""
+    ``left``: Go (or an immediate dispatch); ``ended``: finished or cancelled. ``kind``:
+    ``delivery``, ``bussing`` or ``cruise`` (``task.created``'s)."""
 
     id: int
     created: float
+    kind: str = "delivery"
     robot: str | None = None
     handed_over: list[str] = field(default_factory=list)
     started: float | None = None
@@ -140,6 +148,24 @@ class Trip:
         return s
 
 
+@dataclass
+class CallRecord:
+    """One guest's call: ``by`` who answered it (``robot:<name>`` for the bussing robot that
+    reached the table); ``after``: seconds from opening to its answer (or cancel)."""
+
+    id: int
+    table: str
+    kind: str
+    opened: float
+    source: str | None = None
+    answered: float | None = None
+    by: str | None = None
+    cancelled: float | None = None
+    escalated: float | None = None
+    after: float | None = None
+    trip: int | None = None
+
+
 @dataclass(frozen=True, slots=True)
 class Span:
     """A robot in one status from ``start`` to ``end``."""
@@ -165,6 +191,7 @@ class ServiceLog:
 
     dishes: dict[int, Dish] = field(default_factory=dict)
     trips: dict[int, Trip] = field(default_factory=dict)
+    calls: dict[int, CallRecord] = field(default_factory=dict)
     spans: dict[str, list[Span]] = field(default_factory=dict)
     facts: list[_Fact] = field(default_factory=list)
     stamps: list[float] = field(default_factory=list)
@@ -307,10 +334,12 @@ class _Reader:
                 self.dish(e.order_id).table = table
         elif kind == "task.created" and e.task_id is not None:
             t = self.trip(e.task_id, ts)
+            t.kind = _text(data.get("kind")) or "delivery"
             stops = data.get("stops")
             for s in stops if isinstance(stops, list) else []:
                 if isinstance(s, Mapping):
-                    t.stops.append(Stop(str(s.get("table")), _ids(s.get("orders"))))
+                    purpose = _text(s.get("purpose")) or "deliver"
+                    t.stops.append(Stop(str(s.get("table")), _ids(s.get("orders")), purpose))
         elif kind == "task.stops_dropped" and e.task_id is not None:
             t = self.trip(e.task_id, ts)
             gone = data.get("tables")
@@ -333,6 +362,9 @@ class _Reader:
             t.status, t.ended = ("done" if kind == "task.finished" else "cancelled"), ts
             if t.robot is not None and self.robot_trip.get(t.robot) == t.id:
                 del self.robot_trip[t.robot]
+            # Deliveries are "trip" facts; bussing trips "bussing" ones; cruises are counted
+            # by neither (a cruise only ends cancelled).
+            what = {"delivery": "trip", "bussing": "bussing"}.get(t.kind, t.kind)
             if kind == "task.cancelled":
                 for s in t.stops:
                     if s.outcome == "pending":
@@ -341,11 +373,44 @@ class _Reader:
                     d = self.dish(oid)  # back at the pass (a queued trip's never left it)
                     if d.pending_since is None:
                         d.pending_since = ts
-                self.fact(ts, "trip_cancelled", robot=t.robot, trip=t.id)
+                self.fact(ts, f"{what}_cancelled", robot=t.robot, trip=t.id)
             else:
-                self.fact(ts, "trip_done", robot=t.robot, trip=t.id)
+                self.fact(ts, f"{what}_done", robot=t.robot, trip=t.id)
+        elif kind.startswith("call.") and isinstance(data.get("call"), int):
+            self.call_event(e)
         if kind not in _STARTUP:
             self.last_ts = ts
+
+    def call_event(self, e: EventRecord) -> None:
+        """``call.opened`` / ``answered`` / ``cancelled`` / ``escalated``: a call's kind in
+        the period it was opened, its time to answer in the period it was answered."""
+        data, ts = e.data, e.ts
+        cid = data["call"]
+        assert isinstance(cid, int)
+        call = self.log.calls.get(cid)
+        if call is None:
+            kind = _text(data.get("kind")) or "?"
+            call = CallRecord(cid, _text(data.get("table")) or "", kind, ts)
+            self.log.calls[cid] = call
+        if e.kind == "call.opened":
+            call.opened, call.source = ts, _text(data.get("source"))
+            self.fact(ts, f"call:{call.kind}")
+        elif e.kind == "call.answered":
+            call.answered, call.by, call.trip = ts, _text(data.get("by")), e.task_id
+            after = _num(data.get("after"))
+            call.after = ts - call.opened if after is None else after
+            self.fact(ts, f"answer:{call.kind}", value=call.after)
+            if (call.by or "").startswith("robot:"):
+                robot = (call.by or "")[len("robot:") :]
+                self.fact(ts, "robot_at_call", robot=robot, value=call.after, trip=e.task_id)
+        elif e.kind == "call.cancelled":
+            call.cancelled, call.by = ts, _text(data.get("by"))
+            after = _num(data.get("after"))
+            call.after = ts - call.opened if after is None else after
+            self.fact(ts, "call_cancelled")
+        elif e.kind == "call.escalated":
+            call.escalated = ts
+            self.fact(ts, "call_escalated")
 
     def started(self, e: EventRecord, t: Trip) -> None:
         robot = _text(e.data.get("robot")) or e.robot
@@ -383,6 +448,8 @@ class _Reader:
         else:
             s.outcome = "skipped"
             s.reason, s.by = _text(e.data.get("reason")), _text(e.data.get("by"))
+            if s.purpose != "deliver":
+                return  # a bussing trip's or a cruise's stop: no dishes, no table timeout
             self.fact(e.ts, "skip" if s.by is not None else "timeout")
             for oid in s.orders:
                 self.dish(oid).returned.append(e.ts)
@@ -457,6 +524,27 @@ class Figures:
     errors: int = 0
     link_drops: int = 0
     distance_m: float = 0.0
+    # Guests' calls, by the period they were opened in (counts) or answered in (times).
+    calls: int = 0
+    calls_plates: int = 0
+    calls_waiter: int = 0
+    calls_bill: int = 0
+    calls_escalated: int = 0
+    calls_cancelled: int = 0
+    answer_p50: float = math.nan
+    answer_p90: float = math.nan
+    answer_p50_plates: float = math.nan
+    answer_p90_plates: float = math.nan
+    answer_p50_waiter: float = math.nan
+    answer_p90_waiter: float = math.nan
+    answer_p50_bill: float = math.nan
+    answer_p90_bill: float = math.nan
+    # Bussing trips (finished, cancelled) and, for the plates calls a robot answered, the
+    # seconds from the call to the robot at the table.
+    bussing_trips: int = 0
+    bussing_cancelled: int = 0
+    call_to_robot_p50: float = math.nan
+    call_to_robot_p90: float = math.nan
     robots: list[RobotFigures] = field(default_factory=list)
 
     @property
@@ -514,6 +602,24 @@ FIELDS = (
     "errors",
     "link_drops",
     "distance_m",
+    "calls",
+    "calls_plates",
+    "calls_waiter",
+    "calls_bill",
+    "calls_escalated",
+    "calls_cancelled",
+    "answer_p50",
+    "answer_p90",
+    "answer_p50_plates",
+    "answer_p90_plates",
+    "answer_p50_waiter",
+    "answer_p90_waiter",
+    "answer_p50_bill",
+    "answer_p90_bill",
+    "bussing_trips",
+    "bussing_cancelled",
+    "call_to_robot_p50",
+    "call_to_robot_p90",
 )
 
 
@@ -551,6 +657,7 @@ def figures(log: ServiceLog, period: Period) -> Figures:
     f.table_timeouts, f.staff_skips = count["timeout"], count["skip"]
     f.errors, f.link_drops = count["error"], count["link_drop"]
     f.trips_cancelled = count["trip_cancelled"]
+    _calls(f, facts)
     done = [log.trips[x.trip] for x in facts if x.what == "trip_done" and x.trip is not None]
     f.trips = len(done)
     if done:
@@ -591,6 +698,33 @@ _COUNTED = (
     "link_drop",
     "trip_cancelled",
 )
+
+
+def _calls(f: Figures, facts: Sequence[_Fact]) -> None:
+    """The calls' and bussing trips' figures of a period's facts."""
+    counts: dict[str, int] = {}
+    answers: dict[str, list[float]] = {k: [] for k in CALL_KINDS}
+    reach: list[float] = []
+    for x in facts:
+        what = x.what
+        if what.startswith("answer:"):
+            answers.setdefault(what[len("answer:") :], []).append(x.value)
+        elif what == "robot_at_call":
+            reach.append(x.value)
+        else:
+            counts[what] = counts.get(what, 0) + 1
+    f.calls_plates, f.calls_waiter, f.calls_bill = (counts.get(f"call:{k}", 0) for k in CALL_KINDS)
+    f.calls = sum(n for w, n in counts.items() if w.startswith("call:"))
+    f.calls_escalated = counts.get("call_escalated", 0)
+    f.calls_cancelled = counts.get("call_cancelled", 0)
+    every = [v for values in answers.values() for v in values]
+    f.answer_p50, f.answer_p90 = percentile(every, 50), percentile(every, 90)
+    for kind in CALL_KINDS:
+        setattr(f, f"answer_p50_{kind}", percentile(answers[kind], 50))
+        setattr(f, f"answer_p90_{kind}", percentile(answers[kind], 90))
+    f.bussing_trips = counts.get("bussing_done", 0)
+    f.bussing_cancelled = counts.get("bussing_cancelled", 0)
+    f.call_to_robot_p50, f.call_to_robot_p90 = percentile(reach, 50), percentile(reach, 90)
 
 
 def periods(

@@ -76,6 +76,7 @@ def trips_document(
             stops.append(
                 {
                     "table": s.table,
+                    "purpose": s.purpose,
                     "arrived": s.arrived,
                     "ended": s.ended,
                     "outcome": s.outcome,
@@ -87,6 +88,7 @@ def trips_document(
         out.append(
             {
                 "id": t.id,
+                "kind": t.kind,
                 "robot": t.robot,
                 "handed_over": t.handed_over,
                 "status": t.status,
