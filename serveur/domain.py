@@ -144,7 +144,7 @@ class Robot(_Record):
         default_factory=dict,
         description="Which ROS (ros: 1 or 2) and the ROS names that differ from the defaults: "
         "ns, move_base, navigate, cmd_vel, pose, initialpose, battery, scan, map, frame, cloud, "
-        "tf_topic, tf_static, camera, camera_url, tf "
+        "tf_topic, tf_static, camera, camera_url, tf, docking "
         "(docs/robots.md)",
     )
     mode: RobotMode = RobotMode.OFF
@@ -172,6 +172,9 @@ class Robot(_Record):
         default=None,
         description="the zones it waits to be leased before it drives on (null: not waiting);"
         " not stored",
+    )
+    to_dock: bool = Field(
+        default=False, description="its Transit is to its dock, to charge (not home); not stored"
     )
     lost: bool = Field(
         default=False,

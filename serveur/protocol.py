@@ -495,7 +495,8 @@ class CreateRobot(_ClientMsg):
         description="Which ROS (ros: 1 or 2) and the ROS names that differ from the defaults"
         " (docs/robots.md): ns, move_base, navigate, cmd_vel, pose, initialpose, battery, scan,"
         " map, frame, cloud, tf_topic, tf_static; camera (a CompressedImage topic) or camera_url"
-        " (web_video_server); tf (the base frame, for a pose from tf)",
+        " (web_video_server); tf (the base frame, for a pose from tf); docking (nav2 or opennav:"
+        " its Nav2 has opennav_docking)",
     )
     trays: Annotated[int, Field(ge=1, le=12)] | None = Field(
         default=None, description="Tables one trip may serve (one tray each); null: the site's"

@@ -104,6 +104,7 @@ class RobotController:
             "link_error": rt.link_error,
             "waiting_for": rt.waiting_for,
             "lost": rt.localisation.lost,
+            "to_dock": rt.to_dock and rt.state.status is S.TRANSIT,
         }
         if rt.pose is not None:
             upd.update(x=rt.pose[0], y=rt.pose[1], yaw=rt.pose[2])

@@ -44,14 +44,16 @@ class Rounds:
 
         async def work(tx: Tx) -> Task:
             if key is not None:
-                done = await rows.replayed(tx, key, "bussing", fingerprint)
+                # The idempotency table's kinds are order and tasks (001): a bussing trip is
+                # one of the tasks a key may answer with.
+                done = await rows.replayed(tx, key, "tasks", fingerprint)
                 if done is not None:
-                    return await rows.get_task(tx, done["task_id"])
+                    return await rows.get_task(tx, done["task_ids"][0])
             stops = [(t, StopPurpose.COLLECT) for t in tables]
             stops.append((dish_return, StopPurpose.UNLOAD))
             task_id = await _insert(tx, TaskKind.BUSSING, stops, now)
             if key is not None:
-                await rows.remember(tx, key, "bussing", fingerprint, {"task_id": task_id}, now)
+                await rows.remember(tx, key, "tasks", fingerprint, {"task_ids": [task_id]}, now)
             return await rows.get_task(tx, task_id)
 
         return await self._db.transact(work, "write")

@@ -126,6 +126,16 @@ async def test_a_plates_call_sends_a_bussing_robot_to_the_dish_return(tmp_path: 
         await c.ok("call", action="cancel", call=bare["id"])
         await c.error("create", "conflict", type="bussing", tables=["T6"])
         await c.ok("create", type="waypoint", name="dish return", x=9.0, y=10.8, kind="dish_return")
+        # Staff's own bussing trip, resent with its key (a tablet that lost the reply): one trip.
+        sent = (await c.ok("create", type="bussing", tables=["T9", "T13"], key="bus-1"))["task"]
+        again = (await c.ok("create", type="bussing", tables=["T9", "T13"], key="bus-1"))["task"]
+        assert sent["id"] == again["id"] and sent["kind"] == "bussing"
+        await c.error("create", "conflict", type="bussing", tables=["T9"], key="bus-1")
+        await c.error("create", "invalid_field", type="bussing", tables=["T9", "T9"])
+        await c.error("create", "not_found", type="bussing", tables=["T99"])
+        # (Out of the way of the plates call below: no robot is active yet to take it.)
+        assert r.app.core is not None
+        await r.app.core.store.tasks.cancel_task(sent["id"], now=r.clock.epoch(), reason="test")
         await activate(c, "r1")
         t6 = await table_screen(r, "T6")
         call = (await t6.ok("call", action="open", table="T6", kind="plates"))["call"]

@@ -56,8 +56,11 @@ async def test_staff_send_a_robot_to_charge_and_back_to_work(tmp_path: Path) -> 
         assert refused["details"]["reason"] == "no_dock"
         assert c.robot("r1")["status"] == "Awaiting"
         await with_dock(r, c)
-        await c.ok("charge", robot="r1")
+        going = (await c.ok("charge", robot="r1"))["robot"]
+        # On its way the screens can tell it is going to charge, not home.
+        assert (going["status"], going["to_dock"]) == ("Transit", True)
         await c.status("r1", "Charging", timeout=120)
+        assert c.robot("r1")["to_dock"] is False
         await c.error("go", "not_allowed_in_status", robot="r1")
         await c.error("cruise", "not_allowed_in_status", robot="r1", route=["T1"])
         await c.ok("work", robot="r1")

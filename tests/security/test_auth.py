@@ -124,6 +124,17 @@ MESSAGES: dict[str, dict[str, Any]] = {
         "robots": [2],
     },
     "stats forecast_cancel": {"clientmsg": "stats", "action": "forecast_cancel"},
+    "site add_button": {"clientmsg": "site", "action": "add_button", "name": "b", "table": "T1"},
+    "site buttons": {"clientmsg": "site", "action": "buttons"},
+    "site revoke_button": {"clientmsg": "site", "action": "revoke_button", "name": "b"},
+    "call open T1": {"clientmsg": "call", "action": "open", "table": "T1", "kind": "waiter"},
+    "call open T2": {"clientmsg": "call", "action": "open", "table": "T2", "kind": "bill"},
+    "call answer": {"clientmsg": "call", "action": "answer", "call": 1},
+    "call cancel": {"clientmsg": "call", "action": "cancel", "call": 1},
+    "create bussing": {"clientmsg": "create", "type": "bussing", "tables": ["T1"]},
+    "charge": {"clientmsg": "charge", **ROBOT},
+    "work": {"clientmsg": "work", **ROBOT},
+    "cruise": {"clientmsg": "cruise", "route": ["T1", "T2"], **ROBOT},
     "stats last_service": {"clientmsg": "stats", "action": "last_service", "before": "2026-11-24"},
 }
 #: The owner's console messages: never staff's, never a screen's.
@@ -152,9 +163,10 @@ ALLOWED: dict[str, set[str]] = {
     "staff": set(MESSAGES) - {"create robot", "create dish", "create zone"} - SITE - STATS,
     "r1 screen": {"next", "stop", "continue", "cancel", "go", "skip", "order robot", "data"},
     "r2 screen": {"data"},  # its own robot's view of the robots topic
-    # "Food collected" on the table's own screen: the core checks the robot is at T1.
-    "T1 screen": {"order table", "next"},
-    "T2 screen": {"next"},
+    # "Food collected" on the table's own screen: the core checks the robot is at T1. A
+    # table's screen calls for its own table only.
+    "T1 screen": {"order table", "next", "call open T1"},
+    "T2 screen": {"next", "call open T2"},
     # A POS or kitchen display script: dishes in, dishes ready.
     "pos": {"create order", "dish", "data", "order table", "order robot"},
     # Every site action but the audit search, which needs the audit scope (and no topic:

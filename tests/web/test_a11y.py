@@ -149,7 +149,7 @@ async def test_every_status_colour_reads_at_4_5_to_1() -> None:
     js = (site / "js" / "status.js").read_text()
     block = js.split("STATUS_COLOURS = {")[1].split("}")[0]
     colours = dict(re.findall(r'(\w+): "(#[0-9a-fA-F]{6})"', block))
-    assert len(colours) == 10, colours
+    assert len(colours) == 11, colours
     bg = re.search(r"--bg: (#[0-9a-fA-F]{6})", (site / "css" / "base.css").read_text())
     assert bg is not None
     low = {
