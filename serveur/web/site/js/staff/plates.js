@@ -4,7 +4,7 @@
 // staff empty it. Without a dish return place the server refuses, worded by errors.js ("Add a
 // dish return place first"), and the form says so before anyone presses.
 
-import { byName, el, toast } from "../ui.js";
+import { byName, el, newKey, toast } from "../ui.js";
 import { t } from "../i18n.js";
 import { formDialog } from "./forms.js";
 
@@ -59,7 +59,10 @@ export class PlatesButton {
           err.local = true;
           throw err;
         }
-        const reply = await this.conn.request({ clientmsg: "create", type: "bussing", tables: list });
+        // A key: a reply lost on the Wi-Fi and the request resent is still one trip.
+        this.key = this.key || newKey("bussing");
+        const reply = await this.conn.request({ clientmsg: "create", type: "bussing", tables: list, key: this.key });
+        this.key = null;
         toast(reply.task && reply.task.robot ? t("plates.sentRobot", { robot: reply.task.robot, tables: list.join(", ") }) : t("plates.sent", { tables: list.join(", ") }));
         return true;
       },

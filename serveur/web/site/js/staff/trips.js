@@ -48,6 +48,7 @@ export function statusWords(live, robot) {
     if (kind === "bussing") return t(stop.purpose === "unload" ? "trips.status.returning" : "trips.status.goingForPlates");
     if (kind === "cruise") return t("trips.status.cruising");
   }
+  if (robot.status === "Transit" && robot.to_dock) return t("trips.status.toCharge");
   return statusName(robot.status);
 }
 
