@@ -254,6 +254,10 @@ def _event_of(cell: str) -> Event:
         "`stop`": Event.STOP,
         "`continue`": Event.CONTINUE,
         "`cancel`": Event.CANCEL,
+        "`charge`": Event.CHARGE,
+        "docked": Event.DOCKED,
+        "`work`": Event.UNDOCK,
+        "recall": Event.RECALL,
     }
     matches = [ev for word, ev in words.items() if cell.startswith(word)]
     assert len(matches) == 1, cell
@@ -456,6 +460,7 @@ def test_action_of_and_robot_of() -> None:
         "create robot": (None, None),
         "create dish": (None, None),
         "create zone": (None, None),
+        "create bussing": (None, None),
         "order table": (None, None),
         "order robot": (None, "r1"),
         **{f"control {a}": (Action(a), "r1") for a in P._SUBTAGS["control"][1]},
@@ -469,6 +474,12 @@ def test_action_of_and_robot_of() -> None:
         "clear": (None, None),
         "release": (None, None),  # a zone's lease: from every holder here (no robot named)
         "camera": (None, "r1"),  # watching changes nothing: any status may watch
+        # a guest's call: about a table, not a robot
+        **{f"call {a}": (None, None) for a in P._SUBTAGS["call"][1]},
+        # charging and cruising: robot-bound, allowed by status like any instruction
+        "charge": (Action.CHARGE, "r1"),
+        "work": (Action.WORK, "r1"),
+        "cruise": (Action.CRUISE, "r1"),
         # people and screen tokens (owners): no robot's status either
         **{f"account {a}": (None, None) for a in P._SUBTAGS["account"][1]},
         # the owner's site and statistics: a robot edited or removed is named (it must
@@ -1082,7 +1093,9 @@ def test_schema_covers_every_message() -> None:
     assert _consts(s["client"], "type") == set(P._SUBTAGS["create"][1])
     assert _consts(s["client"], "action") == {
         a.value for a in Action if a.value in P._SUBTAGS["control"][1]
-    } | set(P._SUBTAGS["account"][1]) | set(P._SUBTAGS["site"][1]) | set(P._SUBTAGS["stats"][1])
+    } | set(P._SUBTAGS["account"][1]) | set(P._SUBTAGS["site"][1]) | set(
+        P._SUBTAGS["stats"][1]
+    ) | set(P._SUBTAGS["call"][1])
     assert _consts(s["server"], "servermsg") == {"ok", "error", "update"}
     for part in s.values():
         for ref in _refs(part):

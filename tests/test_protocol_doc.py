@@ -39,10 +39,12 @@ to that block. Its space-separated words:
   ``as=table-screen:T3``: on a connection logged in with a table-screen token for T3.
 * ``fill=a,b``: the request's ids that only the run knows, filled in before it is sent:
   ``order`` (the newest order; ``order:S``: the newest in status ``S``), ``orders`` (the
-  orders the ``orders=`` hint just created), ``task`` and ``stop`` (``r1``'s current trip and
-  stop), ``alert`` (the active alert of the documented reply's kind and subject), ``device``
-  (the id of the token the latest ``account`` ``create_token`` made, into ``token``), ``upload``
-  (the id the latest ``site`` ``upload`` answered, into ``upload``, ``yaml`` and ``image``),
+  orders the ``orders=`` hint just created, in the order the request lists them; a ``trays``
+  choice names them as the request's ``orders`` does), ``task`` and ``stop`` (``r1``'s current
+  trip and stop), ``alert`` (the active alert of the documented reply's kind and subject),
+  ``device`` (the id of the token the latest ``account`` ``create_token`` made, into ``token``),
+  ``upload`` (the id the latest ``site`` ``upload`` answered, into ``upload``, ``yaml`` and
+  ``image``),
   ``backup`` (the name of the backup the latest ``site`` ``backup_now`` made, into ``name``),
   ``day`` (the run's service day, at the request's ``utc_offset``: a ``stats`` ``forecast`` needs a
   day with dishes), ``before`` (the day after it: ``stats`` ``last_service`` names the run's).
@@ -116,6 +118,11 @@ VOLATILE = frozenset(
         "acked_at",
         "cleared_at",
         "since",
+        "opened_at",
+        "escalated_at",
+        "answered_at",
+        "cancelled_at",
+        "last_press",
         "retry_after",
         "x",
         "y",
@@ -145,6 +152,7 @@ ALL_TOPICS = [
     "menu",
     "blocks",
     "settings",
+    "calls",
     "zones",
     "leases",
     f"pose:{ROBOT}",
@@ -431,6 +439,7 @@ async def to_ready(w: World) -> None:
             "Delivered": "next",
             "Awaiting": "ready",
             "Manual": "ready",
+            "Charging": "work",
         }.get(st)
         if verb is not None:
             # The robot may move on meanwhile (an Awaiting robot takes a queued trip): a
@@ -572,7 +581,10 @@ async def _fill(w: World, msg: dict[str, Any], fill: str, reply: Block | None) -
             await c.until(lambda: newest() is not None, what=f"an order {status}")
             msg["order"] = newest()
         elif name == "orders":
+            made = dict(zip(msg["orders"], w.made, strict=False))
             msg["orders"] = list(w.made)
+            if "trays" in msg:  # the trays chosen name dishes of the cart: the ones just made
+                msg["trays"] = [{**t, "order": made[t["order"]]} for t in msg["trays"]]
         elif name in ("task", "stop"):
             task = c.robot(ROBOT)["current_task"]
             msg["task"] = task
@@ -831,7 +843,7 @@ def _event_rows() -> dict[str, set[str]]:
 #: Event kinds the store can write that no request or robot report leads to (no verb deletes a
 #: waypoint): not in the doc's table.
 UNREACHED_KINDS = frozenset({"waypoint.deleted"})
-_KINDS = "robot|waypoint|order|task|stop|table|alert|menu|settings|zone|lease"
+_KINDS = "robot|waypoint|order|task|stop|table|alert|menu|settings|zone|lease|call|button|cruise"
 _KIND = re.compile(rf'"((?:{_KINDS})\.[a-z_]+)"')
 
 
@@ -844,6 +856,8 @@ def test_the_event_table_lists_every_kind_the_server_records() -> None:
         kinds |= set(_KIND.findall(path.read_text(encoding="utf-8")))
     # A dish's steps are named from the action (f"order.{...}"): not literals in the code.
     kinds |= {f"order.{name}" for name in _EVENT.values()}
+    # A call closed is named from how (f"call.{how}", serveur.store.calls).
+    kinds |= {"call.answered", "call.cancelled"}
     assert kinds >= UNREACHED_KINDS
     assert set(_event_rows()) == kinds - UNREACHED_KINDS
 
