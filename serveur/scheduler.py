@@ -63,6 +63,7 @@ __all__ = [
     "route_length",
     "split_trips",
     "suggest_carts",
+    "usable",
 ]
 
 log = logging.getLogger(__name__)
@@ -502,17 +503,20 @@ def can_carry(c: Candidate, stops: int) -> bool:
 MIN_BATTERY = 0.15
 
 
+def usable(c: Candidate, min_battery: float = MIN_BATTERY) -> bool:
+    """Could the robot take a trip: charged enough and sure where it is?"""
+    return (c.battery is None or c.battery >= min_battery) and not c.lost
+
+
 def choose_robot(
     candidates: Sequence[Candidate], *, min_battery: float = MIN_BATTERY
 ) -> str | None:
     """The free robot that has waited longest; robots below ``min_battery``, and robots not
     sure where they are, are skipped."""
-    usable = [
-        c for c in candidates if (c.battery is None or c.battery >= min_battery) and not c.lost
-    ]
-    if not usable:
+    found = [c for c in candidates if usable(c, min_battery)]
+    if not found:
         return None
-    best = min(usable, key=lambda c: (c.idle_since, -(c.battery or 0.0), c.name))
+    best = min(found, key=lambda c: (c.idle_since, -(c.battery or 0.0), c.name))
     return best.name
 
 
@@ -632,7 +636,8 @@ class Dispatcher:
             return assigned
         waiting: bool | None = None
         for q in (q for q in queued if q.bussing):
-            free = fleet.free_robots()
+            # Only robots that could take a trip count: a lost or flat one serves no dish.
+            free = [c for c in fleet.free_robots() if usable(c)]
             if not free:
                 break
             if waiting is None:

@@ -260,13 +260,19 @@ class Server:
         """A Wi-Fi call button's ``GET /call/<token>[?kind=bill]`` (what ESPHome, Tasmota's
         WebSend and Shelly's actions send): answered in plain text, 200 when the call is
         open (new or merged), 4xx with the reason otherwise, nothing changed."""
+        if request.method != "GET":
+            # A HEAD (a link preview) or anything else is not a press.
+            body = b"a call button sends GET\n"
+            status = http.HTTPStatus.METHOD_NOT_ALLOWED
+            return _http(status, body, "text/plain; charset=utf-8", ("Allow", "GET"))
         kinds = parse_qs(urlsplit(request.path).query).get("kind")
         press = await self.core.calls.press(token, kinds[0] if kinds else None)
         await self.core.flush_events()
         if press.status != 200:
             log.info("call button refused from %s: %s", _peer(ws), press.text.strip())
+        extra = [("Retry-After", str(press.retry_after))] if press.retry_after else []
         body = press.text.encode()
-        return _http(http.HTTPStatus(press.status), body, "text/plain; charset=utf-8")
+        return _http(http.HTTPStatus(press.status), body, "text/plain; charset=utf-8", *extra)
 
     async def _ws_handshake(self, ws: ServerConnection, request: Request) -> Response | None:
         origin = request.headers.get("Origin")

@@ -90,7 +90,7 @@ ALLOWED: dict[RobotStatus, frozenset[Action]] = {
     S.AWAITING: frozenset({A.READY, A.MANUAL, A.SAVE_WAYPOINT, A.CHARGE, A.CRUISE}),
     S.LOADING: frozenset({A.GO, A.CANCEL, A.MANUAL, A.SAVE_WAYPOINT}),
     S.DELIVERING: frozenset({A.STOP, A.MANUAL, A.SAVE_WAYPOINT}),
-    S.DELIVERED: frozenset({A.NEXT, A.SKIP, A.MANUAL, A.SAVE_WAYPOINT}),
+    S.DELIVERED: frozenset({A.NEXT, A.SKIP, A.STOP, A.MANUAL, A.SAVE_WAYPOINT}),
     S.STOPPED: frozenset({A.CONTINUE, A.CANCEL, A.SKIP, A.MANUAL, A.SAVE_WAYPOINT}),
     S.TRANSIT: frozenset({A.STOP, A.MANUAL, A.SAVE_WAYPOINT}),
     S.MANUAL: frozenset({A.TELEOP, A.INITIALPOSE, A.GOAL, A.GOTO, A.READY, A.SAVE_WAYPOINT}),
@@ -216,7 +216,9 @@ def apply(state: RobotState, event: Event) -> RobotState:
             return state
         target = state.resume if state.resume is not None else _by_mode(state.mode)
         return RobotState(target, state.mode, None)
-    if event is Event.STOP and status in _MOVING:
+    if event is Event.STOP and (status in _MOVING or status is S.DELIVERED):
+        # Stopped where it stands: at a stop it is held there (no timeout, no pause ending:
+        # a guest touching a cruising robot at its place) until it goes on.
         return RobotState(S.STOPPED, state.mode, status)
     if event is Event.NAV_FAILED and status in _MOVING:
         return RobotState(S.ERROR, state.mode, status)

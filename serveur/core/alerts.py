@@ -72,6 +72,10 @@ class RobotFact:
     blockers: tuple[str, ...] = ()  # the robots it waits behind
     lost: bool = False  # not sure where it is (serveur.core.localisation)
     not_charging: bool = False  # on its dock, its battery not rising (serveur.core.modes)
+    #: At a stop where it waits for people (dishes taken, a birthday's Done, emptied at the
+    #: dish return): a long wait is an alert. Collecting plates and a cruise's pause are the
+    #: robot's own waits (it goes on by itself): no alert.
+    waits_for_people: bool = True
 
 
 @dataclass(frozen=True, slots=True)
@@ -122,7 +126,11 @@ def conditions(
             limit = limits.battery_ok if key in active else limits.low_battery
             if r.battery < limit:
                 out[key] = f"{r.name} battery {round(r.battery * 100)}%"
-        if r.status is RobotStatus.DELIVERED and now - r.since >= limits.wait_at_table:
+        if (
+            r.status is RobotStatus.DELIVERED
+            and r.waits_for_people
+            and now - r.since >= limits.wait_at_table
+        ):
             where = f" at {r.table}" if r.table else ""
             out[(AlertKind.WAITING_AT_TABLE, r.name)] = (
                 f"{r.name} waiting{where} for {_minutes(now - r.since)}"

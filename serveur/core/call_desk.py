@@ -11,6 +11,7 @@ other, and the dispatcher decides when it may leave (:func:`serveur.scheduler.ma
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -36,10 +37,10 @@ class Press:
     """What a button's HTTP request is answered: a status code and a short plain text (what
     the button's log shows)."""
 
-    __slots__ = ("status", "text")
+    __slots__ = ("retry_after", "status", "text")
 
-    def __init__(self, status: int, text: str) -> None:
-        self.status, self.text = status, text
+    def __init__(self, status: int, text: str, retry_after: int = 0) -> None:
+        self.status, self.text, self.retry_after = status, text, retry_after
 
 
 class CallDesk:
@@ -68,6 +69,18 @@ class CallDesk:
 
     async def start(self) -> None:
         self.open = {c.id: c for c in await self._store.calls.open_calls()}
+
+    async def reload(self) -> None:
+        """Read the open calls again (a table renamed or removed moved or cancelled some in
+        the store): the screens are told each one that changed."""
+        before = self.open
+        self.open = {c.id: c for c in await self._store.calls.open_calls()}
+        for call_id, old in before.items():
+            now = self.open.get(call_id)
+            if now is None:
+                self._publisher.pub("calls", await self._store.calls.get(call_id))
+            elif now != old:
+                self._publisher.pub("calls", now)
 
     def snapshot(self) -> list[Call]:
         return sorted(self.open.values(), key=lambda c: c.id)
@@ -211,7 +224,10 @@ class CallDesk:
                 return Press(400, f"kind must be one of {', '.join(k.value for k in CallKind)}\n")
         wait = self._limits.allow(button.name, self._clock.now())
         if wait > 0:
-            return Press(429, f"too many presses: try again in {wait:.0f} s\n")
+            # Whole wall seconds (a demo's clock runs faster), rounded up: "try again in 0 s"
+            # would be pressed again at once.
+            secs = max(1, math.ceil(self._clock.wall(wait)))
+            return Press(429, f"too many presses: try again in {secs} s\n", retry_after=secs)
         try:
             made = await self.call(button.table, wanted, f"button:{button.name}")
         except (NotFound, InvalidField) as exc:  # its table was removed since

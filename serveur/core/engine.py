@@ -68,7 +68,14 @@ from serveur.domain import (
     ZoneRecord,
 )
 from serveur.errors import LinkError, NotFound, ServeurError
-from serveur.scheduler import Candidate, Dispatcher, QueuedTrip, bussing_seconds, may_bus
+from serveur.scheduler import (
+    Candidate,
+    Dispatcher,
+    QueuedTrip,
+    bussing_seconds,
+    may_bus,
+    usable,
+)
 from serveur.status import Event, RobotState, RobotStatus
 from serveur.store.base import Store
 
@@ -206,6 +213,7 @@ class Core:
             service=self.service,
             traffic=self.traffic,
             kick=self.dispatcher.kick,
+            calls_moved=self.calls.reload,
         )
         self.instructions = Instructions(
             store,
@@ -476,7 +484,7 @@ class Core:
         if not queued or any(not q.bussing for q in queued):
             return None
         q = next(q for q in queued if q.bussing)
-        free = len(self.free_robots()) + 1
+        free = len([c for c in self.free_robots() if usable(c)]) + 1
         waiting = await self.dishes_waiting()
         if not may_bus(free, q.seconds, dishes_waiting=waiting, max_delay=self.bussing_max_delay()):
             return None
@@ -580,6 +588,7 @@ class Core:
                     blockers=tuple(self.leases.blockers(name)) if rt.waiting_for else (),
                     lost=rt.localisation.lost,
                     not_charging=rt.not_charging and rt.state.status is S.CHARGING,
+                    waits_for_people=rt.at_stop not in (StopPurpose.COLLECT, StopPurpose.VISIT),
                 )
             )
         return facts

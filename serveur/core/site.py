@@ -89,6 +89,7 @@ class Site:
         service: Service,
         traffic: Traffic,
         kick: Callable[[], None],
+        calls_moved: Callable[[], Awaitable[None]] | None = None,
     ) -> None:
         self.store = store
         self.clock = clock
@@ -100,6 +101,8 @@ class Site:
         self.service = service
         self.traffic = traffic
         self._kick = kick
+        #: The call desk re-reads its open calls when a table is renamed or removed.
+        self._calls_moved = calls_moved
         #: The pages' languages: those offered, and the one a device without a choice gets.
         self.languages = list(config.languages)
         self.language = config.language
@@ -298,6 +301,13 @@ class Site:
                 ctl = self.fleet.controller(robot)
                 ctl.record = ctl.record.model_copy(update={"home": wp.name})
                 ctl.publish()
+        for robot in deps.docks:
+            if self.fleet.has_robot(robot):
+                ctl = self.fleet.controller(robot)
+                ctl.record = ctl.record.model_copy(update={"dock": wp.name})
+                ctl.publish()
+        if self._calls_moved is not None:
+            await self._calls_moved()
         block = self.service.blocks.pop(old.name, None)
         if block is not None:
             self.publisher.pub("blocks", block.model_copy(update={"reason": ""}))
@@ -314,6 +324,8 @@ class Site:
         block = self.service.blocks.pop(wp.name, None)
         if block is not None:
             self.publisher.pub("blocks", block.model_copy(update={"reason": ""}))
+        if self._calls_moved is not None:
+            await self._calls_moved()
         return {"waypoint": wp.model_copy(update={"removed": True}), "revoked": deps.tokens}
 
     # -- the site as files (a replay of it) ---------------------------------------------

@@ -42,12 +42,14 @@ class Dependents:
     trips: list[int] = field(default_factory=list)  # queued or active trips stopping there
     tokens: list[int] = field(default_factory=list)  # active table-screen tokens for it
     blocked: bool = False
+    docks: list[str] = field(default_factory=list)  # robots whose charger it is
+    buttons: list[str] = field(default_factory=list)  # live call buttons of the table
 
     @property
     def blocking(self) -> bool:
         """True if removing the waypoint would strand something (tokens and a block do not:
         they end with the table)."""
-        return bool(self.homes or self.orders or self.trips)
+        return bool(self.homes or self.orders or self.trips or self.docks)
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -56,6 +58,8 @@ class Dependents:
             "trips": self.trips,
             "tokens": self.tokens,
             "blocked": self.blocked,
+            "docks": self.docks,
+            "buttons": self.buttons,
         }
 
 
@@ -172,6 +176,18 @@ class Waypoints:
                     (*pose, now),
                 )
             await tx.run("UPDATE robot_info SET home = ? WHERE home = ?", (new, old))
+            await tx.run("UPDATE robot_info SET dock = ? WHERE dock = ?", (new, old))
+            # The table's buttons and open calls follow it (a press of a button of a renamed
+            # table still calls it).
+            await tx.run(
+                "UPDATE call_button SET table_name = ? WHERE table_name = ? AND revoked_at IS NULL",
+                (new, old),
+            )
+            await tx.run(
+                "UPDATE `call` SET table_name = ? WHERE table_name = ?"
+                " AND answered_at IS NULL AND cancelled_at IS NULL",
+                (new, old),
+            )
             await tx.run(
                 f"UPDATE orders SET res_table = ? WHERE res_table = ? AND status IN ({_OPEN})",
                 (new, old),
@@ -207,6 +223,16 @@ class Waypoints:
                     f"{name} is still needed: {_describe(deps)}", waypoint=name, **deps.as_dict()
                 )
             await rows.revoke_where(tx, "role = 'table-screen' AND tbl = ?", (name,), now)
+            # Its buttons end with the table, and its open calls are cancelled.
+            await tx.run(
+                "UPDATE call_button SET revoked_at = ? WHERE table_name = ? AND revoked_at IS NULL",
+                (now, name),
+            )
+            await tx.run(
+                "UPDATE `call` SET cancelled_at = ?, cancelled_by = ? WHERE table_name = ?"
+                " AND answered_at IS NULL AND cancelled_at IS NULL",
+                (now, by or "removed", name),
+            )
             await tx.run("DELETE FROM table_block WHERE waypoint = ?", (name,))
             await tx.run("UPDATE waypoints SET removed_at = ? WHERE name = ?", (now, name))
             data = {"name": name, "by": by, **deps.as_dict()}
@@ -232,12 +258,19 @@ async def _dependents(tx: Tx, name: str) -> Dependents:
         (name,),
     )
     block = await one(tx, "SELECT 1 AS yes FROM table_block WHERE waypoint = ?", (name,))
+    docks = await tx.all(f"{ROBOT} AND dock = ? ORDER BY name", (name,))
+    buttons = await tx.all(
+        "SELECT name FROM call_button WHERE table_name = ? AND revoked_at IS NULL ORDER BY name",
+        (name,),
+    )
     return Dependents(
         homes=[str(r["name"]) for r in homes],
         orders=[int(r["id"]) for r in orders],
         trips=[int(r["id"]) for r in trips],
         tokens=[int(r["id"]) for r in tokens],
         blocked=block is not None,
+        docks=[str(r["name"]) for r in docks],
+        buttons=[str(r["name"]) for r in buttons],
     )
 
 
@@ -249,4 +282,6 @@ def _describe(deps: Dependents) -> str:
         parts.append(f"{len(deps.orders)} open order(s)")
     if deps.trips:
         parts.append(f"trips {deps.trips}")
+    if deps.docks:
+        parts.append(f"the charger of {', '.join(deps.docks)}")
     return "; ".join(parts)

@@ -120,6 +120,10 @@ class Dependents(_ServerModel):
     trips: list[int] = Field(description="queued or active trips stopping there")
     tokens: list[int] = Field(description="table-screen tokens bound to it")
     blocked: bool = Field(description="the table is blocked (unreachable)")
+    docks: list[str] = Field(default_factory=list, description="robots whose charger it is")
+    buttons: list[str] = Field(
+        default_factory=list, description="live call buttons of the table (revoked with it)"
+    )
 
 
 class FleetForecast(_ServerModel):

@@ -4,6 +4,9 @@ bussing robot. Real server, real simulator, real sockets, virtual time."""
 
 from __future__ import annotations
 
+import asyncio
+import urllib.error
+import urllib.request
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +28,14 @@ async def staff(r: Restaurant) -> Client:
     c = await r.client()
     await c.subscribe("robots", "tasks", "alerts", "calls")
     return c
+
+
+def _request(url: str, method: str) -> tuple[int, Any]:
+    try:
+        with urllib.request.urlopen(urllib.request.Request(url, method=method), timeout=10) as r:
+            return r.status, r.headers
+    except urllib.error.HTTPError as exc:
+        return exc.code, exc.headers
 
 
 def calls(c: Client) -> dict[int, dict[str, Any]]:
@@ -82,6 +93,11 @@ async def test_a_wifi_button_calls_with_its_token_and_is_limited(tmp_path: Path)
         # Pressed fifty times: merged while the bucket lasts, then refused; one call each.
         codes = [(await r.get(path))[0] for _ in range(50)]
         assert codes.count(200) == 1 and set(codes[1:]) == {429}, codes
+        status, headers = await asyncio.to_thread(_request, r.http_base + path, "GET")
+        assert status == 429 and int(headers["Retry-After"]) >= 1
+        # A link preview's HEAD (or anything but GET) is not a press.
+        status, headers = await asyncio.to_thread(_request, r.http_base + path, "HEAD")
+        assert status == 405 and headers["Allow"] == "GET"
         t7 = [x for x in calls(c).values() if x["table"] == "T7"]
         assert len(t7) == 2 and max(x["presses"] for x in t7) == 2
         assert (await r.get(path + "?kind=coffee"))[0] == 400
@@ -202,3 +218,32 @@ async def test_a_bussing_trip_to_a_blocked_table_is_not_sent(tmp_path: Path) -> 
         await c.until(lambda: c.task(call["task_id"]).get("status") == "cancelled")
         assert c.robot("r1")["status"] == "Awaiting" and c.robot("r1")["current_task"] is None
         assert calls(c)[call["id"]]["answered_at"] is None
+
+
+async def test_a_renamed_table_keeps_its_buttons_and_calls_a_removed_one_ends_them(
+    tmp_path: Path,
+) -> None:
+    async with restaurant(tmp_path, robots=1, config=site()) as r:
+        c = await staff(r)
+        owner = await owner_of(r)
+        path = (await owner.ok("site", action="add_button", name="b14", table="T14"))["path"]
+        call = (await c.ok("call", action="open", table="T14", kind="bill"))["call"]
+        renamed = await owner.ok("site", action="rename_waypoint", waypoint="T14", name="Terrace 1")
+        assert renamed["dependents"]["buttons"] == ["b14"]
+        await c.until(lambda: calls(c)[call["id"]]["table"] == "Terrace 1")
+        status, body, _ = await r.get(path)
+        assert status == 200 and b"waiter at Terrace 1" in body
+        [listed] = (await owner.ok("site", action="buttons"))["buttons"]
+        assert listed["table"] == "Terrace 1"
+        # Removed: its button is revoked with it and its open calls are cancelled.
+        await owner.ok("site", action="remove_waypoint", waypoint="Terrace 1")
+        assert (await r.get(path))[0] == 404
+        await c.until(lambda: all(x["cancelled_at"] is not None for x in calls(c).values()))
+        assert {x["table"] for x in calls(c).values()} == {"Terrace 1"}
+        # A robot's charger cannot be removed from under it.
+        await c.ok("create", type="waypoint", name="dock1", x=4.0, y=10.8, kind="dock")
+        await owner.ok("site", action="edit_robot", robot="r1", dock="dock1")
+        refused = await owner.error("site", "conflict", action="remove_waypoint", waypoint="dock1")
+        assert refused["details"]["docks"] == ["r1"]
+        await owner.ok("site", action="rename_waypoint", waypoint="dock1", name="charger A")
+        await c.until(lambda: c.robot("r1").get("dock") == "charger A")

@@ -140,3 +140,22 @@ async def test_dishes_go_on_the_trays_staff_chose(tmp_path: Path) -> None:
         on_board = {o["id"]: o["tray"] for o in (await screen.ok("order", robot="r1"))["orders"]}
         expected = {t1: 1, t5: None, t5b: 3, t9: None}
         assert on_board and on_board == {i: expected[i] for i in on_board}
+
+
+async def test_a_cruising_robot_touched_at_its_place_waits_there(tmp_path: Path) -> None:
+    config = site(cruise_pause=20.0, cruise_resume=60.0)
+    async with restaurant(tmp_path, robots=1, config=config) as r:
+        c = await staff(r)
+        await activate(c, "r1")
+        await c.ok("cruise", robot="r1", route=["T1", "T5"])
+        await c.status("r1", "Delivered", timeout=120)  # paused at T1
+        screen = await robot_screen(r, "r1")
+        await screen.ok("stop", robot="r1")  # a guest takes a snack from its tray
+        held = r.clock.epoch()
+        await c.status("r1", "Stopped")
+        # It does not leave at the end of its pause: it waits cruise_resume from the touch,
+        # then pauses again before it goes on.
+        await c.status("r1", "Delivered", timeout=120)
+        assert r.clock.epoch() - held >= 60.0
+        await c.status("r1", "Delivering", timeout=120)
+        assert r.clock.epoch() - held >= 80.0
