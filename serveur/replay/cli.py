@@ -70,6 +70,7 @@ def _replay_command(ns: argparse.Namespace) -> int:
             ("--calls-waiter", 0 <= ns.calls_waiter <= 1),
             ("--calls-bill", 0 <= ns.calls_bill <= 1),
             ("--eat", 0 <= ns.eat[0] <= ns.eat[1]),
+            ("--kitchen-ahead", ns.kitchen_ahead >= 0),
         )
         if not ok
     ]
@@ -88,6 +89,7 @@ def _replay_command(ns: argparse.Namespace) -> int:
         hold_max=ns.hold_max,
         rank=ns.rank,
         join=not ns.no_join,
+        kitchen_ahead=ns.kitchen_ahead,
         load_fixed=ns.load_fixed,
         load_per_dish=ns.load_per_dish,
         load_spread=ns.load_spread,
@@ -205,6 +207,16 @@ def add_replay_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
         help="serveur staff: never put a dish on its table's trip still loading at the pass",
     )
     d = ReplayOptions()
+    p.add_argument(
+        "--kitchen-ahead",
+        type=float,
+        default=d.lookahead,
+        metavar="S",
+        help="the kitchen enters each dish in the server this many seconds before it is "
+        "ready (ordered, then ready at its time), so that the server knows food is coming "
+        "and a bussing trip waits for it (default: when the kitchen display shows it to the "
+        f"staff, {d.lookahead:g} s; 0: a dish appears when ready)",
+    )
     p.add_argument(
         "--load-fixed",
         type=float,

@@ -98,6 +98,12 @@ class ReplayOptions:
     rank: str = "best"  # serveur staff: how tables are ranked (scheduler.RANKS)
     join: bool = True  # serveur staff: a dish goes on its table's trip still at the pass
     lookahead: float = 60.0  # the kitchen display shows dishes this far ahead of ready
+    #: Seconds before a dish is ready that the kitchen enters it in the server (``ordered``,
+    #: then ``ready`` at its time), so the server knows food is coming (a bussing trip waits
+    #: for it: serveur.scheduler.may_bus). 0: a dish appears when ready, the log's one time
+    #: (``serveur replay``'s default is ``lookahead``: the server knows what the kitchen
+    #: display shows; deliveries alone wait the same either way).
+    kitchen_ahead: float = 0.0
     # Loading at the pass (loading_time): fixed s a trip + s a plate, times a seeded spread.
     load_fixed: float = 10.0
     load_per_dish: float = 4.0

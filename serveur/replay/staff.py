@@ -13,7 +13,10 @@ The server runs as a site does: a trip given to a robot waits at the pass (``Loa
 staff have loaded its trays and pressed Go; staff take
 :func:`serveur.replay.model.loading_time` for it (a fixed part and a part per plate, seeded).
 A dish returned from a table nobody collected at comes back on its robot: once that robot is
-at the pass again, staff send it again (``dish`` ``ready``: pending, then a new cart).
+at the pass again, staff send it again (``dish`` ``ready``: pending, then a new cart). The
+kitchen puts each dish on the pass at its ready time (``create order``, pending); with
+``kitchen_ahead`` it enters it that many seconds earlier (``ordered``) and marks it ready at
+its time, so that the server knows food is coming.
 
 * the ``baseline`` staff fill each cart first-in first-out up to the tray's tables
   (:func:`serveur.scheduler.fifo_cart`, the design report);
@@ -83,6 +86,8 @@ class Staff:
         self.resent = 0
         self.pending: dict[int, Dish] = {}  # server order id -> dish, not yet carted
         self.created = 0  # dishes of the log the kitchen has put on the pass
+        self.announced = 0  # ... has entered as ordered (opts.kitchen_ahead)
+        self.ordered: dict[int, int] = {}  # log line -> order id, entered but not ready
         self.carted: set[int] = set()
         self.eta: dict[str, float] = {}  # busy robot -> when staff expect it back (service s)
         self.retries: dict[str, int] = {}
@@ -203,14 +208,20 @@ class Staff:
         5 s (a held table's hold running out).
         """
         c = self.console
+        ahead = self.opts.kitchen_ahead
         while not self.finished.is_set():
             nxt = self.log[self.created].ready_at if self.created < len(self.log) else math.inf
-            delay = min(nxt - c.now(), 5.0)
+            ann = math.inf
+            if ahead > 0 and self.announced < len(self.log):
+                ann = self.log[self.announced].ready_at - ahead
+            delay = min(nxt - c.now(), ann - c.now(), 5.0)
             self.wake.clear()
             if delay > 0:
                 with contextlib.suppress(TimeoutError):
                     await asyncio.wait_for(self.wake.wait(), c.clock.wall(delay))
             t = c.now()
+            if ann <= t:
+                await self._announce_due(t)
             if nxt <= t:
                 await self._create_due(t)
                 t = max(nxt, self.log[self.created - 1].ready_at)
@@ -273,13 +284,35 @@ class Staff:
                 self.cleared += 1
         return await c.call("create", type="task", orders=orders)
 
+    async def _announce_due(self, t: float) -> None:
+        """The kitchen: every dish of the log ready by ``t + kitchen_ahead`` is entered as
+        ``ordered`` (the server then knows it is coming: a bussing trip waits for it)."""
+        ahead = self.opts.kitchen_ahead
+        while self.announced < len(self.log) and self.log[self.announced].ready_at - ahead <= t:
+            o = self.log[self.announced]
+            reply = await self.console.call(
+                "create",
+                type="order",
+                dish=o.dish,
+                table=o.table,
+                key=f"log-{o.line}",
+                status="ordered",
+            )
+            self.ordered[o.line] = reply["order"]["id"]
+            self.announced += 1
+
     async def _create_due(self, t: float) -> None:
-        """The kitchen: every dish of the log ready by ``t`` appears at the pass, in order."""
+        """The kitchen: every dish of the log ready by ``t`` appears at the pass, in order
+        (created ``pending``, or, entered ahead, marked ready)."""
         while self.created < len(self.log) and self.log[self.created].ready_at <= t:
             o = self.log[self.created]
-            reply = await self.console.call(
-                "create", type="order", dish=o.dish, table=o.table, key=f"log-{o.line}"
-            )
+            if o.line in self.ordered:
+                oid = self.ordered.pop(o.line)
+                reply = await self.console.call("dish", order=oid, action="ready")
+            else:
+                reply = await self.console.call(
+                    "create", type="order", dish=o.dish, table=o.table, key=f"log-{o.line}"
+                )
             oid = reply["order"]["id"]
             self.line_of[oid] = o.line
             self.ready_of[oid] = o.ready_at

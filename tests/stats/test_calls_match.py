@@ -5,7 +5,9 @@ waiter and the bill) played by the replay into a database this test keeps, then 
 :mod:`serveur.stats.compute` from the events alone. The replay reads the calls' and trips'
 own records (call rows, task stops): calls per kind, times to answer, escalations, bussing
 trips and the time from a plates call to the robot at the table must come out the same, and
-the deliveries' figures must not count the bussing trips.
+the deliveries' figures must not count the bussing trips. The kitchen enters each dish a
+minute ahead (``ordered``, then ready: ``serveur replay``'s default), and the waits still
+count from ready.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ def replayed(tmp_path_factory: pytest.TempPathFactory) -> tuple[PolicyResult, li
     work = tmp_path_factory.mktemp("stats-calls")
     opts = ReplayOptions(
         robots=2, seed=1, away=0.0, progress=False, calls=True, call_plates=1.0,
-        call_waiter=1.0, call_bill=1.0, eat=(60.0, 240.0),
+        call_waiter=1.0, call_bill=1.0, eat=(60.0, 240.0), kitchen_ahead=60.0,
     )  # fmt: skip
     with asyncio.Runner(loop_factory=VirtualTimeLoop) as runner:
         result = runner.run(replay_policy(parse_orders(LOG), opts, "serveur", work))
@@ -82,3 +84,8 @@ def test_calls_and_bussing_match_the_replays_records(
         assert by[r["name"]].busy_s == pytest.approx(r["busy"], abs=0.01), r["name"]
     kinds = {t.kind for t in log.trips.values()}
     assert kinds == {"delivery", "bussing"}
+    # The kitchen entered every dish a minute ahead, then marked it ready.
+    created = [e for e in events if e.kind == "order.created"]
+    assert len(created) == 10 and all(e.data["status"] == "ordered" for e in created)
+    ready = [e for e in events if e.kind == "order.ready" and e.data.get("from") == "ordered"]
+    assert len(ready) == 10
