@@ -1,9 +1,11 @@
 // Sound on the screens guests see (the robot's own screen, a table's screen): a chime when a
-// robot brings the food, and the words said aloud — "Your food is here! Please take tray 1".
+// robot brings the food, and the words said aloud — "Your food is here! Please take tray 1";
+// and, when it brings something special (a birthday cake), "Happy Birthday to You" instead.
 //
 // Offline, by design:
 // - The chime is made on the device with Web Audio (three short sine tones): no audio file is
-//   shipped and nothing is fetched.
+//   shipped and nothing is fetched. So is the birthday song (BIRTHDAY: the melody of "Happy
+//   Birthday to You", public domain), one oscillator a note.
 // - The words are said by the browser's speechSynthesis, and only with a voice that runs on the
 //   device: `localService` true, for the page's language (en, zh, ms). A voice not marked local
 //   (Chrome's "Google …" voices) sends the text to a server on the internet, which a
@@ -25,10 +27,10 @@
 // screen (muteButton); that choice is kept on the device too.
 //
 // What was played is on <body>, for whoever checks (the tests do): data-sound (on, blocked,
-// off), data-chimes (chimes sounded), data-spoken (sentences handed to speechSynthesis),
-// data-arrival (the last arrival decided) and data-arrival-sound (what it did: spoken, chime,
-// blocked, muted, heard). The staff console's alerts (js/staff/alerts.js) have a chime of their
-// own, which could be this module's Chime.
+// off), data-chimes (chimes sounded), data-songs (songs started), data-spoken (sentences handed
+// to speechSynthesis), data-arrival (the last arrival decided) and data-arrival-sound (what it
+// did: spoken, chime, song, blocked, muted, heard). The staff console's alerts
+// (js/staff/alerts.js) have a chime of their own, which could be this module's Chime.
 
 import { el } from "./ui.js";
 import { keep, kept } from "./keep.js";
@@ -39,7 +41,24 @@ export const ARRIVAL_NOTES = [660, 880, 1320];
 const NOTE_S = 0.22;
 const SPEAK_AFTER_MS = 800; // the words come once the chime has rung
 const HEARD_KEPT = 50; // arrivals remembered per screen: far more than stand at a table at once
+const CLICK_WAIT_MS = 500; // a touch's click comes well within this (soundPrompt)
 
+/**
+ * "Happy Birthday to You" (Mildred and Patty Hill, 1893; the melody is in the public domain),
+ * in C major, 3/4: [MIDI note, beats]. Its four lines, the third reaching up to the octave.
+ */
+export const BIRTHDAY = [
+  [67, 0.75], [67, 0.25], [69, 1], [67, 1], [72, 1], [71, 2],
+  [67, 0.75], [67, 0.25], [69, 1], [67, 1], [74, 1], [72, 2],
+  [67, 0.75], [67, 0.25], [79, 1], [76, 1], [72, 1], [71, 1], [69, 2],
+  [77, 0.75], [77, 0.25], [76, 1], [72, 1], [74, 1], [72, 2],
+];
+const BEAT_S = 0.42; // a beat of the song: about 140 a minute, as it is sung at a table
+
+/** A MIDI note's pitch (69 is the A at 440 Hz). */
+export function pitch(note) {
+  return 440 * 2 ** ((note - 69) / 12);
+}
 
 /**
  * Short tones made with Web Audio. The AudioContext is made at once: a browser that blocks
@@ -49,6 +68,7 @@ export class Chime {
   constructor(notes = ARRIVAL_NOTES) {
     this.notes = notes;
     this.ctx = null;
+    this.song = []; // the oscillators of a song still playing, for hush()
     try {
       if (typeof AudioContext !== "undefined") this.ctx = new AudioContext();
     } catch {
@@ -87,6 +107,46 @@ export class Chime {
       osc.stop(at + NOTE_S * 1.7);
     });
     return true;
+  }
+
+  /**
+   * Play a tune ([MIDI note, beats], BIRTHDAY) once; false if the browser holds the sound
+   * back. A triangle wave, each note slightly detached so repeated notes are heard as two.
+   */
+  melody(tune, beat = BEAT_S) {
+    if (!this.ctx || this.ctx.state !== "running") return false;
+    this.hush();
+    const ctx = this.ctx;
+    let at = ctx.currentTime + 0.05;
+    for (const [note, beats] of tune) {
+      const length = beats * beat;
+      const osc = ctx.createOscillator();
+      const gain = ctx.createGain();
+      osc.type = "triangle";
+      osc.frequency.value = pitch(note);
+      gain.gain.setValueAtTime(0.0001, at);
+      gain.gain.exponentialRampToValueAtTime(0.45, at + 0.03);
+      gain.gain.setValueAtTime(0.45, at + length * 0.7);
+      gain.gain.exponentialRampToValueAtTime(0.0001, at + length * 0.95);
+      osc.connect(gain).connect(ctx.destination);
+      osc.start(at);
+      osc.stop(at + length);
+      this.song.push(osc);
+      at += length;
+    }
+    return true;
+  }
+
+  /** Stop a song still playing (its robot has moved on). */
+  hush() {
+    for (const osc of this.song) {
+      try {
+        osc.stop();
+      } catch {
+        /* already stopped */
+      }
+    }
+    this.song = [];
   }
 }
 
@@ -129,6 +189,7 @@ export class Announcer {
     this.chime = new Chime();
     this.listeners = [];
     this.chimes = 0;
+    this.songs = 0;
     this.spoken = 0;
     this.state = this._state();
     const wake = () => {
@@ -151,7 +212,10 @@ export class Announcer {
   setMuted(muted) {
     this.muted = muted;
     keep(this.keys.muted, muted ? 1 : 0);
-    if (muted) window.speechSynthesis?.cancel();
+    if (muted) {
+      window.speechSynthesis?.cancel();
+      this.chime.hush();
+    }
     this._update(true);
   }
 
@@ -169,11 +233,43 @@ export class Announcer {
     return outcome;
   }
 
+  /**
+   * A robot stands at a table with something special: play the birthday song (in place of the
+   * chime and the words), once per `key` on this device, as announce() does.
+   */
+  sing(key) {
+    return this.announce(key, null, null);
+  }
+
+  /** A person asked for the song again: play it now, unless the screen is muted. */
+  singAgain() {
+    if (this.muted) return Promise.resolve(false);
+    return this.chime.unlock().then(() => this._song());
+  }
+
+  /** Stop the song (its robot has moved on). */
+  hush() {
+    this.chime.hush();
+  }
+
+  _song() {
+    if (!this.chime.melody(BIRTHDAY)) return false;
+    this.songs += 1;
+    document.body.dataset.songs = String(this.songs);
+    return true;
+  }
+
   _announce(key, text, lang) {
     if (this.heard.includes(key)) return "heard";
     if (this.muted) {
       this._remember(key);
       return "muted";
+    }
+    if (text === null) {
+      // The song: Web Audio or nothing (there are no words to say in its place).
+      if (this.chime.ctx && !this._song()) return "blocked"; // sounds on unlock
+      this._remember(key);
+      return this.chime.ctx ? "song" : "none";
     }
     if (this.chime.ctx ? !this.chime.play() : this.chime.blocked) return "blocked"; // sounds on unlock
     this._remember(key);
@@ -234,15 +330,25 @@ export function soundPrompt(announcer) {
   button.addEventListener("click", () => announcer.chime.unlock());
   // The first touch turns the sound on wherever it lands — on "Food collected", say. Hidden
   // during that touch, the prompt would move the page up under the finger and the button would
-  // miss its click: it goes once the touch has ended.
+  // miss its click: it goes once the click this touch makes is over. A finger's click comes a
+  // moment after the touch ends (the sound may have come on in between); a touch that makes
+  // none (a scroll) lets it go after CLICK_WAIT_MS.
   let touching = false;
+  let settle = null;
   const show = () => {
     if (!touching) button.hidden = announcer.state !== "blocked";
   };
+  const settled = () => {
+    clearTimeout(settle);
+    window.removeEventListener("click", settled, true);
+    touching = false;
+    setTimeout(show, 0); // after the click's own handlers
+  };
   window.addEventListener("pointerdown", () => (touching = true), { capture: true });
   const ended = () => {
-    touching = false;
-    setTimeout(show, 0); // after the click this touch makes
+    clearTimeout(settle);
+    window.addEventListener("click", settled, { capture: true, once: true });
+    settle = setTimeout(settled, CLICK_WAIT_MS);
   };
   window.addEventListener("pointerup", ended, { capture: true });
   window.addEventListener("pointercancel", ended, { capture: true });
