@@ -491,14 +491,14 @@ def _modes_text(results: dict[str, PolicyResult], opts: ReplayOptions) -> list[s
     dish_return = next((m["dish_return"] for m in modes.values() if m["dish_return"]), None)
     out = [
         f"Calls and bussing: once served, {100 * opts.call_plates:g} % of parties call for their "
-        f"plates to be cleared {opts.eat[0] / 60:g}-{opts.eat[1] / 60:g} min",
-        f"after their last dish, {100 * opts.call_waiter:g} % call a waiter during the meal, "
-        f"{100 * opts.call_bill:g} % the bill; staff answer waiter and bill",
-        f"calls, bussing robots take the plates to {dish_return or 'the dish return'!r}. "
-        "Times to answer, from a plates call",
-        "to the robot at the table: the server's records. Dish waits (ready -> collected) "
-        "beside the same",
-        "service with deliveries alone:",
+        "plates to be cleared",
+        f"{opts.eat[0] / 60:g}-{opts.eat[1] / 60:g} min after their last dish, "
+        f"{100 * opts.call_waiter:g} % call a waiter during the meal, "
+        f"{100 * opts.call_bill:g} % the bill.",
+        "Staff answer waiter and bill calls; bussing robots take the plates to "
+        f"{dish_return or 'the dish return'!r}.",
+        "Times to answer and from a plates call to the robot at the table: the server's records.",
+        "Dish waits (ready -> collected) beside the same service with deliveries alone:",
         "",
         " " * width + "".join(f"{n:>{colw}}" for n, _ in cols),
         " " * width
