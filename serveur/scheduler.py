@@ -554,15 +554,21 @@ def bussing_seconds(
     return total + estimate.leg(distance, dish_return, origin)
 
 
-def may_bus(free: int, seconds: float, *, dishes_waiting: bool, max_delay: float) -> bool:
-    """May a free robot leave on a bussing trip of ``seconds`` now?
+def may_bus(
+    free: int, seconds: float, *, tables_waiting: int, capacity: int, max_delay: float
+) -> bool:
+    """May one of ``free`` robots leave on a bussing trip of ``seconds`` now?
 
     Hot food first: a bussing trip never holds back a dish beyond ``max_delay``. It may go if
-    another robot stays free for the next dish, or no dish is waiting or being cooked, or the
-    trip is back within ``max_delay`` (a dish ready the moment it leaves waits that long at
-    most). Queued deliveries are served before any bussing trip (:class:`Dispatcher`).
+    no dish is waiting at the pass or being cooked (``tables_waiting``: the tables they are
+    for), or the trip is back within ``max_delay`` (a dish ready the moment it leaves waits
+    that long at most), or the robots left free can carry every waiting table at
+    ``capacity`` tables a trip. Queued deliveries are served before any bussing trip
+    (:class:`Dispatcher`).
     """
-    return free >= 2 or not dishes_waiting or seconds <= max_delay
+    if tables_waiting <= 0 or seconds <= max_delay:
+        return True
+    return free - 1 >= math.ceil(tables_waiting / max(1, capacity))
 
 
 class Fleet(Protocol):
@@ -578,12 +584,12 @@ class Fleet(Protocol):
         """Give the trip to the robot; False if either was taken meanwhile."""
         ...
 
-    async def dishes_waiting(self) -> bool:
-        """Is a dish ordered, cooking or ready and not yet on a trip?"""
+    async def tables_waiting(self) -> int:
+        """How many tables have a dish ordered, cooking or ready and not yet on a trip?"""
         ...
 
-    def bussing_max_delay(self) -> float:
-        """The site's ``bussing_max_delay`` (s)."""
+    def bussing_limits(self) -> tuple[int, float]:
+        """The site's trays (tables a trip) and ``bussing_max_delay`` (s)."""
         ...
 
     def cruising(self) -> list[str]:
@@ -634,16 +640,17 @@ class Dispatcher:
             await fleet.recall(robot_name)  # home, then the trip waiting for it
         if unserved:
             return assigned
-        waiting: bool | None = None
+        waiting: int | None = None
         for q in (q for q in queued if q.bussing):
             # Only robots that could take a trip count: a lost or flat one serves no dish.
             free = [c for c in fleet.free_robots() if usable(c)]
             if not free:
                 break
             if waiting is None:
-                waiting = await fleet.dishes_waiting()
+                waiting = await fleet.tables_waiting()
+            capacity, max_delay = fleet.bussing_limits()
             if not may_bus(
-                len(free), q.seconds, dishes_waiting=waiting, max_delay=fleet.bussing_max_delay()
+                len(free), q.seconds, tables_waiting=waiting, capacity=capacity, max_delay=max_delay
             ):
                 break  # oldest first: a later bussing trip does not jump the queue
             robot = choose_robot([c for c in free if can_carry(c, q.stops - 1)])

@@ -127,11 +127,11 @@ class FakeFleet:
         del self.free[robot]
         return True
 
-    async def dishes_waiting(self) -> bool:
-        return self.kitchen_busy
+    async def tables_waiting(self) -> int:
+        return self.tables
 
-    def bussing_max_delay(self) -> float:
-        return 90.0
+    def bussing_limits(self) -> tuple[int, float]:
+        return 4, 90.0
 
     def cruising(self) -> list[str]:
         return list(self.cruisers)
@@ -141,7 +141,7 @@ class FakeFleet:
         self.recalled.append(robot)
         return True
 
-    kitchen_busy = True
+    tables = 3  # waiting tables: one robot's trip (4 trays)
     cruisers: list[str]
     recalled: list[str]
 
@@ -197,10 +197,13 @@ class ModesFleet(FakeFleet):
 
 
 def test_may_bus_never_holds_a_dish_beyond_the_limit() -> None:
-    assert may_bus(1, 300.0, dishes_waiting=True, max_delay=90.0) is False
-    assert may_bus(1, 80.0, dishes_waiting=True, max_delay=90.0) is True
-    assert may_bus(2, 300.0, dishes_waiting=True, max_delay=90.0) is True  # one stays free
-    assert may_bus(1, 300.0, dishes_waiting=False, max_delay=90.0) is True  # kitchen idle
+    limits = dict(capacity=4, max_delay=90.0)
+    assert may_bus(1, 300.0, tables_waiting=1, **limits) is False
+    assert may_bus(1, 80.0, tables_waiting=1, **limits) is True  # back within the limit
+    assert may_bus(2, 300.0, tables_waiting=4, **limits) is True  # one robot left: four tables
+    assert may_bus(2, 300.0, tables_waiting=5, **limits) is False  # five need two robots
+    assert may_bus(3, 300.0, tables_waiting=5, **limits) is True
+    assert may_bus(1, 300.0, tables_waiting=0, **limits) is True  # kitchen idle
 
 
 async def test_deliveries_go_before_bussing_and_a_long_bussing_trip_waits() -> None:
@@ -211,7 +214,7 @@ async def test_deliveries_go_before_bussing_and_a_long_bussing_trip_waits() -> N
     assert fleet.started == [(1, "r1")]  # the delivery, though queued after the bussing trip
     fleet.free["r2"] = 5.0
     assert await d.dispatch_once() == 0  # one robot, dishes cooking, 300 s > 90 s: it waits
-    fleet.kitchen_busy = False
+    fleet.tables = 0
     assert await d.dispatch_once() == 1
     assert fleet.started[-1] == (100, "r2")
 
