@@ -5,7 +5,11 @@
 // navigation error (that is shown only to staff logged in here). At the pass (Loading) it tells
 // staff which dishes go on which tray for which table, and Go sends the trip; at a table it
 // names the tray to take, "Food collected" goes on, and a small Skip is set apart for staff.
-// Arriving at a table it rings and says "Table T3, your food is here!" once (sound.js).
+// A dish's tray is the one staff chose for it, else its stop's (guest/trays.js).
+// Arriving at a table it rings and says "Table T3, your food is here!" once (sound.js); with a
+// special delivery (a birthday) it plays "Happy Birthday to You" instead. Bussing, cruising,
+// special deliveries and charging have screens of their own (guest/robot-modes.js); while it
+// cruises, any touch or key on the screen stops it.
 //
 // Staff sign in on the screen itself ("Staff sign-in", the pages' login dialog): an idle robot
 // (Ready, Awaiting, or driven by staff) then offers "Send to a table" — a big button per table —
@@ -21,6 +25,10 @@ import { statusColour } from "./status.js";
 import { applySiteLanguages, dishLabel, lang, onLangChange, statusName, t } from "./i18n.js";
 import { Announcer, muteButton, soundPrompt } from "./sound.js";
 import { technicalNote } from "./staff/trouble.js";
+import { listWords, stopTrays, tripTrays } from "./guest/trays.js";
+import { modeView } from "./guest/robot-modes.js";
+import { cruising, TouchToStop } from "./guest/cruise.js";
+import { bigButton, dishItems, smallButton, staffControls, takeTray, yourDishes } from "./guest/widgets.js";
 
 const name = robotName();
 const conn = new Connection();
@@ -42,6 +50,8 @@ announcer.onChange(() => render()); // an arrival held back sounds once the soun
 const mute = muteButton(announcer);
 const staffBar = document.getElementById("staff-bar");
 let staffShown = "";
+// Cruising, the screen is a face: touched, the robot stops (guest/cruise.js).
+const touch = new TouchToStop(live, name, request);
 
 // Staff signed in on this screen (see the top): the device's own token, kept to come back to.
 const STAFF_IDLE_MS = 120_000;
@@ -60,21 +70,21 @@ function request(msg) {
   return conn.request({ ...msg, robot: name });
 }
 
-function bigButton(label, onclick, cls = "primary") {
-  return el("button", { class: `big ${cls}`, onclick: (e) => onclick(e.currentTarget), text: label });
-}
-
 function send(button, verb) {
   // Names the trip and stop this screen shows: refused (`stale`) if the robot moved on.
   return act(button, () => request({ clientmsg: verb, ...live.target(name) }));
 }
 
-async function cancelTrip(button) {
-  const yes = await confirmDialog(t("robot.cancelQuestion"), {
-    yes: t("robot.cancelYes"),
-    no: t("robot.cancelNo"),
-    detail: t("robot.cancelDetail"),
-  });
+const DELIVERY_CANCEL = {
+  question: "robot.cancelQuestion",
+  yes: "robot.cancelYes",
+  no: "robot.cancelNo",
+  detail: "robot.cancelDetail",
+};
+
+/** Cancel the trip, once the person said yes to `words` (the question's catalog keys). */
+async function cancelTrip(button, words = DELIVERY_CANCEL) {
+  const yes = await confirmDialog(t(words.question), { yes: t(words.yes), no: t(words.no), detail: t(words.detail) });
   if (yes) await act(button, () => request({ clientmsg: "cancel", ...live.target(name) }));
 }
 
@@ -159,31 +169,67 @@ async function goHome(button) {
   }
 }
 
+/** A dish of this robot's trips: the topic's newest copy, else the cart's answer; null if not loaded. */
+function order(id) {
+  return live.orders.get(id) || cart.find((o) => o.id === id) || null;
+}
+
+/** The robot's trip and its current stop (null, null when it has none). */
+function currentStop(robot) {
+  const task = robot.current_task === null ? null : live.tasks.get(robot.current_task) || null;
+  return [task, task ? task.stops[task.current_stop] || null : null];
+}
+
+/** At the pass: each tray's tables and dishes (a dish named with its table when a tray has two). */
+function loadingTrays(task) {
+  return tripTrays(task, order).map((tr) => ({
+    tray: tr.tray,
+    tables: tr.tables,
+    dishes: tr.dishes.map(({ order: o, table }) => {
+      if (!o) return null;
+      return tr.tables.length > 1 ? t("guest.robot.dishTo", { dish: dishLabel(o), table }) : dishLabel(o);
+    }),
+  }));
+}
+
 /** What the screen shows, as plain data: drawn again only when it changes. */
 function model(robot) {
-  const task = robot.current_task === null ? null : live.tasks.get(robot.current_task) || null;
-  const stop = task ? task.stops[task.current_stop] || null : null;
+  const [task, stop] = currentStop(robot);
   const staff = staffHere();
+  // Cruising: the same face from place to place, so it is not drawn again at each.
+  if (cruising(live, robot)) return { face: true, staff };
+  const kind = task ? task.kind || "delivery" : null;
+  const purpose = stop ? stop.purpose || "deliver" : null;
+  // At a table with dishes: which trays they are on, and any special message among them.
+  const here = robot.status === "Delivered" && purpose === "deliver" && stop.status === "arrived";
+  const serving = here ? stopTrays(stop, order) : [];
+  const several = serving.length > 1;
+  const special = serving.flatMap((tr) => tr.orders).filter((o) => o && o.special).map((o) => o.special);
   return {
     status: robot.status,
     resume: robot.resume,
     dest: live.destination(name),
     staff,
-    // Tray k holds the dishes of the stop with seq k-1 (stops in visiting order).
-    tray: stop ? stop.seq + 1 : null,
+    kind,
+    purpose,
+    arrived: Boolean(stop && stop.status === "arrived"),
+    toDock: robot.to_dock === true, // in Transit: to its charger, not home
+    take: serving.map((tr) => tr.tray),
     // The robot's raw navigation error is for staff: guests never read "move_base ABORTED".
     error: staff && robot.status === "Error" ? robot.last_error : null,
-    trays:
-      robot.status === "Loading" && task
-        ? [...task.stops]
-            .sort((a, b) => a.seq - b.seq)
-            .map((s) => ({
-              tray: s.seq + 1,
-              table: s.table,
-              dishes: s.orders.map((id) => (live.orders.has(id) ? dishLabel(live.orders.get(id)) : null)),
-            }))
-        : [],
-    cart: robot.status === "Delivered" ? cart.map(dishLabel) : [],
+    trays: robot.status === "Loading" && task ? loadingTrays(task) : [],
+    // A dish named with its tray when the stop's dishes are on several.
+    cart: serving.flatMap((tr) =>
+      tr.orders.map((o) => {
+        if (!o) return null;
+        return several ? t("guest.dishOnTray", { tray: tr.tray, dish: dishLabel(o) }) : dishLabel(o);
+      }),
+    ),
+    special,
+    // "Play the song again" is offered while the screen's sound is not turned off.
+    sound: special.length > 0 && announcer.state !== "off",
+    // Charging: how full, in whole percent (drawn again only when that number changes).
+    battery: robot.status === "Charging" && typeof robot.battery === "number" ? Math.round(robot.battery * 100) : null,
     // Staff here and the robot idle: where it may be sent.
     tables:
       staff && SEND_FROM.has(robot.status)
@@ -214,24 +260,6 @@ function sendPanel(m) {
   );
 }
 
-function dishItems(labels) {
-  return labels.length
-    ? labels.map((label) => el("li", {}, label ?? t("robot.cartLoading")))
-    : [el("li", { class: "muted" }, t("robot.cartLoading"))];
-}
-
-/** The small controls only staff should press, set apart from the guest's big buttons. */
-function staffControls(...buttons) {
-  const shown = buttons.filter(Boolean);
-  if (!shown.length) return null;
-  return el(
-    "div",
-    { class: "staff-controls", role: "group", "aria-label": t("guest.robot.forStaff") },
-    el("span", { class: "staff-label", "aria-hidden": "true" }, t("guest.robot.forStaff")),
-    ...shown,
-  );
-}
-
 async function skipTable(button, table) {
   const yes = await confirmDialog(t("guest.robot.skipQuestion", { table }), {
     yes: t("guest.robot.skipYes"),
@@ -241,11 +269,28 @@ async function skipTable(button, table) {
   if (yes) await send(button, "skip");
 }
 
-function smallButton(label, onclick) {
-  return el("button", { class: "secondary small", onclick: (e) => onclick(e.currentTarget), text: label });
+/** "Happy Birthday to You" again, for the guests who asked (a press lets the sound through). */
+async function singAgain(button) {
+  button.disabled = true;
+  try {
+    await announcer.singAgain();
+  } finally {
+    button.disabled = false;
+  }
 }
 
+// What the screens of the other modes (guest/robot-modes.js) may ask of this robot.
+const acts = {
+  send,
+  cancel: (button, words) => cancelTrip(button, words),
+  skip: (button) => skipTable(button, live.destination(name)),
+  singAgain,
+  stopCruise: () => touch.touched(),
+};
+
 function view(m) {
+  const mode = modeView(m, acts);
+  if (mode) return mode;
   const dest = m.dest;
   switch (m.status) {
     case "Ready":
@@ -275,7 +320,7 @@ function view(m) {
                 el(
                   "li",
                   { class: "tray", "data-tray": tr.tray },
-                  el("h2", { class: "tray-head" }, t("guest.robot.trayTo", { tray: tr.tray, table: tr.table })),
+                  el("h2", { class: "tray-head" }, t("guest.robot.trayTo", { tray: tr.tray, table: listWords(tr.tables) })),
                   el("ul", { class: "tray-dishes", "aria-label": t("guest.trayDishes", { tray: tr.tray }) }, dishItems(tr.dishes)),
                 ),
               ),
@@ -292,7 +337,7 @@ function view(m) {
       ];
     case "Transit":
       return [
-        el("h1", {}, t("robot.returning")),
+        el("h1", {}, m.toDock ? t("guest.robot.toCharge") : t("robot.returning")),
         bigButton(t("robot.stop"), (b) => send(b, "stop"), "danger"),
       ];
     case "Stopped":
@@ -330,8 +375,8 @@ function view(m) {
       return [
         el("p", { class: "sub" }, t("robot.arrived")),
         el("h1", { class: "destination" }, dest ? t("robot.table", { table: dest }) : t("robot.yourTable")),
-        m.tray ? el("p", { class: "take-tray" }, t("guest.takeTray", { tray: m.tray })) : null,
-        el("ul", { class: "cart-items", "aria-label": t("robot.yourDishes") }, dishItems(m.cart)),
+        takeTray(m.take),
+        yourDishes(m),
         bigButton(t("robot.collected"), (b) => send(b, "next")),
         staffControls(smallButton(t("guest.robot.skip"), (b) => skipTable(b, dest))),
       ];
@@ -369,15 +414,29 @@ async function refreshCart(robot) {
   }
 }
 
-/** At a table with food: ring and say so, once per stop (sound.js keeps which on the device). */
+/**
+ * At a table with food: ring and say so, once per stop (sound.js keeps which on the device);
+ * with a special dish, the birthday song instead; come for the plates, ring and ask for them.
+ */
 function announceArrival(robot) {
   // The site's settings choose the language a screen starts in: wait for them to speak it.
   if (robot.status !== "Delivered" || robot.current_task === null || !live.settings) return;
-  const task = live.tasks.get(robot.current_task);
-  const stop = task ? task.stops[task.current_stop] : null;
-  if (!stop) return;
-  const words = t("guest.arrival.spokenAt", { table: stop.table, tray: stop.seq + 1 });
-  announcer.announce(`${name}:${task.id}:${stop.seq}`, words, lang());
+  const [task, stop] = currentStop(robot);
+  // Reached: not the next stop of a trip whose update came before the robot's own.
+  if (!stop || stop.status !== "arrived") return;
+  const key = `${name}:${task.id}:${stop.seq}`;
+  const purpose = stop.purpose || "deliver";
+  if (purpose === "collect") announcer.announce(key, t("guest.arrival.plates"), lang());
+  if (purpose !== "deliver") return; // the dish return, a cruise's place: nothing to ring
+  const dishes = stop.orders.map(order);
+  if (dishes.includes(null)) return; // which trays, or the song: once its dishes are known
+  if (dishes.some((o) => o.special)) {
+    announcer.sing(key);
+    return;
+  }
+  const trays = stopTrays(stop, order).map((tr) => tr.tray);
+  const tray = listWords(trays.length ? trays : [stop.seq + 1]);
+  announcer.announce(key, t("guest.arrival.spokenAt", { table: stop.table, tray }), lang());
 }
 
 /** The footer's staff corner: "Staff sign-in" for a guest's screen; the mute and "Sign out" for staff. */
@@ -412,6 +471,7 @@ function render() {
   refreshCart(robot);
   announceArrival(robot);
   const m = model(robot);
+  if (!m.special?.length) announcer.hush(); // the birthday's robot moved on: so does its song
   const signature = JSON.stringify(m);
   document.body.dataset.status = robot.status;
   const badge = document.getElementById("robot-status");
@@ -449,6 +509,9 @@ conn.addEventListener("login", () => {
 // A touch or a key keeps staff signed in; STAFF_IDLE_MS without one signs them out.
 window.addEventListener("pointerdown", stillHere, { capture: true });
 window.addEventListener("keydown", stillHere, { capture: true });
+// While it cruises, any touch or key anywhere on the screen stops the robot.
+window.addEventListener("pointerdown", () => touch.touched(), { capture: true });
+window.addEventListener("keydown", () => touch.touched(), { capture: true });
 onLangChange(() => {
   document.title = t("robot.docTitle", { name: name || t("robot.docTitleNone") });
   shown = ""; // same robot, new words: draw again
