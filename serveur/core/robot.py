@@ -104,7 +104,9 @@ class RobotController:
             "link_error": rt.link_error,
             "waiting_for": rt.waiting_for,
             "lost": rt.localisation.lost,
-            "to_dock": rt.to_dock and rt.state.status is S.TRANSIT,
+            # Going to charge, or stopped (or failed) on the way there.
+            "to_dock": rt.to_dock
+            and (rt.state.status is S.TRANSIT or rt.state.resume is S.TRANSIT),
         }
         if rt.pose is not None:
             upd.update(x=rt.pose[0], y=rt.pose[1], yaw=rt.pose[2])

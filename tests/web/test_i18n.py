@@ -21,6 +21,8 @@ from typing import Any
 
 import pytest
 
+from serveur.domain import WaypointKind
+from serveur.status import RobotStatus
 from serveur.web.static import StaticSite
 from tests.web.conftest import needs_browser
 
@@ -44,15 +46,13 @@ HTML_FILES = sorted(SITE.glob("*.html"))
 JS_FILES = sorted((SITE / "js").rglob("*.js"))
 
 # Keys the scripts build from wire values (`status.${s}`, ...): each family is checked in full.
-STATUSES = [
-    "Offline", "Ready", "Awaiting", "Delivering", "Delivered", "Stopped", "Transit", "Manual",
-    "Error", "Loading",
-]  # fmt: skip
+# From the server's own enums: a status or a kind of place added there must be worded here.
+STATUSES = [s.value for s in RobotStatus]
 DYNAMIC = {
     "status": STATUSES,
     "role": ["owner", "staff", "robot-screen", "table-screen", "integration"],
     "lang": list(LANGS),
-    "wp.kind": ["table", "home", "pass", "other"],
+    "wp.kind": [k.value for k in WaypointKind],
 }
 PLURAL_FORMS = {"zero", "one", "two", "few", "many", "other"}  # Intl.PluralRules' categories
 # Attributes a person sees or hears: in the HTML they only ever come from data-i18n-<attr>.
