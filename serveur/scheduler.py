@@ -554,21 +554,21 @@ def bussing_seconds(
     return total + estimate.leg(distance, dish_return, origin)
 
 
-def may_bus(
-    free: int, seconds: float, *, tables_waiting: int, capacity: int, max_delay: float
-) -> bool:
+def may_bus(free: int, seconds: float, *, tables_waiting: int, max_delay: float) -> bool:
     """May one of ``free`` robots leave on a bussing trip of ``seconds`` now?
 
     Hot food first: a bussing trip never holds back a dish beyond ``max_delay``. It may go if
     no dish is waiting at the pass or being cooked (``tables_waiting``: the tables they are
     for), or the trip is back within ``max_delay`` (a dish ready the moment it leaves waits
-    that long at most), or the robots left free can carry every waiting table at
-    ``capacity`` tables a trip. Queued deliveries are served before any bussing trip
-    (:class:`Dispatcher`).
+    that long at most), or a robot stays free for each waiting table. Not one per
+    ``capacity`` tables: tables' dishes come out at different times and each leaves as soon
+    as it is ready (a replayed dinner: two tables due within a minute, one robot left for
+    both, the second table's nine dishes waited for a bussing robot to come back). Queued
+    deliveries are served before any bussing trip (:class:`Dispatcher`).
     """
     if tables_waiting <= 0 or seconds <= max_delay:
         return True
-    return free - 1 >= math.ceil(tables_waiting / max(1, capacity))
+    return free - 1 >= tables_waiting
 
 
 class Fleet(Protocol):
@@ -588,8 +588,8 @@ class Fleet(Protocol):
         """How many tables have a dish ordered, cooking or ready and not yet on a trip?"""
         ...
 
-    def bussing_limits(self) -> tuple[int, float]:
-        """The site's trays (tables a trip) and ``bussing_max_delay`` (s)."""
+    def bussing_max_delay(self) -> float:
+        """The site's ``bussing_max_delay`` (s)."""
         ...
 
     def cruising(self) -> list[str]:
@@ -648,10 +648,8 @@ class Dispatcher:
                 break
             if waiting is None:
                 waiting = await fleet.tables_waiting()
-            capacity, max_delay = fleet.bussing_limits()
-            if not may_bus(
-                len(free), q.seconds, tables_waiting=waiting, capacity=capacity, max_delay=max_delay
-            ):
+            max_delay = fleet.bussing_max_delay()
+            if not may_bus(len(free), q.seconds, tables_waiting=waiting, max_delay=max_delay):
                 break  # oldest first: a later bussing trip does not jump the queue
             robot = choose_robot([c for c in free if can_carry(c, q.stops - 1)])
             if robot is not None and await fleet.start_trip(q.task_id, robot):

@@ -130,8 +130,8 @@ class FakeFleet:
     async def tables_waiting(self) -> int:
         return self.tables
 
-    def bussing_limits(self) -> tuple[int, float]:
-        return 4, 90.0
+    def bussing_max_delay(self) -> float:
+        return 90.0
 
     def cruising(self) -> list[str]:
         return list(self.cruisers)
@@ -141,7 +141,7 @@ class FakeFleet:
         self.recalled.append(robot)
         return True
 
-    tables = 3  # waiting tables: one robot's trip (4 trays)
+    tables = 1  # one table's dishes cooking
     cruisers: list[str]
     recalled: list[str]
 
@@ -197,12 +197,13 @@ class ModesFleet(FakeFleet):
 
 
 def test_may_bus_never_holds_a_dish_beyond_the_limit() -> None:
-    limits = dict(capacity=4, max_delay=90.0)
+    limits = dict(max_delay=90.0)
     assert may_bus(1, 300.0, tables_waiting=1, **limits) is False
     assert may_bus(1, 80.0, tables_waiting=1, **limits) is True  # back within the limit
-    assert may_bus(2, 300.0, tables_waiting=4, **limits) is True  # one robot left: four tables
-    assert may_bus(2, 300.0, tables_waiting=5, **limits) is False  # five need two robots
-    assert may_bus(3, 300.0, tables_waiting=5, **limits) is True
+    assert may_bus(2, 300.0, tables_waiting=1, **limits) is True  # a robot stays for the table
+    # Two tables come out at different times: one robot left for both is not enough.
+    assert may_bus(2, 300.0, tables_waiting=2, **limits) is False
+    assert may_bus(3, 300.0, tables_waiting=2, **limits) is True
     assert may_bus(1, 300.0, tables_waiting=0, **limits) is True  # kitchen idle
 
 

@@ -20,7 +20,7 @@ from serveur.core.calls import ButtonLimits, button_digest, due, new_button_toke
 from serveur.core.places import Places
 from serveur.core.publisher import Publisher
 from serveur.core.runtime import CoreConfig
-from serveur.domain import Call, CallButton, CallKind, Task, WaypointKind
+from serveur.domain import Call, CallButton, CallKind, Task, TaskStatus, WaypointKind
 from serveur.errors import Conflict, InvalidField, NotFound
 from serveur.store.base import Store
 
@@ -109,9 +109,17 @@ class CallDesk:
         call, merged = await self._store.calls.open_call(table, kind, source, now=now)
         if not merged:
             log.info("call %d: %s at %s (%s)", call.id, kind.value, table, source)
-            if kind is CallKind.PLATES:
-                call = await self._send_bussing(call)
+        if kind is CallKind.PLATES and not await self._robot_coming(call):
+            # A new plates call, or one whose trip was cancelled (its table blocked, its robot
+            # taken by staff): pressed again, a robot is sent again.
+            call = await self._send_bussing(call)
         return {"call": self._changed(call), "merged": merged}
+
+    async def _robot_coming(self, call: Call) -> bool:
+        if call.task_id is None:
+            return False
+        task = await self._store.tasks.get_task(call.task_id)
+        return task.status in (TaskStatus.QUEUED, TaskStatus.ACTIVE)
 
     async def _send_bussing(self, call: Call) -> Call:
         dish_return = self.dish_return()

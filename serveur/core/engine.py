@@ -485,11 +485,8 @@ class Core:
             return None
         q = next(q for q in queued if q.bussing)
         free = len([c for c in self.free_robots() if usable(c)]) + 1
-        capacity, max_delay = self.bussing_limits()
         waiting = await self.tables_waiting()
-        if not may_bus(
-            free, q.seconds, tables_waiting=waiting, capacity=capacity, max_delay=max_delay
-        ):
+        if not may_bus(free, q.seconds, tables_waiting=waiting, max_delay=self.bussing_max_delay()):
             return None
         task = await self.trips.take(q.task_id, robot)
         if task is not None:
@@ -500,8 +497,8 @@ class Core:
         waiting = [OrderStatus.ORDERED, OrderStatus.COOKING, OrderStatus.PENDING]
         return len({o.table for o in await self.store.orders.list_orders(status=waiting)})
 
-    def bussing_limits(self) -> tuple[int, float]:
-        return self.config.capacity, self.config.bussing_max_delay
+    def bussing_max_delay(self) -> float:
+        return self.config.bussing_max_delay
 
     def cruising(self) -> list[str]:
         return [

@@ -331,7 +331,7 @@ class RobotController:
             return  # food collected (or skipped) meanwhile
         if self.rt.at_stop in (StopPurpose.COLLECT, StopPurpose.VISIT):
             # Used dishes collected (what was put on), or a cruise's pause over: on it goes.
-            await self.serve()
+            await self.serve(timed_out=True)
             await self.crew.publisher.flush_events()
             return
         limit = self.crew.config.table_timeout or 0.0
@@ -398,9 +398,9 @@ class RobotController:
 
     # -- a trip's steps ---------------------------------------------------------------------
 
-    async def serve(self) -> None:
+    async def serve(self, *, timed_out: bool = False) -> None:
         """Food collected at the current table: on to the next table, or home."""
-        await self._go_on(await self.crew.trips.serve_stop(self.name))
+        await self._go_on(await self.crew.trips.serve_stop(self.name, timed_out=timed_out))
 
     async def skip(self, reason: str, actor: str | None) -> None:
         """Leave the current table unserved: dishes returned, on to the next table or home."""

@@ -161,11 +161,13 @@ class Trips:
             special = any(o.special is not None for o in aboard if o.id in ids)
         return task, special
 
-    async def serve_stop(self, robot: str) -> Task:
+    async def serve_stop(self, robot: str, *, timed_out: bool = False) -> Task:
         """Food collected at the current stop; the trip, finished (``done``) after the last."""
         task = await self.current(robot)
         stop = task.stops[task.current_stop]
-        task = await self._store.tasks.complete_stop(task.id, stop.seq, now=self._clock.epoch())
+        task = await self._store.tasks.complete_stop(
+            task.id, stop.seq, now=self._clock.epoch(), timed_out=timed_out
+        )
         return await self._left_stop(robot, task, stop.orders)
 
     async def skip_stop(self, robot: str, reason: str, by: str | None) -> Task:

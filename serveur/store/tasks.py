@@ -341,8 +341,12 @@ class Tasks:
 
         return await self._db.transact(work, "write")
 
-    async def complete_stop(self, task_id: int, seq: int, *, now: float) -> Task:
-        """Food collected at the current stop: its orders are delivered, the trip moves on."""
+    async def complete_stop(
+        self, task_id: int, seq: int, *, now: float, timed_out: bool = False
+    ) -> Task:
+        """Food collected at the current stop: its orders are delivered, the trip moves on.
+        ``timed_out``: nobody pressed Done, the stop's own wait ran out (collecting plates, a
+        cruise's pause): the event says so."""
 
         async def work(tx: Tx) -> Task:
             task, stop = await self._active_stop(tx, task_id, seq, "complete a stop")
@@ -370,7 +374,9 @@ class Tasks:
                 " WHERE task_num = ? AND res_table = ? AND status = 'assigned'",
                 (now, task_id, stop.table),
             )
-            data = {"seq": seq, "table": stop.table, "orders": stop.orders}
+            data: dict[str, Any] = {"seq": seq, "table": stop.table, "orders": stop.orders}
+            if timed_out:
+                data["timed_out"] = True
             await rows.add_event(tx, "stop.done", now, robot=task.robot, task_id=task_id, data=data)
             return await rows.get_task(tx, task_id)
 

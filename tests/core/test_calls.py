@@ -218,6 +218,11 @@ async def test_a_bussing_trip_to_a_blocked_table_is_not_sent(tmp_path: Path) -> 
         await c.until(lambda: c.task(call["task_id"]).get("status") == "cancelled")
         assert c.robot("r1")["status"] == "Awaiting" and c.robot("r1")["current_task"] is None
         assert calls(c)[call["id"]]["answered_at"] is None
+        # Cleared, and the guests press again: the same call, and a robot is sent this time.
+        await c.ok("clear", table="T6")
+        again = (await c.ok("call", action="open", table="T6", kind="plates"))["call"]
+        assert again["id"] == call["id"] and again["task_id"] not in (None, call["task_id"])
+        await c.until(lambda: c.task(again["task_id"]).get("robot") == "r1")
 
 
 async def test_a_renamed_table_keeps_its_buttons_and_calls_a_removed_one_ends_them(

@@ -88,6 +88,9 @@ async def test_a_cruise_goes_round_stops_when_touched_and_goes_on(tmp_path: Path
             timeout=180,
             what="a second round",
         )
+        # Nobody pressed anything: each place's pause ran out, and the events say so.
+        done = [e for e in c.records["events"].values() if e["kind"] == "stop.done"]
+        assert done and all(e["data"].get("timed_out") is True for e in done)
         await c.until(lambda: c.robot("r1")["status"] == "Delivering", timeout=60)
         # Someone touches its screen: it stops, and goes on by itself after cruise_resume.
         screen = await robot_screen(r, "r1")
