@@ -171,6 +171,9 @@ REPLACED = {
     # bar (signed in or not), drawn on signing in and out
     "setup.js": 1,  # the default language's options (the languages ticked), not live data
     "staff/accounts.js": 5,  # the role and kind options; a password or the codes just made
+    "staff/cartrays.js": 2,  # the tray numbers for the one dish tapped (or none), not a list
+    "staff/restaurant/buttons.js": 4,  # the kind and table options; a button's address, shown
+    # once when it is made, and cleared
     "staff/log.js": 3,  # the filters' options; the people the server names on a search
     "staff/restaurant/settings.js": 1,  # the default language's options (the languages ticked)
     "staff/restaurant/zones.js": 1,  # an import's report, cleared for the next file

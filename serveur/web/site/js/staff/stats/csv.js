@@ -12,16 +12,23 @@ const FIELDS = [
   "pass_max", "loading_s", "loading_per_trip", "trips", "trips_cancelled", "tables_per_trip",
   "dishes_per_trip", "returned", "resent", "voided", "table_timeouts", "staff_skips",
   "busy_share", "errors", "link_drops", "distance_m",
+  // Guests' calls and bussing trips (issue 32).
+  "calls", "calls_plates", "calls_waiter", "calls_bill", "calls_escalated", "calls_cancelled",
+  "answer_p50", "answer_p90", "answer_p50_plates", "answer_p90_plates", "answer_p50_waiter",
+  "answer_p90_waiter", "answer_p50_bill", "answer_p90_bill", "bussing_trips",
+  "bussing_cancelled", "call_to_robot_p50", "call_to_robot_p90",
 ];
 const ROBOT_FIELDS = ["busy_s", "busy_share", "loading_s", "trips", "errors", "distance_m"];
 // Counts are whole numbers in the command's CSV; every other figure is a float ("15.0").
 const COUNTS = new Set([
   "delivered", "trips", "trips_cancelled", "returned", "resent", "voided", "table_timeouts",
-  "staff_skips", "errors", "link_drops",
+  "staff_skips", "errors", "link_drops", "calls", "calls_plates", "calls_waiter", "calls_bill",
+  "calls_escalated", "calls_cancelled", "bussing_trips", "bussing_cancelled",
 ]);
 const TRIP_COLUMNS = [
-  "trip", "robot", "status", "created", "started", "left_pass", "ended", "loading_s", "stop",
-  "table", "arrived", "stop_ended", "outcome", "reason", "by", "at_table_s", "dishes",
+  "trip", "kind", "robot", "status", "created", "started", "left_pass", "ended", "loading_s",
+  "stop", "table", "purpose", "arrived", "stop_ended", "outcome", "reason", "by", "at_table_s",
+  "dishes",
 ];
 
 /** Python's round(x, 3): the nearest, ties to even. */
@@ -79,6 +86,7 @@ export function tripsCsv(doc, offset) {
       const atTable = s.ended !== null && s.arrived !== null ? s.ended - s.arrived : "";
       rows.push([
         trip.id,
+        trip.kind,
         trip.robot || "",
         trip.status,
         csvTime(trip.created, offset),
@@ -88,6 +96,7 @@ export function tripsCsv(doc, offset) {
         csvNumber(trip.loading_s, false),
         i + 1,
         s.table,
+        s.purpose,
         csvTime(s.arrived, offset),
         csvTime(s.ended, offset),
         s.outcome,
