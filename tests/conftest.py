@@ -133,6 +133,8 @@ LONGEST_FIRST = (
     "tests/replay/test_traffic.py",
     "tests/web/test_forecast_ui.py",
     "tests/web/test_service_ui.py",
+    "tests/web/test_modes_staff.py",
+    "tests/web/test_modes_guest.py",
     "tests/web/test_stats_ui.py",
     "tests/web/test_map_legend.py",
     "tests/web/test_zones_ui.py",
