@@ -177,7 +177,7 @@ REPLACED = {
     "staff/log.js": 3,  # the filters' options; the people the server names on a search
     "staff/restaurant/settings.js": 1,  # the default language's options (the languages ticked)
     "staff/restaurant/zones.js": 1,  # an import's report, cleared for the next file
-    "staff/stats.js": 7,  # the range's options; a report drawn whole from one reply
+    "staff/stats.js": 8,  # the range's options; a report drawn whole from one reply
     "staff/stats/forecast.js": 4,  # the forecast, drawn whole from one reply
 }
 

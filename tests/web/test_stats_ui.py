@@ -19,19 +19,20 @@ import contextlib
 import re
 import shutil
 import sys
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 from typing import Any
 
 from serveur.app import App
 from serveur.clock import ScaledClock
 from serveur.core.engine import CoreConfig
+from serveur.domain import EventRecord
 from serveur.maps.navigation import load_demo
 from serveur.stats.compute import read_events, table
 from serveur.stats.document import trips_in
 from serveur.stats.load import load_events
 from serveur.stats.periods import parse_offset, parse_when
-from tests.stats.events import service
+from tests.stats.events import service, with_calls
 from tests.web.conftest import sideways, too_small
 from tests.web.test_a11y import need_axe, violations
 from tests.web.test_ui import (
@@ -48,8 +49,10 @@ PHONE = {"width": 390, "height": 844}
 
 
 @contextlib.asynccontextmanager
-async def stats_server(db: Path) -> AsyncIterator[App]:
-    """A server (no robots) whose database holds two services."""
+async def stats_server(
+    db: Path, events: Callable[[], list[EventRecord]] = service, hours: tuple[int, ...] = (0, 1)
+) -> AsyncIterator[App]:
+    """A server (no robots) whose database holds two services (``events``, an hour apart)."""
     nav_map, waypoints = load_demo()
     app = App(
         db,
@@ -61,8 +64,8 @@ async def stats_server(db: Path) -> AsyncIterator[App]:
     )
     await app.start()
     try:
-        for hour in (0, 1):
-            for e in service():
+        for hour in hours:
+            for e in events():
                 await app.store.events.add_event(
                     e.kind,
                     robot=e.robot,
@@ -262,4 +265,27 @@ async def test_the_statistics_tab_passes_axe(tmp_path: Path, browser: Any) -> No
         )
         found["phone"] = await violations(page)
         assert found == {"tablet": [], "phone": []}, found
+        await context.close()
+
+
+async def test_the_owner_reads_the_guests_calls(tmp_path: Path, browser: Any) -> None:
+    """tests/stats/events.py's service with six calls and two bussing trips: the calls table
+    counts each kind with its times to answer, then what waited too long, was cancelled, and
+    the robots sent for plates; axe-clean on a phone."""
+    need_axe()
+    async with stats_server(tmp_path / "serveur.db", with_calls, (0,)) as app:
+        context = await browser.new_context(viewport=PHONE, timezone_id=ZONE, bypass_csp=True)
+        page = await context.new_page()
+        panel = await show_the_day(page, app)
+        calls = panel.get_by_role("region", name="Guests' calls")
+        rows = calls.locator("tbody tr")
+        await expect(rows).to_have_count(4)
+        # Plates 3 (answered in 20 s and 200 s), a waiter 2 (150 s), the bill 1 (30 s).
+        await expect(rows.nth(0)).to_have_text(re.compile(r"Take the plates\s*3\s*20 sec\s*3"))
+        await expect(rows.nth(1)).to_have_text(re.compile(r"A waiter\s*2\s*2"))
+        await expect(rows.nth(3)).to_have_text(re.compile(r"Total\s*6\s*30 sec"))
+        more = panel.get_by_test_id("stats-calls-more")
+        await expect(more).to_contain_text("2 waited too long · 2 cancelled · 2 robot trips")
+        await expect(more).to_contain_text("within 20 sec (half)")
+        assert await violations(page) == []
         await context.close()

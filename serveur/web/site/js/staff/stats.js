@@ -23,7 +23,7 @@ import { chart } from "./stats/charts.js";
 import { figuresCsv, saveCsv, tripsCsv } from "./stats/csv.js";
 import { ForecastSection } from "./stats/forecast.js";
 import { addDays, count, dateWords, isoDate, minutes, offsetAt, offsetText, periodWords, serviceToday } from "./stats/format.js";
-import { periodsTable, robotsTable, tiles } from "./stats/tables.js";
+import { callsTable, periodsTable, robotsTable, tiles } from "./stats/tables.js";
 import { TripHistory } from "./stats/trips.js";
 
 export { figuresCsv, tripsCsv } from "./stats/csv.js";
@@ -96,6 +96,7 @@ export class StatsPanel {
     const scroller = (key) => el("div", { class: "table-scroll", tabindex: "0", role: "region", "data-i18n-aria-label": key });
     this.periodTable = scroller("stats.table.caption");
     this.robotTable = scroller("stats.robots.title");
+    this.callTable = scroller("stats.calls.title");
     this.tripHistory = new TripHistory();
     this.figuresCsvBtn = el("button", { type: "button", class: "secondary", "data-i18n": "stats.csv.figures", onclick: () => this._download("figures") });
     this.tripsCsvBtn = el("button", { type: "button", class: "secondary", "data-i18n": "stats.csv.trips", onclick: () => this._download("trips") });
@@ -128,6 +129,7 @@ export class StatsPanel {
       ),
       el("details", { class: "card stats-table-details" }, el("summary", { "data-i18n": "stats.table.show" }), this.periodTable),
       el("section", { class: "card", "aria-labelledby": robotsTitle }, el("h3", { id: robotsTitle, "data-i18n": "stats.robots.title" }), this.robotTable),
+      el("section", { class: "card", "aria-labelledby": `${robotsTitle}-calls` }, el("h3", { id: `${robotsTitle}-calls`, "data-i18n": "stats.calls.title" }), this.callTable),
       el("section", { class: "card", "aria-labelledby": tripsTitle }, el("h3", { id: tripsTitle, "data-i18n": "stats.trips.title" }), el("p", { class: "muted", "data-i18n": "stats.trips.hint" }), this.tripHistory.note, this.tripHistory.list, el("div", { class: "form-buttons stats-more" }, this.tripHistory.more)),
     );
     // -- "How many robots do I need?": a recorded day replayed with other fleet sizes
@@ -253,6 +255,7 @@ export class StatsPanel {
     this._charts();
     this.periodTable.replaceChildren(periodsTable(doc, this._labels()));
     this.robotTable.replaceChildren(robotsTable(doc.total));
+    this.callTable.replaceChildren(callsTable(doc.total));
     this.tripHistory.render(this.trips, this.asked.offset);
   }
 

@@ -74,3 +74,33 @@ export function robotsTable(total) {
     ),
   );
 }
+
+/** Guests' calls per kind (how many, answered within: half of them, nine in ten), then what was
+ *  escalated or cancelled and the bussing trips (from a plates call to the robot at the table). */
+export function callsTable(total) {
+  if (!total.calls && !total.bussing_trips) return el("p", { class: "muted", "data-i18n": "stats.calls.none" });
+  const head = ["stats.col.call", "stats.col.calls", "stats.col.answerP50", "stats.col.answerP90"];
+  const words = { plates: "stats.calls.kind.plates", waiter: "stats.calls.kind.waiter", bill: "stats.calls.kind.bill" };
+  const kinds = Object.entries(words).map(([k, key]) =>
+    bodyRow({}, t(key), [count(total[`calls_${k}`]), duration(total[`answer_p50_${k}`]), duration(total[`answer_p90_${k}`])]),
+  );
+  const all = bodyRow({ class: "total" }, t("stats.total"), [count(total.calls), duration(total.answer_p50), duration(total.answer_p90)]);
+  return el(
+    "div",
+    {},
+    el(
+      "table",
+      { class: "stats-table stats-calls" },
+      el("caption", { class: "visually-hidden", "data-i18n": "stats.calls.title" }),
+      tableHead(head),
+      el("tbody", {}, ...kinds, all),
+    ),
+    el("p", { "data-testid": "stats-calls-more" }, t("stats.calls.more", {
+      escalated: count(total.calls_escalated),
+      cancelled: count(total.calls_cancelled),
+      trips: count(total.bussing_trips),
+      p50: duration(total.call_to_robot_p50),
+      p90: duration(total.call_to_robot_p90),
+    })),
+  );
+}
