@@ -487,6 +487,34 @@ async def restaurant(
         await sim.close()
 
 
+@contextlib.asynccontextmanager
+async def served_by(
+    tmp_path: Path, make: Callable[[Path | str, Clock, list[RobotSpec], int], App], label: str
+) -> AsyncIterator[Restaurant]:
+    """One simulated robot (r1, at home1, the wall clock sped up) and a server built by
+    ``make`` (a test module's own ``make_app`` with its config), a staff token made: the
+    restaurant the Chromium tests drive."""
+    from serveur.maps.navigation import demo_map_path
+    from serveur.robot_sim import start_simulation
+
+    clock = ScaledClock(TIME_SCALE)
+    sim = await start_simulation(
+        1, port=0, map_path=demo_map_path(), time_scale=TIME_SCALE, clock=clock
+    )
+    specs = [RobotSpec(sim.robots[0].name, sim.urls[0], "home1")]
+    db = tmp_path / "serveur.db"
+    r = Restaurant(make(db, clock, specs, 0), sim, clock, db, specs, [], make=make)
+    try:
+        await r.app.start()
+        r.token = await r.app.issue_token("staff", label=label)
+        yield r
+    finally:
+        for c in r.clients:
+            await c.close()
+        await r.app.close()
+        await sim.close()
+
+
 @pytest.fixture
 async def one_robot(tmp_path: Path) -> AsyncIterator[Restaurant]:
     async with restaurant(tmp_path, robots=1) as r:

@@ -15,19 +15,14 @@ from __future__ import annotations
 import contextlib
 import functools
 import re
-from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 from websockets.asyncio.client import connect
 
-from serveur.app import RobotSpec
-from serveur.clock import ScaledClock
 from serveur.core.engine import CoreConfig
-from serveur.maps.navigation import demo_map_path
-from serveur.robot_sim import start_simulation
-from tests.conftest import TIME_SCALE, Client, Restaurant, make_app
+from tests.conftest import Client, Restaurant, make_app, served_by
 from tests.test_e2e import activate
 from tests.web.conftest import needs_browser
 from tests.web.test_i18n import tr
@@ -46,25 +41,9 @@ service_app = functools.partial(
 )
 
 
-@contextlib.asynccontextmanager
-async def service(tmp_path: Path) -> AsyncIterator[Restaurant]:
+def service(tmp_path: Path) -> contextlib.AbstractAsyncContextManager[Restaurant]:
     """One simulated robot and a server whose trips are loaded at the pass, then sent."""
-    clock = ScaledClock(TIME_SCALE)
-    sim = await start_simulation(
-        1, port=0, map_path=demo_map_path(), time_scale=TIME_SCALE, clock=clock
-    )
-    specs = [RobotSpec(sim.robots[0].name, sim.urls[0], "home1")]
-    db = tmp_path / "serveur.db"
-    r = Restaurant(service_app(db, clock, specs), sim, clock, db, specs, [], make=service_app)
-    try:
-        await r.app.start()
-        r.token = await r.app.issue_token("staff", label="guest screen tests")
-        yield r
-    finally:
-        for c in r.clients:
-            await c.close()
-        await r.app.close()
-        await sim.close()
+    return served_by(tmp_path, service_app, "guest screen tests")
 
 
 async def staff(r: Restaurant) -> Client:

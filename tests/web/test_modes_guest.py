@@ -29,19 +29,14 @@ import contextlib
 import functools
 import json
 import re
-from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 from websockets.asyncio.client import connect
 
-from serveur.app import RobotSpec
-from serveur.clock import ScaledClock
 from serveur.core.engine import CoreConfig
-from serveur.maps.navigation import demo_map_path
-from serveur.robot_sim import start_simulation
-from tests.conftest import TIME_SCALE, Client, Restaurant, make_app
+from tests.conftest import Client, Restaurant, make_app, served_by
 from tests.test_e2e import activate
 from tests.web.conftest import needs_browser, sideways, too_small
 from tests.web.test_a11y import need_axe, violations
@@ -92,25 +87,9 @@ modes_app = functools.partial(
 )
 
 
-@contextlib.asynccontextmanager
-async def modes(tmp_path: Path) -> AsyncIterator[Restaurant]:
+def modes(tmp_path: Path) -> contextlib.AbstractAsyncContextManager[Restaurant]:
     """One simulated robot (r1, at home1) and the server of ``modes_app``."""
-    clock = ScaledClock(TIME_SCALE)
-    sim = await start_simulation(
-        1, port=0, map_path=demo_map_path(), time_scale=TIME_SCALE, clock=clock
-    )
-    specs = [RobotSpec(sim.robots[0].name, sim.urls[0], "home1")]
-    db = tmp_path / "serveur.db"
-    r = Restaurant(modes_app(db, clock, specs), sim, clock, db, specs, [], make=modes_app)
-    try:
-        await r.app.start()
-        r.token = await r.app.issue_token("staff", label="modes screen tests")
-        yield r
-    finally:
-        for c in r.clients:
-            await c.close()
-        await r.app.close()
-        await sim.close()
+    return served_by(tmp_path, modes_app, "modes screen tests")
 
 
 async def staff(r: Restaurant) -> Client:

@@ -15,18 +15,13 @@ from __future__ import annotations
 import contextlib
 import functools
 import re
-from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
 from websockets.asyncio.client import connect
 
-from serveur.app import RobotSpec
-from serveur.clock import ScaledClock
 from serveur.core.engine import CoreConfig
-from serveur.maps.navigation import demo_map_path
-from serveur.robot_sim import start_simulation
-from tests.conftest import TIME_SCALE, Client, Restaurant, make_app
+from tests.conftest import Client, Restaurant, make_app, served_by
 from tests.web.test_a11y import need_axe, violations
 from tests.web.test_service_ui import (
     SERVICE,
@@ -52,26 +47,12 @@ class TouchBrowser:
         return await self.browser.new_context(has_touch=True, **options)
 
 
-@contextlib.asynccontextmanager
-async def modes_restaurant(tmp_path: Path, **config: Any) -> AsyncIterator[Restaurant]:
+def modes_restaurant(
+    tmp_path: Path, **config: Any
+) -> contextlib.AbstractAsyncContextManager[Restaurant]:
     """test_service_ui's restaurant (robots wait at the pass for Go) with ``config`` on top."""
     made = functools.partial(make_app, config=CoreConfig(**{**SERVICE, **config}))
-    clock = ScaledClock(TIME_SCALE)
-    sim = await start_simulation(
-        1, port=0, map_path=demo_map_path(), time_scale=TIME_SCALE, clock=clock
-    )
-    specs = [RobotSpec(sim.robots[0].name, sim.urls[0], "home1")]
-    db = tmp_path / "serveur.db"
-    r = Restaurant(made(db, clock, specs), sim, clock, db, specs, [], make=made)
-    try:
-        await r.app.start()
-        r.token = await r.app.issue_token("staff", label="modes ui tests")
-        yield r
-    finally:
-        for c in r.clients:
-            await c.close()
-        await r.app.close()
-        await sim.close()
+    return served_by(tmp_path, made, "modes ui tests")
 
 
 async def staff_client(r: Restaurant) -> Client:

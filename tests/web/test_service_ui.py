@@ -15,18 +15,13 @@ import asyncio
 import contextlib
 import functools
 import re
-from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from serveur.app import RobotSpec
-from serveur.clock import ScaledClock
 from serveur.core.engine import CoreConfig
-from serveur.maps.navigation import demo_map_path
-from serveur.robot_sim import start_simulation
-from tests.conftest import TIME_SCALE, Client, Restaurant, make_app
+from tests.conftest import Client, Restaurant, make_app, served_by
 from tests.web.conftest import needs_browser
 from tests.web.test_ui import Screens, dismiss_toasts, http_base, log_in
 
@@ -56,31 +51,8 @@ SERVICE = dict(
 service_app = functools.partial(make_app, config=CoreConfig(**SERVICE))  # type: ignore[arg-type]
 
 
-@contextlib.asynccontextmanager
-async def service_restaurant(tmp_path: Path) -> AsyncIterator[Restaurant]:
-    clock = ScaledClock(TIME_SCALE)
-    sim = await start_simulation(
-        1, port=0, map_path=demo_map_path(), time_scale=TIME_SCALE, clock=clock
-    )
-    specs = [RobotSpec(sim.robots[0].name, sim.urls[0], "home1")]
-    r = Restaurant(
-        service_app(tmp_path / "serveur.db", clock, specs),
-        sim,
-        clock,
-        tmp_path / "serveur.db",
-        specs,
-        [],
-        make=service_app,
-    )
-    try:
-        await r.app.start()
-        r.token = await r.app.issue_token("staff", label="service ui tests")
-        yield r
-    finally:
-        for c in r.clients:
-            await c.close()
-        await r.app.close()
-        await sim.close()
+def service_restaurant(tmp_path: Path) -> contextlib.AbstractAsyncContextManager[Restaurant]:
+    return served_by(tmp_path, service_app, "service ui tests")
 
 
 async def staff_client(r: Restaurant) -> Client:
