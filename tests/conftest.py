@@ -361,6 +361,15 @@ class Restaurant:
         self.clients.append(c)
         return c
 
+    async def screen(self, role: str, **bound: str) -> Client:
+        """A connection with a new screen token (``robot-screen`` with ``robot=``,
+        ``table-screen`` with ``table=``), as that screen would log in."""
+        token = await self.app.issue_token(role, label=f"{role} {bound}", **bound)
+        headers = {"Authorization": f"Bearer {token}"}
+        c = Client(await connect(self.app.url, max_size=2**24, additional_headers=headers))
+        self.clients.append(c)
+        return c
+
     async def restart_server(self) -> None:
         """Stop the server (clean close) and start a new one on the same database and port,
         as a real restart does: pages reconnect to the address they were loaded from."""

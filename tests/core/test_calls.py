@@ -10,18 +10,13 @@ import urllib.request
 from pathlib import Path
 from typing import Any
 
-from websockets.asyncio.client import connect
-
 from tests.conftest import Client, Restaurant, restaurant
 from tests.core.test_service_day import owner_of, site
 from tests.test_e2e import activate
 
 
 async def table_screen(r: Restaurant, table: str) -> Client:
-    token = await r.app.issue_token("table-screen", table=table, label=f"{table} screen")
-    c = Client(await connect(r.app.url, additional_headers={"Authorization": f"Bearer {token}"}))
-    r.clients.append(c)
-    return c
+    return await r.screen("table-screen", table=table)
 
 
 async def staff(r: Restaurant) -> Client:

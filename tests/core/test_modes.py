@@ -8,8 +8,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from websockets.asyncio.client import connect
-
 from tests.conftest import Client, Restaurant, restaurant
 from tests.core.test_service_day import site
 from tests.test_e2e import activate, new_orders
@@ -22,10 +20,7 @@ async def staff(r: Restaurant) -> Client:
 
 
 async def robot_screen(r: Restaurant, robot: str) -> Client:
-    token = await r.app.issue_token("robot-screen", robot=robot, label=f"{robot} screen")
-    c = Client(await connect(r.app.url, additional_headers={"Authorization": f"Bearer {token}"}))
-    r.clients.append(c)
-    return c
+    return await r.screen("robot-screen", robot=robot)
 
 
 def stop_of(c: Client, task_id: int) -> dict[str, Any]:
