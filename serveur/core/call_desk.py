@@ -16,7 +16,13 @@ from collections.abc import Callable
 from typing import Any
 
 from serveur.clock import Clock
-from serveur.core.calls import ButtonLimits, button_digest, due, new_button_token
+from serveur.core.calls import (
+    BUTTON_PREFIX,
+    ButtonLimits,
+    button_digest,
+    due,
+    new_button_token,
+)
 from serveur.core.places import Places
 from serveur.core.publisher import Publisher
 from serveur.core.runtime import CoreConfig
@@ -220,7 +226,7 @@ class CallDesk:
     async def press(self, token: str, kind: str | None) -> Press:
         """A button's ``GET /call/<token>``: a call, merged, or refused (nothing changed)."""
         button: CallButton | None = None
-        if token.startswith("srb_") and len(token) <= 100:
+        if token.startswith(BUTTON_PREFIX) and len(token) <= 100:
             button = await self._store.calls.button_by_digest(button_digest(token))
         if button is None or button.revoked_at is not None:
             return Press(404, "unknown or revoked button\n")

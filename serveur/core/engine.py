@@ -614,29 +614,29 @@ class Core:
                     bussing_wait=cfg.bussing_wait,
                     cruise_pause=cfg.cruise_pause,
                 )
-                if limit is not None and now - since >= limit and rt.timed_out != since:
-                    rt.timed_out = since
+                if limit is not None and now - since >= limit and rt.posted_for != since:
+                    rt.posted_for = since
                     self.reports.post(name, TableTimeout(robot.current_task, since))
             elif (
                 status is S.STOPPED
                 and rt.trip_kind is TaskKind.CRUISE
                 and robot.current_task is not None
                 and now - since >= cfg.cruise_resume
-                and rt.resumed != since
+                and rt.posted_for != since
             ):
-                rt.resumed = since
+                rt.posted_for = since
                 self.reports.post(name, CruiseResume(robot.current_task, since))
-            elif rt.link is not None and rt.link.up and rt.timed_out != since:
+            elif rt.link is not None and rt.link.up and rt.posted_for != since:
                 if (
                     charge_due(
                         status, rt.battery, has_dock=robot.dock is not None, below=cfg.charge_below
                     )
                     and not rt.localisation.lost
                 ):
-                    rt.timed_out = since
+                    rt.posted_for = since
                     self.reports.post(name, ChargeDue())
                 elif charged(status, rt.battery, until=cfg.charge_until):
-                    rt.timed_out = since
+                    rt.posted_for = since
                     self.reports.post(name, Charged())
             if status is S.CHARGING:
                 rt.not_charging = rt.charge_watch.not_charging(now, rt.battery)

@@ -120,7 +120,9 @@ class Runtime:
     handover: asyncio.Task[None] | None = None  # the hand-over timer while Offline with a trip
     offline_since: float | None = None  # epoch (clock) the robot was last seen, while Offline
     link_started: float | None = None  # epoch (clock) its link was last (re)started
-    timed_out: float | None = None  # the arrival (status_since) a table timeout was posted for
+    #: The status (its status_since) a timer's event was last posted for: a table timeout, a
+    #: cruise's resume, going to charge or back from it; one each, since each ends its status.
+    posted_for: float | None = None
     link_error: str | None = None  # the link's last connection failure, until it connects
     waiting_for: list[str] | None = None  # zones it waits to be leased (its goal not sent)
     waiting_since: float | None = None  # clock.epoch() it started waiting
@@ -138,7 +140,6 @@ class Runtime:
     #: Whether its battery rises while on the dock (serveur.core.modes.ChargeWatch).
     charge_watch: ChargeWatch = field(default_factory=ChargeWatch)
     not_charging: bool = False
-    resumed: float | None = None  # the stop (status_since) a cruise resume was posted for
 
 
 def pose_dict(pose: tuple[float, float, float], stamp: float) -> dict[str, float]:
