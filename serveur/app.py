@@ -30,6 +30,8 @@ from serveur.server import Server
 from serveur.stats.remote import StatsService
 from serveur.store.base import Store
 from serveur.store.factory import open_store, sqlite_file
+from serveur.till.intake import IntakeServer
+from serveur.till.tap import PrinterTap
 
 __all__ = ["App", "RobotSpec", "parse_robot_spec"]
 
@@ -109,6 +111,7 @@ class App:
         plan_in_child: bool = True,
         backups: str | Path | None = None,
         mqtt: str | None = None,
+        intake_port: int | None = None,
     ) -> None:
         self.clock = clock or ScaledClock(1.0)
         self.store: Store = open_store(str(db))
@@ -132,6 +135,10 @@ class App:
         #: The site's MQTT broker for call buttons (None: none); checked here, used at start.
         self._mqtt = None if mqtt is None else BrokerAddress.parse(mqtt)
         self.mqtt_calls: MqttCalls | None = None
+        #: The order-intake API's port (None: no API; 0: any free port, for tests).
+        self._intake_port = intake_port
+        self.intake: IntakeServer | None = None
+        self.tap: PrinterTap | None = None
         #: Set when a restore left no server running (see :meth:`restart_on`).
         self.broken = asyncio.Event()
         self.core: Core | None = None
@@ -176,6 +183,11 @@ class App:
             robot_ssl=self._robot_ssl,
             plan_in_child=self._plan_in_child,
         )
+        # The printer port: opened by the ticket desk at start, where the owner set it.
+        self.tap = PrinterTap(
+            self.core.tickets.take_job, host=self._host, on_change=self.core.tickets.tap_changed
+        )
+        self.core.tickets.tap = self.tap
         await self.core.start()
         self.sessions = Sessions(self.store, self.clock, self._security, hub=self.core.hub)
         if self._setup:
@@ -206,6 +218,12 @@ class App:
         if self._mqtt is not None:
             self.mqtt_calls = MqttCalls(self._mqtt, self.core.calls.press, self.core.flush_events)
             self.mqtt_calls.start()
+        if self._intake_port is not None:
+            self.intake = IntakeServer(
+                self.server.intake, self._host, self._intake_port, ssl_context=self._ssl
+            )
+            await self.intake.start()
+            self._intake_port = self.intake.port  # a restart listens where integrations knew it
         return self
 
     def _staging(self) -> Path:
@@ -321,6 +339,12 @@ class App:
         if self.mqtt_calls is not None:
             await self.mqtt_calls.close()
             self.mqtt_calls = None
+        if self.tap is not None:
+            await self.tap.close()
+            self.tap = None
+        if self.intake is not None:
+            await self.intake.close()
+            self.intake = None
         if self.server is not None:
             await self.server.close()
 

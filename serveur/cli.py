@@ -197,6 +197,7 @@ async def _run(ns: argparse.Namespace) -> int:
         setup=True,
         backups=_backups_folder(ns.backups, ns.db),
         mqtt=ns.mqtt,
+        intake_port=ns.intake_port,
     )
     try:
         await app.start()
@@ -462,6 +463,16 @@ def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
         metavar="mqtt://[USER:PASSWORD@]HOST[:PORT][/PREFIX]",
         help="the restaurant's MQTT broker: call buttons publish presses on PREFIX/call"
         " (default: $SERVEUR_MQTT; none)",
+    )
+    run.add_argument(
+        "--intake-port",
+        type=int,
+        default=int(os.environ["SERVEUR_INTAKE_PORT"])
+        if os.environ.get("SERVEUR_INTAKE_PORT")
+        else None,
+        metavar="PORT",
+        help="the order-intake API (POST /api/orders, docs/till.md) on this port"
+        " (default: $SERVEUR_INTAKE_PORT; none)",
     )
     run.add_argument("--map", help="ROS map YAML (default: adopt the map a robot publishes)")
     run.add_argument("--waypoints", help="waypoints JSON to import (tables, homes)")

@@ -50,6 +50,8 @@ __all__ = [
     "Task",
     "TaskKind",
     "TaskStatus",
+    "TicketStatus",
+    "TillTicket",
     "WaypointKind",
     "WaypointRecord",
     "ZoneLease",
@@ -200,6 +202,8 @@ class AlertKind(StrEnum):
     ROBOT_LOST = "robot_lost"  # subject: the robot not sure where it is (core.localisation)
     CALL_WAITING = "call_waiting"  # subject: "<table>/<kind>", a guest's call nobody answered
     NOT_CHARGING = "not_charging"  # subject: the robot on its dock whose battery does not rise
+    TICKET_UNREAD = "ticket_unread"  # subject: "ticket <id>", a till's ticket not understood
+    PRINTER_DOWN = "printer_down"  # subject: the kitchen printer's address (host:port)
 
 
 class Alert(_Record):
@@ -304,6 +308,39 @@ class Order(_Record):
         " where it plays a song and waits for Done",
     )
     tray: int | None = Field(default=None, description="the tray staff chose; None: the plan's")
+    ticket: int | None = Field(
+        default=None, description="the till's ticket it came from (serveur.till); None: staff's"
+    )
+
+
+class TicketStatus(StrEnum):
+    """What became of a ticket from the till."""
+
+    UNREAD = "unread"  # not understood: staff see it as it printed
+    ORDERED = "ordered"  # its dishes are orders
+    REPRINT = "reprint"  # printed again: the first one's orders stand (of_ticket)
+    VOID = "void"  # it withdrew dishes
+    BY_HAND = "by_hand"  # staff added its dishes themselves
+
+
+class TillTicket(_Record):
+    """One ticket the till printed (or an order-intake request), as printed, what the
+    owner's ticket pattern read on it and what became of it."""
+
+    id: int
+    job: int
+    part: int = 0
+    source: str
+    received_at: float
+    lines: list[str]
+    status: TicketStatus = TicketStatus.UNREAD
+    key: str | None = None
+    table: str | None = None
+    reading: dict[str, Any] | None = None
+    problem: str | None = None
+    of_ticket: int | None = None
+    read_at: float | None = None
+    handled_by: str | None = None
 
 
 class CallKind(StrEnum):

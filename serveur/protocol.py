@@ -139,6 +139,22 @@ from serveur.wire.owner import (
     StatsMessage,
     StatsTrips,
 )
+from serveur.wire.till import (
+    IntakeDish,
+    IntakeOrder,
+    TillByHand,
+    TillImportMenu,
+    TillMap,
+    TillMark,
+    TillMessage,
+    TillPattern,
+    TillPreview,
+    TillPropose,
+    TillSetup,
+    TillState,
+    TillTickets,
+    TillUnmapped,
+)
 from serveur.wire.uploads import (
     UPLOAD_LIMITS,
     UPLOAD_PART,
@@ -210,6 +226,8 @@ __all__ = [
     "ErrorReply",
     "ForecastInfo",
     "GoMsg",
+    "IntakeDish",
+    "IntakeOrder",
     "LoginMsg",
     "LogoutMsg",
     "MapSnapshot",
@@ -258,6 +276,18 @@ __all__ = [
     "StatsTrips",
     "StopMsg",
     "TargetMsg",
+    "TillByHand",
+    "TillImportMenu",
+    "TillMap",
+    "TillMark",
+    "TillMessage",
+    "TillPattern",
+    "TillPreview",
+    "TillPropose",
+    "TillSetup",
+    "TillState",
+    "TillTickets",
+    "TillUnmapped",
     "TokenInfo",
     "TrayChoice",
     "UpdateData",
@@ -269,6 +299,7 @@ __all__ = [
     "error_frame",
     "ok_frame",
     "parse_client",
+    "parse_intake",
     "robot_of",
     "schema",
     "split_topic",
@@ -773,7 +804,8 @@ ClientMessage: TypeAlias = Annotated[
     | CallMessage
     | AccountMessage
     | SiteMessage
-    | StatsMessage,
+    | StatsMessage
+    | TillMessage,
     Field(discriminator="clientmsg"),
 ]
 _CLIENT: TypeAdapter[ClientMessage] = TypeAdapter(ClientMessage)
@@ -824,6 +856,20 @@ _SUBTAGS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
         ),
     ),
     "stats": ("action", ("figures", "trips", "forecast", "forecast_cancel", "last_service")),
+    "till": (
+        "action",
+        (
+            "state",
+            "tickets",
+            "by_hand",
+            "propose",
+            "preview",
+            "setup",
+            "import_menu",
+            "map",
+            "unmapped",
+        ),
+    ),
 }
 
 _ACTIONS: Final[dict[type[BaseModel], Action]] = {
@@ -995,6 +1041,23 @@ def parse_client(frame: str | bytes) -> ClientMessage:
         raise
     except Exception as exc:  # a bug here must not kill the connection's reader loop
         raise _internal(exc) from exc
+
+
+def parse_intake(body: bytes) -> IntakeOrder:
+    """The order-intake API's request body (``POST /api/orders``): UTF-8 JSON of an
+    :class:`IntakeOrder`; ``BadJson`` or ``InvalidField`` (``details.errors`` as for a frame)."""
+    try:
+        obj = json.loads(body.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise BadJson(f"not valid JSON: {str(exc)[:200]}") from None
+    if not isinstance(obj, dict):
+        raise BadJson("the request must be a JSON object")
+    if _too_deep(obj, MAX_DEPTH):
+        raise _too_deep_error()
+    try:
+        return IntakeOrder.model_validate(obj)
+    except ValidationError as exc:
+        raise _invalid(obj, "order", exc) from None
 
 
 def _internal(exc: Exception) -> ServeurError:

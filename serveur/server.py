@@ -41,6 +41,7 @@ from serveur.core.site_map import BACKDROP_PATH, SiteMaps
 from serveur.core.uploads import Uploads
 from serveur.errors import (
     BackupError,
+    Forbidden,
     InvalidField,
     NotFound,
     RateLimited,
@@ -50,7 +51,7 @@ from serveur.errors import (
 from serveur.replay.forecast import Forecaster, SiteFiles
 from serveur.robots.probe import probe
 from serveur.security.accounts import handle_account
-from serveur.security.auth import Principal, RateLimiter, Role, ScreenView, authorize
+from serveur.security.auth import Principal, RateLimiter, Role, Scope, ScreenView, authorize
 from serveur.security.sessions import CLOSE_AUTH, Sessions
 from serveur.stats.remote import StatsService, when_range
 from serveur.store.site import AuditQuery
@@ -62,6 +63,18 @@ __all__ = ["CLOSE_IDLE", "CLOSE_RESTART", "MAX_FRAME", "Server"]
 log = logging.getLogger(__name__)
 
 MAX_FRAME = 64 * 1024
+#: The order-intake API's one address (serveur.till.intake listens, :meth:`Server.intake`).
+INTAKE_PATH = "/api/orders"
+#: An error code's HTTP status on the order-intake API.
+_INTAKE_STATUS = {
+    "unauthorized": 401,
+    "forbidden": 403,
+    "not_found": 404,
+    "conflict": 409,
+    "rate_limited": 429,
+    "unavailable": 503,
+    "internal": 500,
+}
 #: Close code for a connection idle past ``SecurityConfig.idle_timeout``.
 CLOSE_IDLE = 4003
 #: The websocket standard's "service restart": the server comes back (a restored backup).
@@ -273,6 +286,52 @@ class Server:
         extra = [("Retry-After", str(press.retry_after))] if press.retry_after else []
         body = press.text.encode()
         return _http(http.HTTPStatus(press.status), body, "text/plain; charset=utf-8", *extra)
+
+    async def intake(
+        self,
+        method: str,
+        path: str,
+        authorization: str | None,
+        content_type: str | None,
+        body: bytes,
+        peer: str,
+    ) -> tuple[int, Any, list[tuple[str, str]]]:
+        """The order-intake API's ``POST /api/orders`` (:mod:`serveur.till.intake` parses the
+        HTTP): an integration token with the ``orders`` scope, a JSON :class:`IntakeOrder`;
+        201 with the ticket and its orders, 200 for the same key and body again. Errors are
+        the protocol's error objects (``code``, ``message``, ``details``)."""
+        if urlsplit(path).path != INTAKE_PATH:
+            return 404, NotFound(f"no {urlsplit(path).path[:80]} here: {INTAKE_PATH}").to_dict(), []
+        if method != "POST":
+            err = InvalidField(f"{INTAKE_PATH} takes POST", field="method")
+            return 405, err.to_dict(), [("Allow", "POST")]
+        scheme, _, token = (authorization or "").partition(" ")
+        try:
+            if scheme.lower() != "bearer" or not token.strip():
+                raise Unauthorized("Authorization must be: Bearer <token>")
+            who = await self.sessions.authenticate_token(token.strip())
+        except ServeurError as exc:
+            await self.sessions.audit(None, peer, "intake", exc.code, data={"via": "api"})
+            return 401, exc.to_dict(), [("WWW-Authenticate", "Bearer")]
+        try:
+            if Scope.ORDERS not in who.scopes:
+                raise Forbidden("the order-intake API needs the 'orders' scope", scope="orders")
+            if (content_type or "").split(";")[0].strip().lower() != "application/json":
+                err = InvalidField("send JSON (Content-Type: application/json)", field="body")
+                return 415, err.to_dict(), []
+            req = P.parse_intake(body)
+            created, ticket, orders = await self.core.tickets.take_request(
+                f"api {who.label or who.actor}", who.token_id, req
+            )
+            await self.core.flush_events()
+        except ServeurError as exc:
+            await self.sessions.audit(who, peer, "intake", exc.code, data={"via": "api"})
+            return _INTAKE_STATUS.get(exc.code, 400), exc.to_dict(), []
+        await self.sessions.audit(
+            who, peer, "intake", "ok", data={"ticket": ticket.id, "created": created}
+        )
+        reply = {"ticket": ticket, "orders": orders}
+        return (201 if created else 200), json.loads(P.dump(reply)), []
 
     async def _ws_handshake(self, ws: ServerConnection, request: Request) -> Response | None:
         origin = request.headers.get("Origin")

@@ -244,6 +244,7 @@ class Client:
             "menu",
             "blocks",
             "calls",
+            "tickets",
         ):
             self.records.setdefault(topic, {})[data[keys.get(topic, "id")]] = data
         else:

@@ -21,7 +21,8 @@ are made and kept, pure), :mod:`~serveur.core.shelf` (the backups folder) and
 the whole.
 
 May import: serveur.clock, serveur.domain, serveur.status, serveur.protocol,
-serveur.scheduler, serveur.store.base, serveur.store.restore, serveur.maps, serveur.robots.
+serveur.scheduler, serveur.store.base, serveur.store.restore, serveur.maps, serveur.robots,
+serveur.till.
 """
 
 __all__: list[str] = []

@@ -30,6 +30,7 @@ __all__ = [
     "DishFact",
     "RobotFact",
     "Thresholds",
+    "TillFacts",
     "conditions",
 ]
 
@@ -42,6 +43,7 @@ CRITICAL = frozenset(
         AlertKind.TABLE_UNREACHABLE,
         AlertKind.ROBOT_LOST,
         AlertKind.CALL_WAITING,
+        AlertKind.PRINTER_DOWN,
     }
 )
 
@@ -92,6 +94,15 @@ def _minutes(seconds: float) -> str:
     return f"{m} min" if m >= 1 else f"{int(seconds)} s"
 
 
+@dataclass(frozen=True, slots=True)
+class TillFacts:
+    """What the alerts need of the till: the unread tickets, the kitchen printer that does
+    not answer (its address)."""
+
+    unread: tuple[int, ...] = ()
+    printer_down: str | None = None
+
+
 def conditions(
     robots: Iterable[RobotFact],
     dishes: Iterable[DishFact],
@@ -101,6 +112,7 @@ def conditions(
     active: Iterable[Key] = (),
     limits: Thresholds = Thresholds(),
     calls: Iterable[Call] = (),
+    till: TillFacts | None = None,
 ) -> dict[Key, str]:
     """The alert conditions that hold at ``now``, each with the message staff read.
 
@@ -163,6 +175,16 @@ def conditions(
         out[(AlertKind.CALL_WAITING, f"{c.table}/{c.kind.value}")] = (
             f"{c.table} asked for {words.get(c.kind.value, c.kind.value)}"
             f" {_minutes(now - c.opened_at)} ago"
+        )
+    till = till or TillFacts()
+    for ticket in till.unread:
+        out[(AlertKind.TICKET_UNREAD, f"ticket {ticket}")] = (
+            f"ticket {ticket} from the till was not understood: add its dishes by hand, or fix"
+            " the pattern"
+        )
+    if till.printer_down is not None:
+        out[(AlertKind.PRINTER_DOWN, till.printer_down)] = (
+            "the kitchen printer does not answer: the till is told its tickets did not print"
         )
     return out
 

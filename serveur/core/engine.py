@@ -38,7 +38,7 @@ from typing import Any
 
 from serveur import protocol as P
 from serveur.clock import Clock
-from serveur.core.alerts import RobotFact, Thresholds
+from serveur.core.alerts import RobotFact, Thresholds, TillFacts
 from serveur.core.call_desk import CallDesk
 from serveur.core.creation import Creation
 from serveur.core.crew import Crew
@@ -55,6 +55,7 @@ from serveur.core.runtime import CoreConfig, Destination, Runtime, pose_dict
 from serveur.core.service import Service
 from serveur.core.site import Site
 from serveur.core.site_map import stored_backdrop, stored_map
+from serveur.core.ticket_desk import TicketDesk
 from serveur.core.traffic import Traffic
 from serveur.core.trips import Trips
 from serveur.domain import (
@@ -185,6 +186,7 @@ class Core:
             publisher=self.publisher,
             kick=self.dispatcher.kick,
         )
+        self.tickets = TicketDesk(store, clock, places=self.places, publisher=self.publisher)
         self.crew = Crew(
             store=store,
             clock=clock,
@@ -225,6 +227,7 @@ class Core:
             traffic=self.traffic,
             site=self.site,
             calls=self.calls,
+            tickets=self.tickets,
         )
 
     # -- what others read of the collaborators ----------------------------------------------
@@ -307,6 +310,7 @@ class Core:
             ctl.rt.state = st
             await ctl.save_state(st, event="robot.restored")
         await self.calls.start()
+        await self.tickets.start()
         self.dispatcher.start()
         await self.service.start(self)
         for ctl in self._ctl.values():
@@ -597,6 +601,9 @@ class Core:
         await self.calls.escalate_due()
         return self.calls.escalated()
 
+    def till_facts(self) -> TillFacts:
+        return self.tickets.facts()
+
     def timers(self) -> None:
         """Post each robot what its waiting has come to (once per arrival or stop: its
         ``status_since`` identifies it, so a robot that moved on is left alone): a stop's wait
@@ -686,6 +693,14 @@ async def _calls(core: Core) -> Any:
     return core.calls.snapshot()
 
 
+async def _tickets(core: Core) -> Any:
+    return await core.tickets.snapshot()
+
+
+async def _till(core: Core) -> Any:
+    return core.tickets.state()
+
+
 #: Topic -> its snapshot (``pose:<robot>`` and ``scan:<robot>`` are per robot).
 _SNAPSHOTS: dict[str, Callable[[Core], Awaitable[Any]]] = {
     "robots": _robots,
@@ -701,4 +716,6 @@ _SNAPSHOTS: dict[str, Callable[[Core], Awaitable[Any]]] = {
     "zones": _zones,
     "leases": _leases,
     "calls": _calls,
+    "tickets": _tickets,
+    "till": _till,
 }

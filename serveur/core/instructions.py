@@ -11,7 +11,7 @@ permissions stay in :mod:`serveur.security.auth` and the audit in the server.
 from __future__ import annotations
 
 from collections.abc import Awaitable, Callable
-from typing import Any
+from typing import Any, get_args
 
 from serveur import protocol as P
 from serveur.core.actions import ACTIONS
@@ -21,6 +21,7 @@ from serveur.core.places import Places
 from serveur.core.robot import RobotController
 from serveur.core.service import Service
 from serveur.core.site import SITE_ACTIONS, Fleet, Site
+from serveur.core.ticket_desk import TicketDesk
 from serveur.core.traffic import Traffic
 from serveur.core.trips import Trips
 from serveur.domain import (
@@ -57,6 +58,7 @@ class Instructions:
         traffic: Traffic,
         site: Site,
         calls: CallDesk,
+        tickets: TicketDesk,
     ) -> None:
         self.store = store
         self.fleet = fleet
@@ -67,6 +69,7 @@ class Instructions:
         self.traffic = traffic
         self.site = site
         self.calls = calls
+        self.tickets = tickets
 
     async def handle(self, msg: Any, actor: str | None, table: str | None) -> dict[str, Any]:
         """The reply payload for ``msg`` (a ServeurError if refused).
@@ -218,6 +221,9 @@ class Instructions:
     async def _revoke_button(self, msg: P.SiteRevokeButton, actor: str | None) -> dict[str, Any]:
         return await self.calls.revoke_button(msg.name)
 
+    async def _till(self, msg: Any, actor: str | None) -> dict[str, Any]:
+        return await self.tickets.handle(msg, actor)
+
 
 #: Client message type -> what it does (the robot actions go through
 #: :data:`serveur.core.actions.ACTIONS` once the status machine allowed them).
@@ -240,4 +246,5 @@ _VERBS: dict[type, Verb] = {
     P.SiteButtons: Instructions._buttons,
     P.SiteRevokeButton: Instructions._revoke_button,
     **{cls: Instructions._site for cls in SITE_ACTIONS},
+    **{cls: Instructions._till for cls in get_args(get_args(P.TillMessage)[0])},
 }

@@ -27,6 +27,7 @@ from serveur.core.alerts import (
     DishFact,
     RobotFact,
     Thresholds,
+    TillFacts,
     conditions,
 )
 from serveur.core.places import Places
@@ -39,6 +40,7 @@ __all__ = ["Service", "ServiceHost"]
 
 log = logging.getLogger(__name__)
 
+_NO_TILL = TillFacts()
 #: How often the watch loop looks (service-clock seconds).
 TICK = 1.0
 
@@ -54,6 +56,10 @@ class ServiceHost(Protocol):
 
     async def escalate_calls(self) -> list[Call]:
         """Escalate the calls nobody answered in time; the escalated calls still open."""
+        ...
+
+    def till_facts(self) -> TillFacts:
+        """The till's unread tickets and whether its kitchen printer answers."""
         ...
 
 
@@ -182,9 +188,11 @@ class Service:
         self._publisher.pub("alerts", alert)
         return alert
 
-    async def evaluate(self, host: ServiceHost, calls: Iterable[Call] = ()) -> list[Alert]:
+    async def evaluate(
+        self, host: ServiceHost, calls: Iterable[Call] = (), till: TillFacts = _NO_TILL
+    ) -> list[Alert]:
         """Raise and clear alerts from the restaurant as it is now (``calls``: the escalated
-        calls still open)."""
+        calls still open; ``till``: the till's tickets and printer)."""
         now = self._clock.epoch()
         pending = await self._store.orders.list_orders(status=OrderStatus.PENDING)
         dishes = [DishFact(o.table, o.ready_at) for o in pending if o.ready_at is not None]
@@ -193,6 +201,7 @@ class Service:
             dishes,
             {t: b.reason for t, b in self.blocks.items()},
             calls=calls,
+            till=till,
             now=now,
             active=self.alerts.keys(),
             limits=self._limits,
@@ -211,7 +220,7 @@ class Service:
         while True:
             try:
                 host.timers()
-                await self.evaluate(host, await host.escalate_calls())
+                await self.evaluate(host, await host.escalate_calls(), host.till_facts())
                 await self._publisher.flush_events()
             except ServeurError as exc:  # a busy or full disk: try again next tick
                 log.warning("service watch: %s", exc)

@@ -147,6 +147,19 @@ def parse_scopes(text: str | Iterable[str]) -> frozenset[Scope]:
 
 
 _BACKUP_ACTIONS = frozenset({"backups", "backup_now", "download_backup", "restore"})
+#: The till's actions: reading tickets is staff's, marking one done by hand is an order's
+#: step, the printer port and the pattern are the site's, the till's item names the menu's.
+_TILL_SCOPES: Final = {
+    "state": Scope.READ,
+    "tickets": Scope.READ,
+    "by_hand": Scope.ORDERS,
+    "propose": Scope.SITE,
+    "preview": Scope.SITE,
+    "setup": Scope.SITE,
+    "import_menu": Scope.MENU,
+    "map": Scope.MENU,
+    "unmapped": Scope.MENU,
+}
 
 
 def required_scope(msg: Any) -> Scope:
@@ -184,6 +197,8 @@ def required_scope(msg: Any) -> Scope:
         return Scope.SITE
     if verb == "stats":
         return Scope.STATS
+    if verb == "till":
+        return _TILL_SCOPES[msg.action]
     raise Forbidden(f"no rule for {verb!r}")  # a new verb must get a rule before anyone uses it
 
 

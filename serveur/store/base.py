@@ -44,10 +44,11 @@ from serveur.store.service import Service
 from serveur.store.sitemap import SiteBackdrop, SiteMap, StoredBackdrop, StoredMap
 from serveur.store.sql import Db
 from serveur.store.tasks import Tasks
+from serveur.store.tickets import NewDish, Tickets
 from serveur.store.waypoints import Waypoints
 from serveur.store.zones import Zones
 
-__all__ = ["Store", "StoredBackdrop", "StoredMap", "TokenRecord", "UserRecord"]
+__all__ = ["NewDish", "Store", "StoredBackdrop", "StoredMap", "TokenRecord", "UserRecord"]
 
 
 class Store:
@@ -72,6 +73,7 @@ class Store:
         self.tasks = Tasks(db)
         self.rounds = Rounds(db)
         self.calls = Calls(db)
+        self.tickets = Tickets(db)
         self.events = Events(db)
         self.accounts = Accounts(db)
         self.audit = Audit(db)

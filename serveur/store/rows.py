@@ -41,7 +41,7 @@ __all__ = [
 ORDER: Final = (
     "SELECT id, dish, res_table AS `table`, status, task_num AS task_id, `key`, ready_at,"
     " dispatched_at, delivered_at, quantity, note, ordered_at, returned_at, voided_at, special,"
-    " tray FROM orders"
+    " tray, ticket_id AS ticket FROM orders"
 )
 EVENT: Final = "SELECT id, ts, kind, robot, task_id, order_id, data FROM events"
 TASK: Final = (

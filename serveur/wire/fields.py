@@ -77,6 +77,8 @@ STATE_TOPICS: Final = (
     "calls",
     "zones",
     "leases",
+    "tickets",
+    "till",
 )
 #: Per-robot topic prefixes: ``pose:<robot>``, ``scan:<robot>`` and ``cloud:<robot>`` (the
 #: particle cloud of its localisation).
@@ -109,6 +111,7 @@ VERBS: Final = (
     "charge",
     "work",
     "cruise",
+    "till",
 )
 
 #: Limits of the work area: far beyond any restaurant, close enough to catch unit mistakes.

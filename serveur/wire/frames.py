@@ -26,6 +26,7 @@ from serveur.domain import (
     Robot,
     TableBlock,
     Task,
+    TillTicket,
     WaypointRecord,
     ZoneLease,
     ZoneRecord,
@@ -52,6 +53,7 @@ __all__ = [
     "Session",
     "Settings",
     "Snapshot",
+    "TillInfo",
     "TokenInfo",
     "UpdateData",
     "UpdateMsg",
@@ -139,6 +141,23 @@ class FleetForecast(_ServerModel):
     trips: int | None = None
 
 
+class TillInfo(_ServerModel):
+    """The till's set-up and how its printer port is (``till`` topic, ``till state``/``setup``)."""
+
+    port: int = Field(description="the printer port serveur listens on; 0: off")
+    printer: str = Field(
+        description='"host:port" of the kitchen printer jobs are forwarded to; "": none (serveur'
+        " is a second printer)"
+    )
+    encoding: str = Field(description="the printer's code page before any command")
+    pattern: dict[str, Any] | None = Field(description="the ticket pattern; null: none yet")
+    listening: bool = Field(description="the printer port is open")
+    printer_up: bool | None = Field(
+        description="the kitchen printer answered the last try; null: not tried, or none"
+    )
+    error: str | None = Field(description="why the printer port could not open")
+
+
 class ForecastInfo(_ServerModel):
     """A forecast ("how many robots?"): a recorded day replayed with each fleet size."""
 
@@ -223,8 +242,10 @@ Snapshot: TypeAlias = (
     | list[ZoneRecord]
     | list[ZoneLease]
     | list[Call]
+    | list[TillTicket]
     | Settings
     | ForecastInfo
+    | TillInfo
     | MapSnapshot
     | PoseData
     | ScanData
@@ -246,8 +267,10 @@ UpdateData: TypeAlias = (
     | ZoneRecord
     | ZoneLease
     | Call
+    | TillTicket
     | Settings
     | ForecastInfo
+    | TillInfo
     | MapSnapshot
     | PoseData
     | ScanData
@@ -350,6 +373,27 @@ class OkReply(_ServerModel):
         default=None, description="site add_button, revoke_button: the button"
     )
     buttons: list[CallButton] | None = Field(default=None, description="site buttons")
+    till: TillInfo | None = Field(default=None, description="till state, setup")
+    tickets: list[TillTicket] | None = Field(default=None, description="till tickets")
+    ticket: TillTicket | None = Field(default=None, description="till by_hand: the ticket")
+    pattern: dict[str, Any] | None = Field(
+        default=None, description="till propose: the pattern the marks mean"
+    )
+    preview: list[dict[str, Any]] | None = Field(
+        default=None, description="till propose, preview: what the pattern reads on each ticket"
+    )
+    read: list[int] | None = Field(
+        default=None, description="till setup: the waiting tickets a new pattern made orders of"
+    )
+    names: dict[str, str] | None = Field(
+        default=None, description="till import_menu, map: the till's names -> menu dishes"
+    )
+    rows: list[dict[str, Any]] | None = Field(
+        default=None, description="till import_menu: each row of the file, mapped or not"
+    )
+    unmapped: list[dict[str, Any]] | None = Field(
+        default=None, description="till unmapped: names printed on no menu, with suggestions"
+    )
     path: str | None = Field(
         default=None,
         description="site add_button: the address the button requests (GET, token included)",
