@@ -27,7 +27,7 @@ from serveur.domain import (
 )
 from serveur.errors import Conflict, InvalidField, NotFound, Stale, StoreError
 from serveur.status import RobotMode, RobotStatus
-from serveur.store.base import Store
+from serveur.store.base import NewDish, Store
 from serveur.store.factory import open_store
 from serveur.store.migrations import load_migrations
 from serveur.store.sqlite.store import SQLiteStore, split_sql
@@ -1175,3 +1175,53 @@ async def test_the_floor_plan_under_the_map_is_one_row_cleared_with_a_new_map(
     assert await store.site_backdrop.get() == b
     assert await store.site_backdrop.clear() is True
     assert await store.site_backdrop.get() is None
+
+
+async def test_a_ticket_orders_once_even_when_two_stores_race_and_a_void_withdraws(
+    backend: Backend,
+) -> None:
+    """The till's ticket (issue 33): two servers reading the same ticket at once (or a reprint
+    arriving while the first is stored) make its orders once; the database's unique
+    ``first_key`` says so. A void ticket withdraws dishes no robot took yet, the newest first."""
+    async with backend.new() as s1, backend.new() as s2:
+        await seed(s1)
+        dishes = [NewDish("Laksa", 3, "no chilli"), NewDish("Satay", 1)]
+        jobs = [
+            await s.tickets.add_job("printer 10.0.0.9", b"raw", ["Table 1\n3 x Laksa"], now=T0)
+            for s in (s1, s2, s1)
+        ]
+        results = await asyncio.gather(
+            *(
+                s.tickets.order(j[0].id, "till-k1", "T1", {"r": 1}, dishes, now=T0 + 1)
+                for s, j in zip((s1, s2, s1), jobs, strict=True)
+            ),
+            return_exceptions=True,
+        )
+        assert all(isinstance(r, tuple) for r in results), results
+        made = [orders for _, orders in results if orders]  # type: ignore[misc]
+        assert len(made) == 1 and [(o.dish, o.quantity) for o in made[0]] == [
+            ("Laksa", 3),
+            ("Satay", 1),
+        ]
+        statuses = sorted(t.status.value for t, _ in results)  # type: ignore[misc]
+        assert statuses == ["ordered", "reprint", "reprint"]
+        first = next(t for t, o in results if o)  # type: ignore[misc]
+        assert all(t.of_ticket == first.id for t, _ in results if t.status.value == "reprint")  # type: ignore[misc]
+        assert len(await s2.orders.list_orders()) == 2
+
+        void = (await s2.tickets.add_job("printer", b"v", ["VOID"], now=T0 + 2))[0]
+        done, changed, voided = await s2.tickets.void(
+            void.id, "till-void", "T1", {}, [NewDish("Laksa", 1), NewDish("Cendol", 2)], now=T0 + 3
+        )
+        assert done.status.value == "void" and voided.missing == (("Cendol", 2),)
+        assert [(o.dish, o.quantity, o.status) for o in changed] == [
+            ("Laksa", 2, OrderStatus.ORDERED)
+        ]
+        assert "Cendol" in (done.problem or "")
+        # The void printed again: nothing more withdrawn.
+        again = (await s1.tickets.add_job("printer", b"v", ["VOID"], now=T0 + 4))[0]
+        done2, changed2, _ = await s1.tickets.void(
+            again.id, "till-void", "T1", {}, [NewDish("Laksa", 1)], now=T0 + 5
+        )
+        assert done2.status.value == "reprint" and changed2 == []
+        assert (await s1.orders.get_order(made[0][0].id)).quantity == 2
