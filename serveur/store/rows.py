@@ -33,6 +33,7 @@ __all__ = [
     "get_task",
     "get_tasks",
     "get_waypoint",
+    "put_setting",
     "remember",
     "replayed",
     "revoke_where",
@@ -156,6 +157,22 @@ async def remember(
         " VALUES (?, ?, ?, ?, ?)",
         (key, kind, fingerprint, to_json(dict(result)), now),
     )
+
+
+async def put_setting(
+    tx: Tx, table: str, name: str, value: Any, now: float, by: str | None
+) -> None:
+    """One named setting of ``table`` (``settings``, ``till_setting``: name, value as JSON,
+    updated_at, updated_by) written, whether it had a row or not."""
+    body = json.dumps(value, separators=(",", ":"), ensure_ascii=False)
+    if not await tx.run(
+        f"UPDATE {table} SET value = ?, updated_at = ?, updated_by = ? WHERE name = ?",
+        (body, now, by, name),
+    ):
+        await tx.run(
+            f"INSERT INTO {table} (name, value, updated_at, updated_by) VALUES (?, ?, ?, ?)",
+            (name, body, now, by),
+        )
 
 
 async def free_robot(tx: Tx, task_id: int, now: float) -> None:

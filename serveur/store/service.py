@@ -135,16 +135,7 @@ class Service:
 
         async def work(tx: Tx) -> dict[str, Any]:
             for name, value in values.items():
-                body = json.dumps(value, separators=(",", ":"))
-                if not await tx.run(
-                    "UPDATE settings SET value = ?, updated_at = ?, updated_by = ? WHERE name = ?",
-                    (body, now, by, name),
-                ):
-                    await tx.run(
-                        "INSERT INTO settings (name, value, updated_at, updated_by)"
-                        " VALUES (?, ?, ?, ?)",
-                        (name, body, now, by),
-                    )
+                await rows.put_setting(tx, "settings", name, value, now, by)
             await rows.add_event(tx, "settings.changed", now, data={**values, "by": by})
             saved = await tx.all("SELECT name, value FROM settings ORDER BY name")
             return {str(r["name"]): json.loads(r["value"]) for r in saved}

@@ -122,6 +122,24 @@ class Tickets:
         )
         return None if row is None else _ticket(row)
 
+    async def _reprint(
+        self,
+        tx: Tx,
+        ticket_id: int,
+        first: int,
+        key: str,
+        table: str,
+        reading: dict[str, Any],
+        now: float,
+    ) -> TillTicket:
+        """The ticket is ``first`` printed again: kept, nothing ordered or withdrawn."""
+        await tx.run(
+            "UPDATE till_ticket SET status = 'reprint', `key` = ?, table_name = ?, reading = ?,"
+            " problem = NULL, of_ticket = ?, read_at = ? WHERE id = ?",
+            (key, table, to_json(reading), first, now, ticket_id),
+        )
+        return await self._get(tx, ticket_id)
+
     async def get(self, ticket_id: int) -> TillTicket:
         return await self._db.transact(lambda tx: self._get(tx, ticket_id), "auto")
 
@@ -217,12 +235,7 @@ class Tickets:
         async def work(tx: Tx) -> tuple[TillTicket, list[Order]]:
             first = await self._first(tx, key)
             if first is not None:
-                await tx.run(
-                    "UPDATE till_ticket SET status = 'reprint', `key` = ?, table_name = ?,"
-                    " reading = ?, problem = NULL, of_ticket = ?, read_at = ? WHERE id = ?",
-                    (key, table, to_json(reading), first, now, ticket_id),
-                )
-                return await self._get(tx, ticket_id), []
+                return await self._reprint(tx, ticket_id, first, key, table, reading, now), []
             await rows.get_waypoint(tx, table)
             made: list[Order] = []
             for d, (note, _, _) in zip(dishes, checked, strict=True):
@@ -267,12 +280,8 @@ class Tickets:
         async def work(tx: Tx) -> tuple[TillTicket, list[Order], Voided]:
             first = await self._first(tx, key)
             if first is not None:
-                await tx.run(
-                    "UPDATE till_ticket SET status = 'reprint', `key` = ?, table_name = ?,"
-                    " reading = ?, problem = NULL, of_ticket = ?, read_at = ? WHERE id = ?",
-                    (key, table, to_json(reading), first, now, ticket_id),
-                )
-                return await self._get(tx, ticket_id), [], Voided((), ())
+                done = await self._reprint(tx, ticket_id, first, key, table, reading, now)
+                return done, [], Voided((), ())
             changed: dict[int, Order] = {}
             missing: list[tuple[str, int]] = []
             for d in dishes:
@@ -378,17 +387,7 @@ class Tickets:
     async def put_settings(self, values: dict[str, Any], *, now: float, by: str) -> dict[str, Any]:
         async def work(tx: Tx) -> None:
             for name, value in values.items():
-                body = json.dumps(value, separators=(",", ":"), ensure_ascii=False)
-                if not await tx.run(
-                    "UPDATE till_setting SET value = ?, updated_at = ?, updated_by = ?"
-                    " WHERE name = ?",
-                    (body, now, by, name),
-                ):
-                    await tx.run(
-                        "INSERT INTO till_setting (name, value, updated_at, updated_by)"
-                        " VALUES (?, ?, ?, ?)",
-                        (name, body, now, by),
-                    )
+                await rows.put_setting(tx, "till_setting", name, value, now, by)
             await rows.add_event(tx, "till.settings", now, data={"names": sorted(values), "by": by})
 
         await self._db.transact(work, "write")
