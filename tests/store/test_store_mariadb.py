@@ -333,3 +333,32 @@ async def test_busy_while_a_query_waits_on_the_server(mariadb_url: str) -> None:
         assert store.busy()
         assert (await asyncio.wait_for(query_task, 10)) == {"s": 0}
         assert not store.busy()
+
+
+async def test_a_backup_holds_every_table(mariadb_url: str) -> None:
+    """Every table the migrations make is in the backup's list (the calls and buttons of
+    migration 011 were not, and a MariaDB site's backup lost them), and every foreign key is
+    in the integrity check's."""
+    from serveur.store.mariadb.backup import FOREIGN_KEYS, TABLES
+
+    async with open_store(mariadb_url):
+        pass
+    made = {
+        r["TABLE_NAME"]
+        for r in query(
+            mariadb_url,
+            "SELECT TABLE_NAME FROM information_schema.TABLES"
+            " WHERE TABLE_SCHEMA = DATABASE() AND TABLE_TYPE = 'BASE TABLE'",
+        )
+    }
+    assert made - {"schema_migrations"} == set(TABLES)
+    keys = query(
+        mariadb_url,
+        "SELECT TABLE_NAME, COLUMN_NAME, REFERENCED_TABLE_NAME FROM"
+        " information_schema.KEY_COLUMN_USAGE WHERE TABLE_SCHEMA = DATABASE()"
+        " AND REFERENCED_TABLE_NAME IS NOT NULL",
+    )
+    declared = {(t, c, parent) for t, _, c, parent, _ in FOREIGN_KEYS}
+    assert {(k["TABLE_NAME"], k["COLUMN_NAME"], k["REFERENCED_TABLE_NAME"]) for k in keys} <= (
+        declared
+    )

@@ -27,6 +27,8 @@ TABLES = (
     "task",
     "task_stop",
     "idempotency",
+    "till_job",
+    "till_ticket",
     "orders",
     "events",
     "menu",
@@ -35,6 +37,10 @@ TABLES = (
     "zones",
     "site_map",
     "site_backdrop",
+    "call",
+    "call_button",
+    "till_name",
+    "till_setting",
 )
 # Every foreign key, as (table, its key, column, parent table, parent key), for the check.
 FOREIGN_KEYS = (
@@ -47,6 +53,13 @@ FOREIGN_KEYS = (
     ("orders", "id", "res_table", "waypoints", "name"),
     ("orders", "id", "task_num", "task", "id"),
     ("table_block", "waypoint", "waypoint", "waypoints", "name"),
+    ("robot_info", "name", "dock", "waypoints", "name"),
+    ("call", "id", "table_name", "waypoints", "name"),
+    ("call", "id", "task_id", "task", "id"),
+    ("call_button", "name", "table_name", "waypoints", "name"),
+    ("till_ticket", "id", "job_id", "till_job", "id"),
+    ("till_ticket", "id", "of_ticket", "till_ticket", "id"),
+    ("orders", "id", "ticket_id", "till_ticket", "id"),
 )
 
 
@@ -72,7 +85,7 @@ async def backup(db: Db, path: str | Path) -> None:
         async def work(tx: Tx) -> dict[str, list[dict[str, Any]]]:
             return {
                 table: await tx.all(
-                    f"SELECT {', '.join(f'`{c}`' for c in columns[table])} FROM {table}"
+                    f"SELECT {', '.join(f'`{c}`' for c in columns[table])} FROM `{table}`"
                 )
                 for table in TABLES
             }
@@ -109,7 +122,7 @@ async def restore(db: Db, path: Path) -> None:
         await tx.run("SET FOREIGN_KEY_CHECKS = 0")
         try:
             for table in reversed(TABLES):
-                await tx.run(f"DELETE FROM {table}")
+                await tx.run(f"DELETE FROM `{table}`")
             for table in TABLES:
                 live = {
                     str(r["name"])
@@ -127,7 +140,7 @@ async def restore(db: Db, path: Path) -> None:
                     batch, after = await asyncio.to_thread(_batch, path, table, cols, after)
                     if not batch:
                         break
-                    await tx.many(f"INSERT INTO {table} ({names}) VALUES ({marks})", batch)
+                    await tx.many(f"INSERT INTO `{table}` ({names}) VALUES ({marks})", batch)
         finally:
             await tx.run("SET FOREIGN_KEY_CHECKS = 1")
 
@@ -149,7 +162,7 @@ def _batch(
     names = ", ".join(f'"{c}"' for c in cols)
     with contextlib.closing(sqlite3.connect(path)) as conn:
         rows = conn.execute(
-            f"SELECT rowid, {names} FROM {table} WHERE rowid > ? ORDER BY rowid LIMIT ?",
+            f"SELECT rowid, {names} FROM `{table}` WHERE rowid > ? ORDER BY rowid LIMIT ?",
             (-(2**63) if after is None else after, _BATCH),
         ).fetchall()
     if not rows:
@@ -164,13 +177,13 @@ async def integrity_check(db: Db) -> str:
     async def work(tx: Tx) -> list[str]:
         problems = [
             f"{r['Table']}: {r['Msg_text']}"
-            for r in await tx.all(f"CHECK TABLE {', '.join(TABLES)}")
+            for r in await tx.all(f"CHECK TABLE {', '.join(f'`{t}`' for t in TABLES)}")
             if (r["Msg_type"], r["Msg_text"]) != ("status", "OK")
         ]
         for table, key, column, parent, parent_key in FOREIGN_KEYS:
             orphans = await tx.all(
-                f"SELECT c.{key} AS row_key FROM {table} AS c"
-                f" LEFT JOIN {parent} AS p ON p.{parent_key} = c.{column}"
+                f"SELECT c.{key} AS row_key FROM `{table}` AS c"
+                f" LEFT JOIN `{parent}` AS p ON p.{parent_key} = c.{column}"
                 f" WHERE c.{column} IS NOT NULL AND p.{parent_key} IS NULL"
             )
             problems += [
@@ -185,7 +198,7 @@ async def integrity_check(db: Db) -> str:
 
 def _sqlite_columns(path: Path) -> dict[str, list[str]]:
     with contextlib.closing(sqlite3.connect(path)) as conn:
-        return {t: [r[1] for r in conn.execute(f"PRAGMA table_info({t})")] for t in TABLES}
+        return {t: [r[1] for r in conn.execute(f"PRAGMA table_info(`{t}`)")] for t in TABLES}
 
 
 def _fill_sqlite(
@@ -195,11 +208,11 @@ def _fill_sqlite(
         conn.execute("PRAGMA foreign_keys = OFF")  # robot_info and task refer to each other
         conn.execute("BEGIN")
         for table in TABLES:
-            conn.execute(f"DELETE FROM {table}")  # the menu a fresh schema is seeded with
+            conn.execute(f"DELETE FROM `{table}`")  # the menu a fresh schema is seeded with
             cols = columns[table]
             names = ", ".join(f'"{c}"' for c in cols)
             conn.executemany(
-                f"INSERT INTO {table} ({names}) VALUES ({', '.join('?' * len(cols))})",
+                f"INSERT INTO `{table}` ({names}) VALUES ({', '.join('?' * len(cols))})",
                 [tuple(r[c] for c in cols) for r in rows[table]],
             )
         problems = conn.execute("PRAGMA foreign_key_check").fetchall()
