@@ -48,7 +48,8 @@ function first(obj, keys) {
 }
 
 function notFound(d, req) {
-  const hit = first(d, ["robot", "waypoint", "table", "zone", "user", "order", "task", "alert", "token", "call", "button"]);
+  if (Array.isArray(d.dishes) && d.dishes.length) return t("errors.notFound.dishes", { dishes: d.dishes.join(", ") });
+  const hit = first(d, ["robot", "waypoint", "table", "zone", "user", "order", "task", "alert", "token", "call", "button", "ticket"]);
   if (!hit) return t("errors.notFound");
   const [what, name] = hit;
   if (what === "robot") return t("errors.notFound.robot", { name });
@@ -60,6 +61,7 @@ function notFound(d, req) {
   if (what === "alert") return t("errors.notFound.alert");
   if (what === "call") return t("errors.notFound.call");
   if (what === "button") return t("errors.notFound.button", { name });
+  if (what === "ticket") return t("errors.notFound.ticket");
   return req && req.clientmsg === "account" ? t("errors.notFound.token") : t("errors.notFound");
 }
 
@@ -88,6 +90,7 @@ function conflict(d, req) {
   if (d.reason === "no_dish_return") return t("errors.conflict.noDishReturn");
   if (d.reason === "no_dock") return t("errors.conflict.noDock", { name: d.robot || (req && req.robot) || "" });
   if (d.call !== undefined) return t(CALL_CLOSED[d.state] || "errors.conflict.callClosed");
+  if (d.ticket !== undefined) return t("errors.conflict.ticket");
   if (d.button) return t("errors.conflict.buttonTaken", { name: d.button });
   if (d.acked_by) return t("errors.conflict.seen", { who: d.acked_by });
   if (d.forecast !== undefined) return t("errors.conflict.forecast");
@@ -106,6 +109,15 @@ function conflict(d, req) {
   return t("errors.conflict");
 }
 
+// The till's settings and the owner's ticket pattern (the `till` verb): what was not right.
+const TILL_FIELDS = {
+  port: "errors.invalid.tillPort",
+  printer: "errors.invalid.tillPrinter",
+  marks: "errors.invalid.tillMarks",
+  pattern: "errors.invalid.tillPattern",
+  csv: "errors.invalid.tillMenu",
+};
+
 function forbidden(d) {
   if (d.table) return t("errors.forbidden.table", { table: d.table });
   return t("errors.forbidden");
@@ -122,6 +134,7 @@ function invalid(d) {
   const types = Array.isArray(d.errors) ? d.errors.map((e) => e && e.type) : [];
   if (types.includes("charge_levels")) return t("errors.invalid.chargeLevels");
   if (d.field === "start" || d.field === "end") return t("errors.invalid.dates");
+  if (Object.hasOwn(TILL_FIELDS, d.field)) return t(TILL_FIELDS[d.field]);
   return t("errors.invalid");
 }
 

@@ -24,6 +24,8 @@ const KINDS = {
   zone_wait: "alerts.kind.zoneWait",
   robot_lost: "alerts.kind.robotLost",
   not_charging: "alerts.kind.notCharging",
+  ticket_unread: "alerts.kind.ticketUnread",
+  printer_down: "alerts.kind.printerDown",
 };
 
 /** Who acknowledged: a person's name, or the device token's number. */
@@ -106,6 +108,8 @@ export class AlertsPanel {
    */
   _detail(alert) {
     if (alert.kind === "call_waiting") return t("alerts.callWaitingWhat");
+    if (alert.kind === "ticket_unread") return t("alerts.ticketUnreadWhat");
+    if (alert.kind === "printer_down") return t("alerts.printerDownWhat");
     if (alert.kind === "table_unreachable") {
       const block = this.live.blocks.get(alert.subject);
       return block ? blockWords(block) : null;

@@ -100,8 +100,20 @@ new Teleop(document.getElementById("teleop"), conn, live, selection, new CameraV
 new WaypointsPanel(document.getElementById("waypoints"), conn, live, selection);
 new CallsPanel(document.getElementById("panel-calls"), document.getElementById("tab-calls"), conn, live);
 new IssuePanel(document.getElementById("panel-issue"), conn, live);
-new NewOrderPanel(document.getElementById("panel-order"), conn, live);
-new KitchenPanel(document.getElementById("panel-kitchen"), conn, live);
+const newOrder = new NewOrderPanel(document.getElementById("panel-order"), conn, live);
+// A ticket from the till nobody understood: its dishes are added by hand in New order.
+const kitchen = new KitchenPanel(document.getElementById("panel-kitchen"), conn, live, {
+  addByHand: (table) => {
+    document.getElementById("tab-order").click();
+    newOrder.startFor(table);
+  },
+});
+// The till's tickets stream to the Kitchen tab only while it is shown on a visible page.
+const followTickets = () => {
+  const shown = document.getElementById("tab-kitchen").getAttribute("aria-selected") === "true";
+  kitchen.shown(shown && document.visibilityState === "visible");
+};
+document.addEventListener("visibilitychange", followTickets);
 new MenuPanel(document.getElementById("panel-menu"), conn, live);
 const accounts = new AccountsPanel(document.getElementById("panel-accounts"), conn, live);
 // The owner's other tabs: each has shown(), called when its tab is opened (they load on demand).
@@ -195,6 +207,7 @@ function setupTabs() {
     if (tab.id === "tab-map") view.requestDraw();
     streamScan();
     if (tab.id === "tab-accounts") accounts.refresh();
+    followTickets();
     if (ownerPanels[tab.id]) ownerPanels[tab.id].shown();
     if (restored) keep(TAB_KEY, tab.id);
     tab.scrollIntoView({ block: "nearest", inline: "nearest" }); // a phone's tab row scrolls

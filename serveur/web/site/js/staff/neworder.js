@@ -151,6 +151,12 @@ export class NewOrderPanel {
     });
   }
 
+  /** Staff add a ticket's dishes by hand: its table picked when it is one, the dish's name next. */
+  startFor(table) {
+    if (table && this.live.waypoints.get(table)?.kind === "table") this._pick(table);
+    this.dish.focus();
+  }
+
   _keep() {
     const lines = this.lines.map(({ dish, table, quantity, note, key, special }) => ({ dish, table, quantity, note, key, special: special ?? null }));
     keep(DRAFT_KEY, this.table || lines.length ? { table: this.table, lines } : null);
