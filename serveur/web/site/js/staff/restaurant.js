@@ -1,13 +1,13 @@
 // Restaurant (the owner's): the robots (address, ROS, drive, home, charger, trays, status, why the
 // server cannot reach one; edit, remove), the tables and places (add, rename, move, remove after
-// seeing what depends on them), the zones robots take turns through, the Wi-Fi call buttons, and
-// the site's settings (time at a table, trays, leaving without Go, the languages the pages
+// seeing what depends on them), the zones robots take turns through, the Wi-Fi call buttons, the
+// orders from the till (till/setup.js: the `till` verb), and the site's settings (time at a table, trays, leaving without Go, the languages the pages
 // offer, calls, plates, charging, cruising). Everything goes through the
 // protocol's `site` verb (the server refuses anyone but an owner), `create waypoint` and
 // `create zone` with `replace`.
 //
 // This module is the panel: it lays out the sections (restaurant/robots.js, places.js, zones.js,
-// buttons.js, settings.js, map.js, plan.js, align.js, backups.js) and keeps them live. It also follows the `settings` topic (every role may read
+// buttons.js, settings.js, map.js, plan.js, align.js, backups.js, ../till/setup.js) and keeps them live. It also follows the `settings` topic (every role may read
 // it): the language pickers offer the site's languages and a device with no choice of its own
 // speaks the site's default.
 
@@ -22,6 +22,7 @@ import { PlanSection } from "./restaurant/plan.js";
 import { BackupsSection } from "./restaurant/backups.js";
 import { AlignSection } from "./restaurant/align.js";
 import { ButtonsSection } from "./restaurant/buttons.js";
+import { TillSection } from "./till/setup.js";
 
 export class RestaurantPanel {
   constructor(root, conn, live) {
@@ -32,6 +33,7 @@ export class RestaurantPanel {
     this.places = new PlacesSection(conn, live);
     this.zones = new ZonesSection(conn, live);
     this.buttons = new ButtonsSection(conn, live);
+    this.till = new TillSection(conn, live);
     // The site's trays changed: each robot's row says how many it has.
     this.settings = new SettingsSection(conn, () => {
       this.robots.rows.invalidate();
@@ -50,6 +52,7 @@ export class RestaurantPanel {
         this.places.section,
         this.zones.section,
         this.buttons.section,
+        this.till.section,
         this.settings.section,
         this.map.section,
         this.plan.section,
@@ -75,6 +78,7 @@ export class RestaurantPanel {
       this.backups.rows.invalidate();
       this.buttons.rows.invalidate();
       this.buttons.fillKinds();
+      this.till.fillCodePages();
       this.settings.fillLanguage();
       this.render();
     });
@@ -87,6 +91,7 @@ export class RestaurantPanel {
     this.render();
     this.backups.load();
     this.buttons.load();
+    this.till.load();
     try {
       const reply = await this.conn.request({ clientmsg: "site", action: "settings" });
       this.settings.got(reply.settings); // a form the owner began filling meanwhile is kept
