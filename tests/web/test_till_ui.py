@@ -42,7 +42,7 @@ till_app = functools.partial(make_app, config=CoreConfig(**SERVICE))  # type: ig
 #: The till's kitchen tickets: (number, table, guests, [(quantity, dish, notes)]).
 TICKETS: list[tuple[int, int, int, list[Any]]] = [
     (1042, 12, 3, [(2, "Nasi Lemak", ["no chilli"]), (1, "Teh Tarik", [])]),
-    (1043, 5, 2, [(1, "Laksa", []), (2, "Roti Canai", ["extra curry"])]),
+    (1043, 5, 2, [(1, "Laksa", []), (2, "Roti Canai Telur", ["extra curry"])]),
     (1044, 7, 4, [(3, "Satay", [])]),
 ]
 
@@ -220,7 +220,7 @@ async def test_tickets_from_the_till_become_orders_on_the_kitchen_tab(
         await expect(preview.get_by_role("listitem")).to_have_count(3)
         second, third = kept[1]["id"], kept[2]["id"]
         await expect(preview.locator(f'[data-ticket="{second}"]')).to_contain_text(
-            f"T5, ticket 1043: Laksa, Roti Canai {TIMES}2 (extra curry)"
+            f"T5, ticket 1043: Laksa, Roti Canai Telur {TIMES}2 (extra curry)"
         )
         await expect(preview.locator(f'[data-ticket="{third}"]')).to_contain_text(
             f"T7, ticket 1044: Satay {TIMES}3"
@@ -240,14 +240,25 @@ async def test_tickets_from_the_till_become_orders_on_the_kitchen_tab(
             ("T12", "Nasi lemak", 2, "no chilli"),
             ("T12", "Teh tarik", 1, ""),
             ("T5", "Laksa", 1, ""),
-            ("T5", "Roti canai", 2, "extra curry"),
+            ("T5", "Roti Canai Telur", 2, "extra curry"),  # not on the menu
             ("T7", "Satay", 3, ""),
         ]
         assert (await c.ok("till", action="state"))["till"]["pattern"] is not None
 
         # The till's menu, imported as CSV: a name the menu spells alike is matched, one like a
         # dish comes with it to choose, one like none is left to pick from the whole menu.
+        # A name the tickets printed that is not on the menu, with the dish it likely is.
         names = owner.get_by_role("group", name="The till's names for your dishes")
+        unmapped = names.get_by_role("list", name="Names on tickets that are not on your menu")
+        await expect(unmapped.get_by_role("listitem")).to_have_count(1)
+        await expect(unmapped.locator('[data-till-name="Roti Canai Telur"]')).to_contain_text(
+            "Which dish is it?"
+        )
+        await names.get_by_role("button", name="Match Roti Canai Telur to Roti canai").tap()
+        await expect(unmapped).to_have_text("Every name the tickets printed is on your menu.")
+        assert sent(screens, "till", action="map")[-1]["names"] == {
+            "Roti Canai Telur": "Roti canai"
+        }
         await names.get_by_label("The till's menu (CSV file)").set_input_files(
             files=[
                 {

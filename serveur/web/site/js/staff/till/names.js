@@ -59,7 +59,7 @@ export class MenuNames {
   async load() {
     try {
       const reply = await this.conn.request({ clientmsg: "till", action: "unmapped" }, { resend: true });
-      this.unmapped = reply.names || [];
+      this.unmapped = reply.unmapped || [];
       this._draw();
     } catch {
       // Not the owner (the tab is not shown then), or offline: the list stays as it was.

@@ -73,8 +73,12 @@ export class TillSection {
       this.dirty = true;
       this.port.setCustomValidity("");
     });
-    this.pattern = new PatternSetup(conn, live, (till) => this.got(till));
     this.names = new MenuNames(conn, live);
+    // A pattern saved read the waiting tickets: the names they printed are listed afresh.
+    this.pattern = new PatternSetup(conn, live, (till) => {
+      this.got(till);
+      this.names.load();
+    });
     this.section = el(
       "section",
       { class: "card rest-till", "aria-labelledby": "rest-till-title" },

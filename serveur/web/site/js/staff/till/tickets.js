@@ -82,10 +82,13 @@ export function readingProblem(reading) {
   return t("till.problem.other", { why: reading.problem });
 }
 
-/** Why a ticket was not understood, in words (its reading's problem, else the server's). */
+/** Why a ticket was not understood, in words: no pattern yet (it has no reading), what its
+ *  reading lacks, or the table it read is none of the map's. */
 export function ticketProblem(ticket) {
-  if (!ticket.reading) return ticket.problem ? t("till.problem.other", { why: ticket.problem }) : t("till.problem.noPattern");
-  return readingProblem(ticket.reading) ?? (ticket.problem ? t("till.problem.other", { why: ticket.problem }) : null);
+  if (!ticket.reading) return t("till.problem.noPattern");
+  const problem = readingProblem(ticket.reading);
+  if (problem || !ticket.problem) return problem;
+  return t("till.problem.notTable", { table: ticket.reading.table });
 }
 
 /** "Laksa ×2 (no chilli)": one dish as a ticket was read, written as any dish. */
