@@ -60,7 +60,9 @@ _QTY_LAST: Final = r"(?P<name>[^\W\d_].*?)\s*" + _TIMES + r"\s*(?P<qty>\d{1,2})"
 _SHAPES: Final = (_QTY_FIRST, _QTY_LAST)
 _MAX_LINES: Final = 400
 #: A note line, unless the owner marked one: led by a mark, or indented two spaces or more.
-DEFAULT_NOTE: Final = r"^(?:\s*[-+*>~•=(]+\s*|\s{2,})(?P<note>\S.*?)\s*$"
+#: A note holds a letter or a digit: a rule of dashes under the dishes is not a note.
+_NOTE_TEXT: Final = r"(?P<note>[^\s\w]*\w.*?)"
+DEFAULT_NOTE: Final = r"^(?:\s*[-+*>~•=(]+\s*|\s{2,})" + _NOTE_TEXT + r"\s*$"
 
 
 class PatternError(ValueError):
@@ -308,9 +310,9 @@ def _note_rule(line: str, dish_indent: int) -> str:
     indent = len(line) - len(stripped)
     if stripped and stripped[0] in _NOTE_MARKS:
         mark = re.escape(stripped[0])
-        return rf"^\s*{mark}+\s*(?P<note>\S.*?)\s*$"
+        return rf"^\s*{mark}+\s*{_NOTE_TEXT}\s*$"
     if indent > dish_indent:
-        return rf"^\s{{{indent}}}(?P<note>\S.*?)\s*$"
+        return rf"^\s{{{indent}}}{_NOTE_TEXT}\s*$"
     raise PatternError(
         f"the line {line.strip()!r} is not set apart from the dishes: a note is indented"
         " deeper or led by a mark (-, +, >)"
