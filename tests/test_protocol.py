@@ -492,6 +492,8 @@ def test_action_of_and_robot_of() -> None:
             if a not in ("edit_robot", "remove_robot")
         },
         **{f"stats {a}": (None, None) for a in P._SUBTAGS["stats"][1]},
+        # the till's tickets and set-up: about tickets and the printer, never a robot
+        **{f"till {a}": (None, None) for a in P._SUBTAGS["till"][1]},
     }
     seen = {}
     for ex in _client_examples():
@@ -1095,7 +1097,7 @@ def test_schema_covers_every_message() -> None:
         a.value for a in Action if a.value in P._SUBTAGS["control"][1]
     } | set(P._SUBTAGS["account"][1]) | set(P._SUBTAGS["site"][1]) | set(
         P._SUBTAGS["stats"][1]
-    ) | set(P._SUBTAGS["call"][1])
+    ) | set(P._SUBTAGS["call"][1]) | set(P._SUBTAGS["till"][1])
     assert _consts(s["server"], "servermsg") == {"ok", "error", "update"}
     for part in s.values():
         for ref in _refs(part):

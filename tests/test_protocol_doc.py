@@ -21,8 +21,9 @@ length, element by element; every value equal — except *volatile* values, whic
 run (ids the server assigns, times, ``seq``, the simulator's port and poses, a robot's
 odometer, tokens). A volatile value is matched by its JSON type (number, string, boolean,
 list, object), and ``null`` versus a value always matters. Volatile are the keys in
-``VOLATILE`` below, the integers in the id lists ``ORDER_ID_LISTS``, and the keys a block's
-hint adds with ``loose=``.
+``VOLATILE`` below, the integers under the keys of ``ID_KEYS`` (ids of orders and of the
+till's tickets and jobs, alone or in lists: a list's length is compared), and the keys a
+block's hint adds with ``loose=``.
 
 Hints: an HTML comment ``<!-- doctest: ... -->`` (invisible to a reader) before a block applies
 to that block. Its space-separated words:
@@ -47,7 +48,14 @@ to that block. Its space-separated words:
   ``image``),
   ``backup`` (the name of the backup the latest ``site`` ``backup_now`` made, into ``name``),
   ``day`` (the run's service day, at the request's ``utc_offset``: a ``stats`` ``forecast`` needs a
-  day with dishes), ``before`` (the day after it: ``stats`` ``last_service`` names the run's).
+  day with dishes), ``before`` (the day after it: ``stats`` ``last_service`` names the run's),
+  ``port`` (a free loopback port, into ``port``: ``till`` ``setup``), ``printer`` (a loopback
+  address where nothing listens, into ``printer``: a kitchen printer switched off),
+  ``ticket`` (the newest ticket from the till; ``ticket:S``: the newest in status ``S``).
+* ``print=a,b``: before the request (or the update), the till prints the named jobs of
+  ``PRINT_JOBS``, in order, to the server's printer port over TCP, as a point of sale does
+  (connect, send, close its side), each once the one before it is kept (a new ticket on
+  ``tickets``); the port must be open (``till`` ``setup`` with a ``port`` before).
 * ``token=ROLE:ROBOT``: replace the request's ``token`` by a fresh token of that role.
 * ``loose=a,b``: more volatile keys for this block. ``sample=k``: under key ``k`` the example
   lists some of the records (each must match one record the server sent; the real list may be
@@ -63,6 +71,11 @@ at the pass, Loading, until a ``go``.
 
 Error codes: ``test_every_error_code_is_produced`` lists, per code of the doc's error table,
 the test that makes the server send it.
+
+The order-intake API (HTTP, not websocket) has ```` ```http ```` blocks: each request block
+is sent to a server of its own (``--intake-port``), its ``Bearer`` token replaced by a fresh
+integration token, and the response block after it is compared as above (the status line,
+and the JSON body: ``test_the_order_intake_examples_are_what_the_server_answers``).
 """
 
 from __future__ import annotations
@@ -70,13 +83,19 @@ from __future__ import annotations
 import asyncio
 import json
 import re
+import shlex
+import socket
+import urllib.error
+import urllib.request
 from collections.abc import AsyncIterator
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 import pytest
+from escpos.printer import Dummy
 from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed
 
@@ -122,6 +141,8 @@ VOLATILE = frozenset(
         "escalated_at",
         "answered_at",
         "cancelled_at",
+        "received_at",
+        "read_at",
         "last_press",
         "retry_after",
         "x",
@@ -137,8 +158,10 @@ VOLATILE = frozenset(
         "ranges",
     }
 )
-#: Lists of order ids: their length is compared, each id by type.
-ORDER_ID_LISTS = frozenset({"orders", "orders_returned"})
+#: Keys whose integers are ids the run assigns (an order's, a ticket's from the till, its print
+#: job's), alone or in a list (its length is compared): each id by type. A string under them
+#: (a ticket's printed number, ``"1042"``) and ``null`` are compared as usual.
+ID_KEYS = frozenset({"orders", "orders_returned", "ticket", "of_ticket", "job", "read"})
 UPDATE_WAIT = 10.0
 REPLY_WAIT = 15.0
 ALL_TOPICS = [
@@ -155,12 +178,37 @@ ALL_TOPICS = [
     "calls",
     "zones",
     "leases",
+    "tickets",
+    "till",
     f"pose:{ROBOT}",
 ]
 #: The site of the doc's restaurant: as shipped (trips wait at the pass for Go).
 SITE = CoreConfig(heartbeat=2.0, ack_timeout=3.0, auto_depart=False)
 #: The table ``state=Error`` cannot reach.
 BLOCKED_TABLE = "T12"
+
+
+def kitchen_ticket(number: str, table: str, *lines: str) -> bytes:
+    """A kitchen ticket as a point of sale prints it (python-escpos: the layout
+    tests/test_till.py reads), cut at its end."""
+    p = Dummy()
+    p.set(align="center", bold=True, double_height=True)
+    p.text("KITCHEN\n")
+    p.set(align="left", bold=False, double_height=False, normal_textsize=True)
+    p.text(f"Order #{number}\nTable: {table}   Guests: 3\n" + "-" * 32 + "\n")
+    for line in lines:
+        p.text(line + "\n")
+    p.cut()
+    return bytes(p.output)
+
+
+#: The jobs the till prints for the ``print=`` hint.
+PRINT_JOBS = {
+    "t12": kitchen_ticket("1042", "12", "2 x Nasi Lemak", "   - no chilli", "1 x Teh Tarik"),
+    "t7": kitchen_ticket("1043", "7", "1 x Laksa", "2 x Roti Canai Telur"),
+    # Noise (a job to the wrong port, a damaged cable): one line of nonsense, no table.
+    "garbled": bytes((i * 37 + 11) % 256 for i in range(40)),
+}
 
 # --------------------------------------------------------------------------- the document
 
@@ -187,8 +235,11 @@ class Step:
         return first.line
 
 
-_FENCE = re.compile(r"^```json[ \t]+(client|server)[ \t]*$")
+#: A fenced block's first line, at the start of a line: its language and tag (``json client``).
+_FENCE = re.compile(r"^```(\w+)(?:[ \t]+(\S+))?[ \t]*$")
 _HINT = re.compile(r"^<!--\s*doctest:(.*?)-->\s*$")
+#: The blocks the replay reads (hints may precede only these).
+_REPLAYED = frozenset({("json", "client"), ("json", "server"), ("http", "")})
 
 
 def _hints(text: str) -> dict[str, str]:
@@ -199,9 +250,19 @@ def _hints(text: str) -> dict[str, str]:
     return out
 
 
-def read_blocks(text: str) -> list[Block]:
-    """The document's JSON blocks, in order, each with the hints written just before it."""
-    blocks: list[Block] = []
+@dataclass
+class Fenced:
+    line: int
+    lang: str
+    tag: str
+    body: str
+    hints: dict[str, str]
+
+
+def read_fenced(text: str) -> list[Fenced]:
+    """The document's JSON and HTTP blocks, in order, each with the hints written just before
+    it."""
+    blocks: list[Fenced] = []
     lines = text.splitlines()
     pending: dict[str, str] = {}
     i = 0
@@ -212,13 +273,26 @@ def read_blocks(text: str) -> list[Block]:
             pending.update(_hints(hint.group(1)))
         elif fence:
             end = lines.index("```", i + 1)
-            body = "\n".join(lines[i + 1 : end])
-            blocks.append(Block(i + 1, fence.group(1), json.loads(body), pending))
+            kind = (fence.group(1), fence.group(2) or "")
+            if kind in _REPLAYED:
+                body = "\n".join(lines[i + 1 : end])
+                blocks.append(Fenced(i + 1, *kind, body, pending))
+            else:
+                assert not pending, f"line {i + 1}: a doctest hint before a {kind} block"
             pending = {}
             i = end
         i += 1
     assert not pending, f"a doctest hint follows the last block: {pending}"
     return blocks
+
+
+def read_blocks(text: str) -> list[Block]:
+    """The document's JSON blocks (websocket messages), in order, with their hints."""
+    return [
+        Block(b.line, b.tag, json.loads(b.body), b.hints)
+        for b in read_fenced(text)
+        if b.lang == "json"
+    ]
 
 
 def read_steps(text: str) -> list[Step]:
@@ -236,6 +310,10 @@ def read_steps(text: str) -> list[Step]:
 
 
 # --------------------------------------------------------------------------- matching
+
+
+def _is_id(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
 
 
 def _kind(v: Any) -> str:
@@ -263,7 +341,7 @@ class Rules:
     sample: frozenset[str] = frozenset()
 
     @classmethod
-    def of(cls, block: Block) -> Rules:
+    def of(cls, block: Block | Fenced) -> Rules:
         def words(key: str) -> frozenset[str]:
             v = block.hints.get(key, "")
             return frozenset(w for w in v.split(",") if w)
@@ -276,7 +354,7 @@ def mismatches(doc: Any, got: Any, rules: Rules, path: str = "", key: str = "") 
     where = path or "(top)"
     if key in UNCHECKED:
         return []
-    if key in rules.volatile or (key in ORDER_ID_LISTS and isinstance(doc, int)):
+    if key in rules.volatile or (key in ID_KEYS and _is_id(doc)):
         if _kind(doc) != _kind(got):
             return [f"{where}: documented a {_kind(doc)} ({doc!r}), got {got!r}"]
         return []
@@ -319,6 +397,10 @@ def test_matching_rules() -> None:
     assert mismatches({"a": True}, {"a": 1}, r)  # true is not 1
     assert mismatches({"orders": [1, 2]}, {"orders": [7]}, r)
     assert mismatches({"orders": [1, 2]}, {"orders": [7, 8]}, r) == []
+    assert mismatches({"read": [1, 3]}, {"read": [4, 6]}, r) == []  # ticket ids
+    assert mismatches({"ticket": 1}, {"ticket": 9}, r) == []
+    assert mismatches({"ticket": 1}, {"ticket": None}, r)  # an order from the till, or not
+    assert mismatches({"ticket": "1042"}, {"ticket": "1043"}, r)  # the number it printed
     sample = Rules(sample=frozenset({"w"}))
     assert mismatches({"w": [{"n": "b"}]}, {"w": [{"n": "a"}, {"n": "b"}]}, sample) == []
     assert mismatches({"w": [{"n": "c"}]}, {"w": [{"n": "a"}, {"n": "b"}]}, sample)
@@ -550,6 +632,29 @@ async def _prepare(w: World, b: Block) -> None:
             w.codes.add("unauthorized")
     if "state" in h:
         await to_state(w, h["state"])
+    if "print" in h:
+        for name in h["print"].split(","):
+            await _print(w, name)
+
+
+async def _print(w: World, name: str) -> None:
+    """The till prints job ``name`` to the printer port; back once its ticket is kept."""
+    assert w.r.app.tap is not None and w.r.app.tap.bound_port, "print= with the port closed"
+    kept = w.helper.records.setdefault("tickets", {})
+    before = len(kept)
+    reader, writer = await asyncio.open_connection("127.0.0.1", w.r.app.tap.bound_port)
+    writer.write(PRINT_JOBS[name])
+    await writer.drain()
+    writer.write_eof()
+    await asyncio.wait_for(reader.read(), REPLY_WAIT)  # the port closes once it has the job
+    writer.close()
+    await w.helper.until(lambda: len(kept) > before, what=f"the ticket {name} kept")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
 
 
 async def _table_screen(w: World, table: str) -> Raw:
@@ -621,6 +726,19 @@ async def _fill(w: World, msg: dict[str, Any], fill: str, reply: Block | None) -
         elif name == "backup":
             assert w.backup is not None, "fill=backup before any site backup_now"
             msg["name"] = w.backup
+        elif name == "port":
+            msg["port"] = _free_port()
+        elif name == "printer":
+            msg["printer"] = f"127.0.0.1:{_free_port()}"  # nothing listens there
+        elif name == "ticket":
+
+            def newest_ticket(status: str = status) -> int | None:
+                kept = c.records.get("tickets", {}).values()
+                ids = [t["id"] for t in kept if not status or t["status"] == status]
+                return max(ids, default=None)
+
+            await c.until(lambda: newest_ticket() is not None, what=f"a ticket {status}")
+            msg["ticket"] = newest_ticket()
         elif name == "day":
             # The run's own service day (it starts at 04:00), at the request's utc_offset.
             tz = parse_offset(msg.get("utc_offset") or "+00:00")
@@ -743,6 +861,7 @@ def test_skips_are_rare_and_say_why() -> None:
         "loose",
         "sample",
         "snapshot",
+        "print",
     }
     for b in blocks:
         assert set(b.hints) - {"skip"} <= known, (b.line, b.hints)
@@ -761,6 +880,122 @@ def test_a_drifted_example_fails() -> None:
     assert mismatches(step.reply.msg, sent, Rules()) == []
     sent["details"]["status"] = "Offline"
     assert mismatches(step.reply.msg, sent, Rules())
+
+
+# --------------------------------------------------------------------------- order-intake API
+
+
+@dataclass
+class Exchange:
+    """A documented HTTP request to the order-intake API and the response after it."""
+
+    line: int
+    method: str
+    path: str
+    headers: dict[str, str]
+    body: str
+    status: int
+    response_headers: dict[str, str]
+    response: Any
+    rules: Rules
+
+
+def _http_message(text: str) -> tuple[str, dict[str, str], str]:
+    """(first line, headers, body) of an HTTP message as the document writes it."""
+    head, _, body = text.partition("\n\n")
+    first, *lines = head.splitlines()
+    headers = {k.strip(): v.strip() for k, _, v in (h.partition(":") for h in lines)}
+    return first, headers, body.strip()
+
+
+def read_exchanges(text: str) -> list[Exchange]:
+    blocks = [b for b in read_fenced(text) if b.lang == "http"]
+    assert len(blocks) % 2 == 0, "every HTTP request block is followed by its response"
+    out = []
+    for req, resp in zip(blocks[::2], blocks[1::2], strict=True):
+        first, headers, body = _http_message(req.body)
+        method, path, version = first.split()
+        status_line, response_headers, response = _http_message(resp.body)
+        assert version == "HTTP/1.1" and status_line.startswith("HTTP/1.1 "), (req.line, resp.line)
+        status = int(status_line.split()[1])
+        out.append(
+            Exchange(
+                req.line,
+                method,
+                path,
+                headers,
+                body,
+                status,
+                response_headers,
+                json.loads(response),
+                Rules.of(resp),
+            )
+        )
+    return out
+
+
+def _post(url: str, ex: Exchange, token: str) -> tuple[int, dict[str, str], Any]:
+    headers = {k: v for k, v in ex.headers.items() if k != "Host"}
+    if headers.get("Authorization", "").startswith("Bearer srv_"):
+        headers["Authorization"] = f"Bearer {token}"
+    req = urllib.request.Request(url, data=ex.body.encode(), headers=headers, method=ex.method)
+    try:
+        with urllib.request.urlopen(req, timeout=REPLY_WAIT) as resp:
+            return resp.status, dict(resp.headers), json.loads(resp.read())
+    except urllib.error.HTTPError as exc:
+        return exc.code, dict(exc.headers), json.loads(exc.read())
+
+
+async def test_the_order_intake_examples_are_what_the_server_answers(tmp_path: Path) -> None:
+    """The ``http`` examples of docs/protocol.md's "Order-intake API", sent in order to a
+    server with the API on (``--intake-port``), under a fresh integration token labelled as
+    the examples show, with the ``orders`` scope."""
+    from serveur.app import App
+    from serveur.clock import FakeClock
+    from serveur.maps.navigation import load_demo
+
+    exchanges = read_exchanges(DOC.read_text(encoding="utf-8"))
+    assert {ex.status for ex in exchanges} >= {201, 200, 409}
+    _, waypoints = load_demo()
+    app = App(tmp_path / "intake.db", port=0, clock=FakeClock(), waypoints=waypoints, intake_port=0)
+    await app.start()
+    try:
+        assert app.intake is not None
+        token = await app.issue_token("integration", label="pos bridge", scopes=["orders"])
+        for ex in exchanges:
+            url = f"http://127.0.0.1:{app.intake.port}{ex.path}"
+            status, headers, body = await asyncio.to_thread(_post, url, ex, token)
+            problems = mismatches(ex.response, body, ex.rules)
+            if status != ex.status:
+                problems.insert(0, f"status: documented {ex.status}, got {status}")
+            for name, value in ex.response_headers.items():
+                if headers.get(name) != value:
+                    problems.append(f"{name}: documented {value!r}, got {headers.get(name)!r}")
+            if problems:
+                pytest.fail(
+                    f"docs/protocol.md line {ex.line}: the answer to {ex.method} {ex.path}"
+                    " differs:\n  " + "\n  ".join(problems),
+                    pytrace=False,
+                )
+    finally:
+        await app.close()
+
+
+def test_the_curl_example_is_the_first_request() -> None:
+    """The curl command of the order-intake API sends the first documented request."""
+    text = DOC.read_text(encoding="utf-8")
+    (command,) = re.findall(r"^```sh\n(curl .*?)^```", text, re.M | re.S)
+    words = shlex.split(command.replace("\\\n", " "))
+    url = words[words.index("-X") + 2]
+    headers = dict(
+        (k.strip(), v.strip())
+        for k, _, v in (words[i + 1].partition(":") for i, w in enumerate(words) if w == "-H")
+    )
+    first = read_exchanges(text)[0]
+    assert (words[words.index("-X") + 1], urlsplit(url).path) == (first.method, first.path)
+    assert urlsplit(url).netloc == first.headers["Host"]
+    assert headers == {k: v for k, v in first.headers.items() if k != "Host"}
+    assert json.loads(words[words.index("-d") + 1]) == json.loads(first.body)
 
 
 # --------------------------------------------------------------------------- stats on a new site
@@ -843,7 +1078,9 @@ def _event_rows() -> dict[str, set[str]]:
 #: Event kinds the store can write that no request or robot report leads to (no verb deletes a
 #: waypoint): not in the doc's table.
 UNREACHED_KINDS = frozenset({"waypoint.deleted"})
-_KINDS = "robot|waypoint|order|task|stop|table|alert|menu|settings|zone|lease|call|button|cruise"
+_KINDS = (
+    "robot|waypoint|order|task|stop|table|alert|menu|settings|zone|lease|call|button|cruise|till"
+)
 _KIND = re.compile(rf'"((?:{_KINDS})\.[a-z_]+)"')
 
 
