@@ -15,7 +15,12 @@ mirrored by the manuals of compatible printers: HPRT, POSBANK, Citizen):
 * the character code table: ``ESC t n`` selects a single-byte page (``n`` as Epson numbers
   them, 0 = PC437, 2 = PC850, 16 = WPC1252...), ``FS &`` / ``FS .`` enter and leave the
   double-byte mode in which Chinese printers read GB18030, and ``FS ( C`` function 48 selects
-  UTF-8; before any of them the printer's own setting applies (the site says which);
+  UTF-8; before any of them the printer's own setting applies (the site says which). A
+  printer set to Chinese is in double-byte mode from power-on: ``ESC t`` changes only the
+  single-byte page it uses once ``FS .`` leaves that mode (PC437 until then). ``ESC @`` clears
+  the line not yet printed and goes back to the printer's own setting, as at power-on;
+* ``ESC d n`` prints the line and feeds ``n`` lines: the blank ones are lines of the ticket
+  (up to 8: a longer feed comes before a cut);
 * the cut (``GS V``, and the older ``ESC i`` / ``ESC m``) ends a ticket: a job may carry
   several tickets, and the text after the last cut is a ticket only if it holds any;
 * real-time status requests (``DLE EOT n``): a POS may ask whether the printer is online
@@ -23,12 +28,19 @@ mirrored by the manuals of compatible printers: HPRT, POSBANK, Citizen):
   the tap that stands in for a printer (mirror mode).
 
 An unknown command is skipped (its two bytes) and counted, never shown as text: a ticket full
-of them is reported as not understood by the pattern, not silently misread.
+of them is reported as not understood by the pattern, not silently misread. No control
+character reaches the text (a DEL, or a C1 control in UTF-8, prints nothing here).
+
+Not modelled: where ``ESC $`` / ``ESC \\`` (absolute and relative print positions) move the
+text along the line, and the international character sets of ``ESC R``. Points of sale pad
+their columns with spaces; one that positions them by command prints its columns run together
+here.
 """
 
 from __future__ import annotations
 
 import codecs
+import unicodedata
 from dataclasses import dataclass, field
 from typing import Final
 
@@ -84,25 +96,29 @@ ENCODINGS: Final = ("auto", "cp437", "cp850", "cp1252", "gb18030", "utf-8")
 
 # Commands of fixed length: the number of parameter bytes after ``ESC x`` / ``GS x`` / ``FS x``.
 _ESC_FIXED: Final[dict[int, int]] = {
-    **dict.fromkeys(b"@2<LSivm", 0),
-    **dict.fromkeys(b"!-EGMaRdJKe3{Vr %T=?Uun", 1),
+    **dict.fromkeys(b"2<LSivm", 0),
+    **dict.fromkeys(b"!-EGMaRKe3{Vr %T=?Uun", 1),
     **dict.fromkeys(b"$\\cB", 2),
     ord("p"): 3,
     ord("W"): 8,
 }
 _GS_FIXED: Final[dict[int, int]] = {
     **dict.fromkeys(b":", 0),
-    **dict.fromkeys(b"!BHhwfarIb/ETg", 1),
+    **dict.fromkeys(b"!BHhwfarIb/ET", 1),
     **dict.fromkeys(b"LW$\\PA", 2),
     ord("^"): 3,
+    ord("g"): 4,  # GS g 0 m nL nH, GS g 2 m nL nH: maintenance counters (Epson, "GS g 0")
 }
 _FS_FIXED: Final[dict[int, int]] = {
     **dict.fromkeys(b"&.", 0),
     **dict.fromkeys(b"!-CW", 1),
     **dict.fromkeys(b"Sp", 2),
 }
-_LINE_ENDS: Final = frozenset(b"dJ")  # ESC d n / ESC J n print the line and feed
 _CUTS_ESC: Final = frozenset(b"im")
+#: Blank lines ``ESC d n`` adds at most: a longer feed is paper before a cut, not a ticket's
+#: lines (and a job of ``ESC d 255`` would otherwise make 85 lines of each of its bytes).
+_MAX_FEED: Final = 8
+_UNPRINTED: Final = frozenset(("Cc", "Zl", "Zp"))
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,10 +135,15 @@ class PrintedTicket:
         return "\n".join(self.lines)
 
 
+#: The single-byte page of a printer whose own setting is double-byte or UTF-8 (Epson's
+#: factory setting, which Chinese printers keep for their single-byte table).
+_FACTORY_PAGE: Final = "cp437"
+
+
 @dataclass(slots=True)
 class _Reader:
-    fallback: str
-    page: str | None = None  # chosen by ESC t, else the fallback
+    fallback: str  # the printer's own setting (ENCODINGS)
+    page: str | None = None  # chosen by ESC t, else the setting's single-byte page
     double: bool = False  # FS &: GB18030
     utf8: bool = False  # FS ( C fn 48
     runs: list[tuple[bytes, str]] = field(default_factory=list)
@@ -132,12 +153,35 @@ class _Reader:
     tickets: list[PrintedTicket] = field(default_factory=list)
     unknown: int = 0
 
+    def __post_init__(self) -> None:
+        self.power_on()
+
+    def power_on(self) -> None:
+        """The modes the printer's own setting gives it, before any command (and after ESC @).
+
+        A printer set to Chinese "enters Chinese character mode automatically" at power-on
+        and reads every byte one at a time only after FS . (HCC POS80B and SurePrint SP91
+        manuals, FS & / FS .); ESC @ "resets the printer modes to those in effect when the
+        power was turned on" (Epson TM-T88III specification)."""
+        self.page = None
+        self.double = self.fallback == "gb18030"
+        self.utf8 = self.fallback == "utf-8"
+
     def encoding(self) -> str:
         if self.utf8:
             return "utf-8"
         if self.double:
             return "gb18030"
-        return self.page or self.fallback
+        if self.page is not None:
+            return self.page
+        if self.fallback in ("gb18030", "utf-8"):
+            return _FACTORY_PAGE
+        return self.fallback
+
+    def clear_line(self) -> None:
+        """ESC @ clears the print buffer: the line not yet printed is never printed."""
+        self.run = bytearray()
+        self.runs = []
 
     def text(self, byte: int) -> None:
         enc = self.encoding()
@@ -153,20 +197,27 @@ class _Reader:
 
     def end_line(self) -> None:
         self._close_run()
-        self.lines.append("".join(_decode(b, enc) for b, enc in self.runs).expandtabs(8).rstrip())
+        text = "".join(_decode(b, enc) for b, enc in self.runs).expandtabs(8)
+        self.lines.append(_printable(text).rstrip())
         self.runs = []
 
     def cut(self, *, by_cut: bool) -> None:
         if self.run or self.runs:
             self.end_line()
-        while self.lines and not self.lines[-1].strip():
-            self.lines.pop()
-        while self.lines and not self.lines[0].strip():
-            self.lines.pop(0)
-        if self.lines:
-            self.tickets.append(PrintedTicket(tuple(self.lines), by_cut, self.unknown))
+        printed = [k for k, line in enumerate(self.lines) if line.strip()]
+        if printed:  # blank lines before the first and after the last are paper, not lines
+            lines = tuple(self.lines[printed[0] : printed[-1] + 1])
+            self.tickets.append(PrintedTicket(lines, by_cut, self.unknown))
         self.lines = []
         self.unknown = 0
+
+
+def _printable(text: str) -> str:
+    """``text`` without control characters (a printer prints nothing for them) nor Unicode's
+    line and paragraph separators (a line stays one line wherever it is shown)."""
+    if text.isprintable():
+        return text
+    return "".join(c for c in text if unicodedata.category(c) not in _UNPRINTED)
 
 
 def _decode(data: bytes, enc: str) -> str:
@@ -196,6 +247,10 @@ def _counted(data: bytes, i: int, width: int = 2) -> int:
 def _esc(r: _Reader, data: bytes, i: int) -> int:
     """Carry out the ESC command at ``data[i]`` (the ESC byte); return the index after it."""
     op = _at(data, i + 1)
+    if op == ord("@"):  # ESC @: clears the print buffer, modes as at power-on
+        r.clear_line()
+        r.power_on()
+        return i + 2
     if op == ord("t"):
         page = _at(data, i + 2)
         r.page = CODE_PAGES.get(page)
@@ -205,7 +260,12 @@ def _esc(r: _Reader, data: bytes, i: int) -> int:
     if op in _CUTS_ESC:
         r.cut(by_cut=True)
         return i + 2
-    if op in _LINE_ENDS:
+    if op == ord("d"):  # ESC d n: print the line, feed n lines (n = 0: print, no feed)
+        r.end_line()
+        for _ in range(min(_at(data, i + 2), _MAX_FEED) - 1):
+            r.end_line()
+        return i + 3
+    if op == ord("J"):  # ESC J n: print the line, feed n dots
         r.end_line()
         return i + 3
     if op in _ESC_FIXED:
@@ -274,6 +334,15 @@ def _fs(r: _Reader, data: bytes, i: int) -> int:
         return end
     if op == ord("2"):  # a user-defined Kanji character: c1 c2 and 72 bytes
         return i + 4 + 72
+    if op == ord("q"):  # FS q n [xL xH yL yH d1...dk]1...n, k = x*y*8 (Epson TM spec, FS q)
+        j = i + 3
+        for _ in range(_at(data, i + 2)):
+            if j >= len(data):
+                break
+            x = int.from_bytes(data[j : j + 2], "little")
+            y = int.from_bytes(data[j + 2 : j + 4], "little")
+            j += 4 + x * y * 8
+        return j
     r.unknown += 1
     return i + 2
 
@@ -282,8 +351,10 @@ def _dle(r: _Reader, data: bytes, i: int) -> int:
     op = _at(data, i + 1)
     if op in (0x04, 0x05):  # DLE EOT n, DLE ENQ n: real-time requests, nothing printed
         return i + 3
-    if op == 0x14:  # DLE DC4 fn m t: pulse, power off, clear buffer...
-        return i + 5
+    # DLE DC4 fn m t: pulse, power off; fn = 8, clear buffers: fn d1...d7 (Epson's ESC/POS
+    # reference, "DLE DC4 (fn = 8)")
+    if op == 0x14:
+        return i + (10 if _at(data, i + 2) == 8 else 5)
     r.unknown += 1
     return i + 2
 
