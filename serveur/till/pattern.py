@@ -53,10 +53,10 @@ _NOTE_MARKS: Final = "-+*>~•=("
 _PRICE: Final = r"(?:\s+[^\s\d]{0,3}\s?\d+[.,]\d{2})?"
 #: "x", "X", U+00D7 (the multiplication sign tills print) or "*" between a quantity and a name.
 _TIMES: Final = "[xX\u00d7*]"
-_QTY_FIRST: Final = (
-    r"(?P<qty>\d{1,2})(?:\s*" + _TIMES + r")?\s+(?P<name>[^\W\d_].*?)" + _PRICE + r"\s*$"
-)
-_QTY_LAST: Final = r"(?P<name>[^\W\d_].*?)\s*" + _TIMES + r"\s*(?P<qty>\d{1,2})" + _PRICE + r"\s*$"
+#: A dish's name: it holds a letter somewhere ("100 Plus", a drink, starts with digits).
+_NAME: Final = r"(?P<name>(?=[^\n]*[^\W\d_])[^\W_][^\n]*?)"
+_QTY_FIRST: Final = r"(?P<qty>\d{1,2})(?:\s*" + _TIMES + r")?\s+" + _NAME + _PRICE + r"\s*$"
+_QTY_LAST: Final = _NAME + r"\s*" + _TIMES + r"\s*(?P<qty>\d{1,2})" + _PRICE + r"\s*$"
 _SHAPES: Final = (_QTY_FIRST, _QTY_LAST)
 _MAX_LINES: Final = 400
 #: A note line, unless the owner marked one: led by a mark, or indented two spaces or more.
