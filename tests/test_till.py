@@ -27,6 +27,8 @@ from serveur.app import App
 from serveur.core.runtime import CoreConfig
 from serveur.maps.navigation import load_demo
 from tests.conftest import WAIT, Client, budget, test_clock
+from tests.till.jobs import GARBLED as GARBLED_JOB
+from tests.till.jobs import LAYOUTS
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -413,3 +415,84 @@ async def marks_pattern_on(site: Site, dish_line: str) -> None:
     ]
     proposal = await site.owner.ok("till", action="propose", ticket=t["id"], marks=marks)
     await site.owner.ok("till", action="setup", pattern=proposal["pattern"])
+
+
+#: The printer's code page a site with each layout's till sets (the Chinese printer's own
+#: setting is GB18030: one of its jobs relies on it).
+LAYOUT_ENCODING = {"square": "auto", "tm_chinese": "gb18030", "lightspeed": "auto"}
+
+
+@pytest.mark.parametrize("name", sorted(LAYOUTS))
+async def test_every_job_of_a_layout_through_the_port_orders_exactly_once(
+    tmp_path: Path, name: str
+) -> None:
+    """tests/till/jobs.py's recorded-style jobs of one POS layout (code pages, notes, a void,
+    a reprint, a second round, two tickets in a job) and the garbled job, printed to the port
+    in forward mode: the kitchen printer gets every byte as sent, the owner marks the sample
+    ticket, and the orders are exactly the dishes printed, once, less those voided; the
+    garbled job is kept and shown unread."""
+    layout = LAYOUTS[name]
+    printer = await FakePrinter().start()
+    async with till_site(tmp_path) as site:
+        await site.owner.ok(
+            "till",
+            action="setup",
+            port=site.port,
+            printer=f"127.0.0.1:{printer.port}",
+            encoding=LAYOUT_ENCODING[name],
+        )
+        jobs = [*layout.jobs, GARBLED_JOB]
+        for job in jobs:
+            await print_job(site.port, job.data)
+        await printer.wait_jobs(len(jobs))
+        assert printer.jobs == [job.data for job in jobs]
+        printed = sum(len(job.tickets) for job in layout.jobs) + 1
+        await site.staff.until(lambda: len(site.tickets()) == printed, what="every ticket kept")
+        kept = [site.tickets()[i] for i in sorted(site.tickets())]
+        assert [t["lines"] for t in kept[:-1]] == [
+            list(t.lines) for job in layout.jobs for t in job.tickets
+        ]
+        [sample] = [t for t in kept if t["lines"] == list(layout.sample.ticket.lines)]
+        marks = [
+            {"line": m.line, "as": m.as_.value, **({"table": m.table} if m.table else {})}
+            for m in layout.marks
+        ]
+        proposal = await site.owner.ok("till", action="propose", ticket=sample["id"], marks=marks)
+        await site.owner.ok("till", action="setup", pattern=proposal["pattern"])
+
+        menu = {m.dish.casefold(): m.dish for m in await site.app.store.service.list_menu()}
+        want: dict[tuple[str, str], int] = {}
+        seen: set[tuple[Any, ...]] = set()
+        for t in layout.tickets:
+            same = (
+                t.number,
+                t.table,
+                t.void,
+                tuple((d.quantity, d.name, d.notes) for d in t.dishes),
+            )
+            if same in seen:
+                continue  # a reprint
+            seen.add(same)
+            for d in t.dishes:
+                assert t.table is not None
+                key = (t.table, menu.get(d.name.casefold(), d.name))
+                want[key] = want.get(key, 0) + (-d.quantity if t.void else d.quantity)
+        want = {k: q for k, q in want.items() if q}
+
+        def live() -> dict[tuple[str, str], int]:
+            got: dict[tuple[str, str], int] = {}
+            for o in site.staff.records.get("orders", {}).values():
+                if o["status"] != "voided":
+                    got[(o["table"], o["dish"])] = (
+                        got.get((o["table"], o["dish"]), 0) + o["quantity"]
+                    )
+            return got
+
+        await site.staff.until(lambda: live() == want, what=f"the orders {want}")
+        stored = await site.app.store.orders.list_orders()
+        assert sum(o.quantity for o in stored if o.status.value != "voided") == sum(want.values())
+        statuses = [site.tickets()[t["id"]]["status"] for t in kept]
+        assert statuses[-1] == "unread"  # the garbled job, kept and shown
+        assert (await site.app.store.tickets.job_bytes(kept[-1]["id"])) == GARBLED_JOB.data
+        assert statuses.count("reprint") == len(layout.tickets) - len(seen)
+    await printer.stop()
