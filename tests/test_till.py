@@ -26,6 +26,7 @@ from websockets.asyncio.client import connect
 from serveur.app import App
 from serveur.core.runtime import CoreConfig
 from serveur.maps.navigation import load_demo
+from serveur.till.tap import PrinterTap
 from tests.conftest import WAIT, Client, budget, test_clock
 from tests.till.jobs import GARBLED as GARBLED_JOB
 from tests.till.jobs import LAYOUTS
@@ -496,3 +497,41 @@ async def test_every_job_of_a_layout_through_the_port_orders_exactly_once(
         assert (await site.app.store.tickets.job_bytes(kept[-1]["id"])) == GARBLED_JOB.data
         assert statuses.count("reprint") == len(layout.tickets) - len(seen)
     await printer.stop()
+
+
+async def test_a_till_that_keeps_its_connection_open_and_one_that_goes_silent() -> None:
+    """Some tills keep one connection open and print ticket after ticket: a pause ends a job.
+    A till that goes off the Wi-Fi without closing is let go after a silence, so it holds no
+    connection slot for ever."""
+    got: list[bytes] = []
+    handed = asyncio.Event()
+
+    async def sink(source: str, data: bytes) -> None:
+        got.append(data)
+        handed.set()
+
+    tap = PrinterTap(sink, host="127.0.0.1", idle_end=0.2, idle_close=1.0)
+    port = free_port()
+    await tap.configure(port, "")
+    try:
+        assert tap.status().listening and tap.bound_port == port
+        reader, writer = await asyncio.open_connection("127.0.0.1", port)
+        for job in (FIRST, SECOND):
+            handed.clear()
+            writer.write(job)
+            await writer.drain()
+            await asyncio.wait_for(handed.wait(), budget(WAIT))
+        assert got == [FIRST, SECOND]
+        # Then silence: the port closes the connection (EOF here), nothing more handed.
+        assert await asyncio.wait_for(reader.read(), budget(WAIT)) == b""
+        assert got == [FIRST, SECOND]
+        writer.close()
+        # A port taken by something else: said in words, not raised.
+        with socket.socket() as taken:
+            taken.bind(("127.0.0.1", 0))
+            taken.listen()
+            await tap.configure(taken.getsockname()[1], "")
+            assert not tap.status().listening
+            assert "cannot be opened" in (tap.status().error or "")
+    finally:
+        await tap.close()

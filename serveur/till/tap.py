@@ -17,8 +17,9 @@ Two ways to stand in the till's path, the owner's choice:
   paper does, so a till that asks before it sends goes on.
 
 A job ends when the till closes its connection, or after :data:`IDLE_END` seconds without a
-byte (tills that keep the connection open between tickets). A job larger than
-:data:`MAX_JOB` is forwarded whole but not read (logged). Connections are bounded
+byte (tills that keep the connection open between tickets); a connection silent for
+:data:`IDLE_CLOSE` seconds is closed (a till gone from the Wi-Fi holds no slot for ever). A
+job larger than :data:`MAX_JOB` is forwarded whole but not read (logged). Connections are bounded
 (:data:`MAX_CONNECTIONS`); the listening port is re-opened when the owner changes it.
 """
 
@@ -41,6 +42,8 @@ log = logging.getLogger(__name__)
 
 CONNECT_TIMEOUT: Final = 3.0
 IDLE_END: Final = 2.0
+#: A connection that sends nothing for this long is closed (a till gone from the Wi-Fi).
+IDLE_CLOSE: Final = 60.0
 MAX_JOB: Final = 4 * 1024 * 1024
 MAX_CONNECTIONS: Final = 16
 #: How often a forwarding tap checks the kitchen printer when no job came (s).
@@ -76,6 +79,7 @@ class PrinterTap:
         on_change: Callable[[], None] = lambda: None,
         connect_timeout: float = CONNECT_TIMEOUT,
         idle_end: float = IDLE_END,
+        idle_close: float = IDLE_CLOSE,
         probe_every: float = PROBE_EVERY,
     ) -> None:
         self._sink = sink
@@ -83,6 +87,7 @@ class PrinterTap:
         self._on_change = on_change
         self._connect_timeout = connect_timeout
         self._idle_end = idle_end
+        self._idle_close = idle_close
         self._probe_every = probe_every
         self._state = TapStatus()
         self.port = 0
@@ -192,16 +197,7 @@ class PrinterTap:
         self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter, source: str
     ) -> None:
         job = bytearray()
-        while True:
-            try:
-                chunk = await asyncio.wait_for(reader.read(_CHUNK), self._idle_end)
-            except TimeoutError:
-                if job:  # a till that keeps its connection open: this job is over
-                    await self._hand(source, bytes(job))
-                    job.clear()
-                continue
-            if not chunk:
-                break
+        while chunk := await self._next(reader, job, source):
             replies = status_replies(bytes(job[-2:]) + chunk)
             if replies:
                 writer.write(replies)
@@ -228,16 +224,7 @@ class PrinterTap:
         back = asyncio.create_task(self._relay_back(from_printer, writer))
         ok = True
         try:
-            while True:
-                try:
-                    chunk = await asyncio.wait_for(reader.read(_CHUNK), self._idle_end)
-                except TimeoutError:
-                    if job:
-                        await self._hand(source, bytes(job))
-                        job.clear()
-                    continue
-                if not chunk:
-                    break
+            while chunk := await self._next(reader, job, source):
                 printer.write(chunk)
                 await printer.drain()
                 if len(job) <= MAX_JOB:  # beyond, forwarded but not kept (_hand says so)
@@ -257,6 +244,23 @@ class PrinterTap:
                 await printer.wait_closed()
         if ok and job:
             await self._hand(source, bytes(job))
+
+    async def _next(self, reader: asyncio.StreamReader, job: bytearray, source: str) -> bytes:
+        """The till's next bytes; b"" at its end, or once it sent nothing for
+        :data:`IDLE_CLOSE` seconds (a till that went away without closing). A pause of
+        ``idle_end`` ends the job so far (a till that keeps its connection open)."""
+        quiet = 0.0
+        while True:
+            try:
+                return await asyncio.wait_for(reader.read(_CHUNK), self._idle_end)
+            except TimeoutError:
+                if job:
+                    await self._hand(source, bytes(job))
+                    job.clear()
+                quiet += self._idle_end
+                if quiet >= self._idle_close:
+                    log.info("the printer port: %s sent nothing for %.0f s", source, quiet)
+                    return b""
 
     async def _relay_back(self, printer: asyncio.StreamReader, till: asyncio.StreamWriter) -> None:
         """The printer's answers (status bytes) back to the till."""
