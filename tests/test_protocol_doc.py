@@ -1,4 +1,4 @@
-"""docs/protocol.md, executed: every JSON example is replayed against a running server.
+"""docs/protocol.md, executed: every JSON and HTTP example is replayed against a running server.
 
 ``tests/test_protocol.py`` checks the examples statically (they parse, they validate); this
 test sends them. One restaurant (a real server on a SQLite file, one simulated robot ``r1``,
@@ -53,7 +53,8 @@ to that block. Its space-separated words:
   address where nothing listens, into ``printer``: a kitchen printer switched off),
   ``ticket`` (the newest ticket from the till; ``ticket:S``: the newest in status ``S``).
 * ``print=a,b``: before the request (or the update), the till prints the named jobs of
-  ``PRINT_JOBS``, in order, to the server's printer port over TCP, as a point of sale does
+  ``PRINT_JOBS`` (``t12``, ``t7``: kitchen tickets of the layout tests/test_till.py reads;
+  ``garbled``: noise), in order, to the server's printer port over TCP, as a point of sale does
   (connect, send, close its side), each once the one before it is kept (a new ticket on
   ``tickets``); the port must be open (``till`` ``setup`` with a ``port`` before).
 * ``token=ROLE:ROBOT``: replace the request's ``token`` by a fresh token of that role.
@@ -73,9 +74,11 @@ Error codes: ``test_every_error_code_is_produced`` lists, per code of the doc's 
 the test that makes the server send it.
 
 The order-intake API (HTTP, not websocket) has ```` ```http ```` blocks: each request block
-is sent to a server of its own (``--intake-port``), its ``Bearer`` token replaced by a fresh
-integration token, and the response block after it is compared as above (the status line,
-and the JSON body: ``test_the_order_intake_examples_are_what_the_server_answers``).
+is sent, in order, to a server of its own (``--intake-port``), its ``Bearer`` token replaced by
+a fresh integration token, and the response block after it is compared with the answer (the
+status, the headers it shows, and the JSON body as above, with its block's hints:
+``test_the_order_intake_examples_are_what_the_server_answers``); the section's curl command
+must send the first request (``test_the_curl_example_is_the_first_request``).
 """
 
 from __future__ import annotations
