@@ -586,6 +586,12 @@ SETTINGS = {"clientmsg": "site", "action": "set_settings"}
 AUDIT = {"clientmsg": "site", "action": "audit"}
 FIGURES = {"clientmsg": "stats", "action": "figures"}
 FORECAST = {"clientmsg": "stats", "action": "forecast", "day": "2026-11-20", "robots": [2]}
+PROPOSE = {
+    "clientmsg": "till",
+    "action": "propose",
+    "ticket": 3,
+    "marks": [{"line": 2, "as": "table", "table": "T12"}, {"line": 4, "as": "dish"}],
+}
 ZONE = {
     "clientmsg": "create",
     "type": "zone",
@@ -773,6 +779,25 @@ ZONE = {
         ({"clientmsg": "release", "zone": "aisle", "robot": ""}, ["robot"]),
         ({"clientmsg": "release", "zone": "aisle", "robot": None}, None),
         ({"clientmsg": "site", "action": "remove_zone"}, ["zone"]),
+        # the till: marks name a line and what it is (``as``), a port is 0-65535, a printer
+        # "host:port" or "" (mirror); a port from 1 to 1023 is the server's refusal
+        (PROPOSE, None),
+        (PROPOSE | {"marks": []}, ["marks"]),
+        (PROPOSE | {"marks": [{"line": 2, "table": "T12"}]}, ["marks", 0, "as"]),
+        (PROPOSE | {"marks": [{"line": 400, "as": "dish"}]}, ["marks", 0, "line"]),
+        (PROPOSE | {"marks": [{"line": 1, "as": "price"}]}, ["marks", 0, "as"]),
+        (PROPOSE | {"ticket": 0}, ["ticket"]),
+        ({"clientmsg": "till", "action": "setup", "port": 80}, None),
+        ({"clientmsg": "till", "action": "setup", "port": 70000}, ["port"]),
+        ({"clientmsg": "till", "action": "setup", "printer": ""}, None),
+        ({"clientmsg": "till", "action": "setup", "printer": "[fe80::1]:9100"}, None),
+        ({"clientmsg": "till", "action": "setup", "printer": "192.168.1.50"}, ["printer"]),
+        ({"clientmsg": "till", "action": "setup", "encoding": "latin-1"}, ["encoding"]),
+        ({"clientmsg": "till", "action": "setup", "pattern": {"table": "x"}}, ["pattern", "dish"]),
+        ({"clientmsg": "till", "action": "tickets", "limit": 0}, ["limit"]),
+        ({"clientmsg": "till", "action": "tickets", "status": ["lost"]}, ["status", 0]),
+        ({"clientmsg": "till", "action": "map", "names": {}}, ["names"]),
+        ({"clientmsg": "till", "action": "import_menu", "csv": ""}, ["csv"]),
     ],
 )
 def test_field_errors(msg: dict[str, Any], loc: list[Any] | None) -> None:
@@ -781,6 +806,18 @@ def test_field_errors(msg: dict[str, Any], loc: list[Any] | None) -> None:
         return
     locs, _ = _field_error(msg)
     assert loc in locs, locs
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="server bug: wire/till.py's Printer takes any 1-5 digits as the port; till/tap.py's"
+    " _reach then raises OverflowError (not OSError) at every job: the till's connection is"
+    " closed as if printed, the ticket neither printed nor kept, no printer_down",
+)
+def test_a_kitchen_printers_port_is_at_most_65535() -> None:
+    for printer in ("192.168.1.50:65536", "192.168.1.50:99999"):
+        locs, _ = _field_error({"clientmsg": "till", "action": "setup", "printer": printer})
+        assert ["printer"] in locs, printer
 
 
 def test_field_error_types_are_reported() -> None:

@@ -984,6 +984,39 @@ async def test_the_order_intake_examples_are_what_the_server_answers(tmp_path: P
         await app.close()
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="server bug: server.py's _INTAKE_STATUS names codes 'internal' and 'unavailable'"
+    " (none exists) and not 'store_error' nor 'internal_error', so both are answered 400, which"
+    " tells an integration its request is wrong when it should send it again",
+)
+async def test_the_order_intake_api_answers_a_database_failure_as_the_servers(
+    tmp_path: Path,
+) -> None:
+    """A database that refuses every write (a full disk): the request is not the client's
+    fault, and ``store_error`` says "resend it", so the status is a server's (5xx)."""
+    from serveur.app import App
+    from serveur.clock import FakeClock
+    from serveur.maps.navigation import load_demo
+
+    first = read_exchanges(DOC.read_text(encoding="utf-8"))[0]
+    _, waypoints = load_demo()
+    app = App(tmp_path / "intake.db", port=0, clock=FakeClock(), waypoints=waypoints, intake_port=0)
+    await app.start()
+    try:
+        assert app.intake is not None
+        token = await app.issue_token("integration", label="pos bridge", scopes=["orders"])
+        db = app.store._db  # type: ignore[attr-defined]
+        await db.execute("PRAGMA query_only = 1")
+        url = f"http://127.0.0.1:{app.intake.port}{first.path}"
+        status, _, body = await asyncio.to_thread(_post, url, first, token)
+        await db.execute("PRAGMA query_only = 0")
+        assert body["code"] == "store_error", body
+        assert status >= 500, (status, body)
+    finally:
+        await app.close()
+
+
 def test_the_curl_example_is_the_first_request() -> None:
     """The curl command of the order-intake API sends the first documented request."""
     text = DOC.read_text(encoding="utf-8")
