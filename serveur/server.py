@@ -72,8 +72,8 @@ _INTAKE_STATUS = {
     "not_found": 404,
     "conflict": 409,
     "rate_limited": 429,
-    "unavailable": 503,
-    "internal": 500,
+    "store_error": 503,  # the database refused or is away: send it again
+    "internal_error": 500,
 }
 #: Close code for a connection idle past ``SecurityConfig.idle_timeout``.
 CLOSE_IDLE = 4003

@@ -808,12 +808,6 @@ def test_field_errors(msg: dict[str, Any], loc: list[Any] | None) -> None:
     assert loc in locs, locs
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="server bug: wire/till.py's Printer takes any 1-5 digits as the port; till/tap.py's"
-    " _reach then raises OverflowError (not OSError) at every job: the till's connection is"
-    " closed as if printed, the ticket neither printed nor kept, no printer_down",
-)
 def test_a_kitchen_printers_port_is_at_most_65535() -> None:
     for printer in ("192.168.1.50:65536", "192.168.1.50:99999"):
         locs, _ = _field_error({"clientmsg": "till", "action": "setup", "printer": printer})

@@ -984,12 +984,6 @@ async def test_the_order_intake_examples_are_what_the_server_answers(tmp_path: P
         await app.close()
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="server bug: server.py's _INTAKE_STATUS names codes 'internal' and 'unavailable'"
-    " (none exists) and not 'store_error' nor 'internal_error', so both are answered 400, which"
-    " tells an integration its request is wrong when it should send it again",
-)
 async def test_the_order_intake_api_answers_a_database_failure_as_the_servers(
     tmp_path: Path,
 ) -> None:

@@ -27,7 +27,7 @@ from serveur.app import App
 from serveur.core.runtime import CoreConfig
 from serveur.maps.navigation import load_demo
 from serveur.till.tap import PrinterTap
-from tests.conftest import WAIT, Client, budget, test_clock
+from tests.conftest import WAIT, Client, budget, poll_until, test_clock
 from tests.till.jobs import GARBLED as GARBLED_JOB
 from tests.till.jobs import LAYOUTS
 
@@ -534,4 +534,31 @@ async def test_a_till_that_keeps_its_connection_open_and_one_that_goes_silent() 
             assert not tap.status().listening
             assert "cannot be opened" in (tap.status().error or "")
     finally:
+        await tap.close()
+
+
+async def test_a_full_printer_port_resets_the_till_rather_than_pretend_it_printed() -> None:
+    """At most MAX_CONNECTIONS tills at once; one more is reset unread (an orderly close would
+    tell its till the ticket printed, and the till would not print it again)."""
+    from serveur.till.tap import MAX_CONNECTIONS
+
+    async def sink(source: str, data: bytes) -> None:
+        pass
+
+    tap = PrinterTap(sink, host="127.0.0.1", idle_end=30.0, idle_close=60.0)
+    port = free_port()
+    await tap.configure(port, "")
+    held = []
+    try:
+        for _ in range(MAX_CONNECTIONS):
+            held.append(await asyncio.open_connection("127.0.0.1", port))
+        await poll_until(lambda: tap._slots.locked(), WAIT, "every slot taken")  # noqa: SLF001
+        reader, writer = await asyncio.open_connection("127.0.0.1", port)
+        writer.write(FIRST)
+        with pytest.raises(ConnectionResetError):
+            await asyncio.wait_for(reader.read(), budget(WAIT))
+            await writer.drain()
+    finally:
+        for _, w in held:
+            w.close()
         await tap.close()

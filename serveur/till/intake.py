@@ -31,6 +31,10 @@ log = logging.getLogger(__name__)
 MAX_BODY: Final = 64 * 1024
 TIMEOUT: Final = 10.0
 MAX_CONNECTIONS: Final = 32
+_INTERNAL: Final = {
+    "code": "internal_error",
+    "message": "the server failed on this request; it was not taken: send it again later",
+}
 _TOO_LARGE: Final = {
     "code": "invalid_field",
     "message": f"a request is at most {MAX_BODY} bytes",
@@ -127,14 +131,18 @@ class IntakeServer:
                     await self._send(writer, conn, 413, _TOO_LARGE, close=True)
                     return
             elif isinstance(event, h11.EndOfMessage) and request is not None:
-                status, reply, extra = await self._handle(
-                    request.method.decode("ascii", "replace"),
-                    request.target.decode("ascii", "replace"),
-                    _header(request, b"authorization"),
-                    _header(request, b"content-type"),
-                    bytes(body),
-                    where,
-                )
+                try:
+                    status, reply, extra = await self._handle(
+                        request.method.decode("ascii", "replace"),
+                        request.target.decode("ascii", "replace"),
+                        _header(request, b"authorization"),
+                        _header(request, b"content-type"),
+                        bytes(body),
+                        where,
+                    )
+                except Exception:  # a bug: answered, logged, the listener goes on
+                    log.exception("order-intake API: a request from %s failed", where)
+                    status, reply, extra = 500, _INTERNAL, []
                 await self._send(writer, conn, status, reply, extra=extra)
                 if conn.our_state is h11.MUST_CLOSE or conn.their_state is h11.MUST_CLOSE:
                     return

@@ -63,6 +63,15 @@ class TapStatus:
     error: str | None = None
 
 
+def _reset(writer: asyncio.StreamWriter) -> None:
+    """Close with a reset, unread: the till's send fails, as a printer that is not there."""
+    sock = writer.get_extra_info("socket")
+    if sock is not None:
+        with contextlib.suppress(OSError):
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+    writer.transport.abort()
+
+
 def _split(printer: str) -> tuple[str, int]:
     host, _, port = printer.rpartition(":")
     return host.strip("[]"), int(port)
@@ -159,12 +168,12 @@ class PrinterTap:
 
     async def _reach(self) -> tuple[asyncio.StreamReader, asyncio.StreamWriter] | None:
         """A connection to the kitchen printer, or None (and the printer marked down)."""
-        host, port = _split(self.printer)
         try:
+            host, port = _split(self.printer)
             reached = await asyncio.wait_for(
                 asyncio.open_connection(host, port, limit=_CHUNK), self._connect_timeout
             )
-        except (OSError, TimeoutError):
+        except (OSError, TimeoutError, ValueError, OverflowError):  # an address set wrong too
             self._printer_is(False)
             return None
         self._printer_is(True)
@@ -179,6 +188,7 @@ class PrinterTap:
         try:
             if self._slots.locked():
                 log.warning("the printer port is full: %s refused", source)
+                _reset(writer)  # a close would tell the till its ticket printed
                 return
             async with self._slots:
                 if self.printer:
@@ -212,12 +222,7 @@ class PrinterTap:
     ) -> None:
         reached = await self._reach()
         if reached is None:
-            # Reset unread: the till sees its print fail, as with the printer alone.
-            sock = writer.get_extra_info("socket")
-            if sock is not None:
-                with contextlib.suppress(OSError):
-                    sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
-            writer.transport.abort()
+            _reset(writer)  # the till sees its print fail, as with the printer alone
             return
         from_printer, printer = reached
         job = bytearray()

@@ -38,8 +38,14 @@ TicketId = Annotated[int, Field(ge=1, le=2**53)]
 #: A pattern's rule: a regular expression (checked when the pattern is built).
 _Rule = Annotated[str, Field(max_length=500)]
 #: ``host:port`` of the kitchen printer (an IPv4 address or a name; IPv6 in brackets).
+#: The port is 1-65535: one digit to four, or five up to 65535.
+_PORT = r"(?:[1-9]\d{0,3}|[1-5]\d{4}|6[0-4]\d{3}|65[0-4]\d{2}|655[0-2]\d|6553[0-5])"
 Printer = Annotated[
-    str, Field(max_length=255, pattern=r"^(?:$|(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):\d{1,5})$")
+    str,
+    Field(
+        max_length=255,
+        pattern=r"^(?:$|(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):" + _PORT + r")$",
+    ),
 ]
 
 
