@@ -552,7 +552,7 @@ async def test_a_full_printer_port_resets_the_till_rather_than_pretend_it_printe
     try:
         for _ in range(MAX_CONNECTIONS):
             held.append(await asyncio.open_connection("127.0.0.1", port))
-        await poll_until(lambda: tap._slots.locked(), WAIT, "every slot taken")  # noqa: SLF001
+        await poll_until(lambda: tap._slots.locked(), WAIT, "every slot taken")
         reader, writer = await asyncio.open_connection("127.0.0.1", port)
         writer.write(FIRST)
         with pytest.raises(ConnectionResetError):
