@@ -98,6 +98,15 @@ PAYLOAD = {
     "site add_button": "token",
     "site buttons": "buttons",
     "site revoke_button": "button",
+    "till state": "till",
+    "till tickets": "tickets",
+    "till by_hand": "ticket",
+    "till propose": "pattern",
+    "till preview": "preview",
+    "till setup": "till",
+    "till import_menu": "rows",
+    "till map": "names",
+    "till unmapped": "unmapped",
 }
 #: The owner's verbs: a fuzz connection (staff) sending one well formed is always refused
 #: ``forbidden`` (or ``rate_limited``), so no robot or table is ever edited or removed, and no

@@ -104,8 +104,11 @@ class Tasks:
                 raise Conflict(f"order(s) {taken} are not pending", orders=taken)
             task_ids = [await self._queue_trip(tx, trip, now) for trip in plan]
             if trays:
-                if not set(trays) <= set(wanted):
-                    raise InvalidField("a tray is chosen for a dish not on the trip", field="trays")
+                # The request's trays name only its own dishes (checked with the message): one
+                # not planned was left out as no longer pending (a cart resent under a new key).
+                gone = sorted(set(trays) - set(wanted))
+                if gone:
+                    raise Conflict(f"order(s) {gone} are not pending", orders=gone)
                 await tx.many(
                     "UPDATE orders SET tray = ? WHERE id = ?",
                     [(tray, oid) for oid, tray in sorted(trays.items())],
