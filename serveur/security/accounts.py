@@ -105,8 +105,10 @@ async def handle_account(
         return {"user": _user(found[0])}
     if isinstance(msg, P.AccountCreateToken):
         token, rec = await sessions.create_token(
-            msg.role, robot=msg.robot, table=msg.table, label=msg.label
+            msg.role, robot=msg.robot, table=msg.table, label=msg.label, scopes=msg.scopes or ()
         )
+        if msg.role == "integration":  # a program is given its token, not a page to open
+            return {"device": _token(rec), "token": token}
         link = setup_link(rec, token)
         qr = await asyncio.to_thread(qr_svg, (public_url or msg.base or "") + link)
         return {"device": _token(rec), "token": token, "link": link, "qr": qr}

@@ -29,8 +29,13 @@ __all__ = [
 
 #: The roles a person's account may have.
 UserRole: TypeAlias = Literal["owner", "staff"]
-#: The screens the console makes tokens for (scripts' tokens stay on the command line).
-ScreenRole: TypeAlias = Literal["robot-screen", "table-screen"]
+#: The screens the console makes tokens for, and programs (a till's bridge: ``integration``,
+#: with the scopes it needs); staff devices' tokens stay on the command line.
+ScreenRole: TypeAlias = Literal["robot-screen", "table-screen", "integration"]
+#: What an integration token may be given (never ``accounts``: security.auth.Scope).
+IntegrationScope: TypeAlias = Literal[
+    "read", "orders", "tasks", "control", "waypoints", "robots", "audit", "menu", "site", "stats"
+]
 Label = Annotated[str, Field(max_length=64)]
 
 
@@ -75,13 +80,17 @@ class AccountRemoveUser(_AccountMsg):
 
 
 class AccountCreateToken(_AccountMsg):
-    """A token for a robot's or a table's screen: returned once, with its setup link."""
+    """A token for a robot's or a table's screen (returned once, with its setup link), or for
+    a program (``integration``, with ``scopes``: a till's bridge posting orders)."""
 
     action: Literal["create_token"]
     role: ScreenRole
     robot: Name | None = None
     table: Name | None = None
     label: Label = ""
+    scopes: Annotated[list[IntegrationScope], Field(min_length=1, max_length=10)] | None = Field(
+        default=None, description="integration only: what the program may do"
+    )
     base: Annotated[str, Field(max_length=200, pattern=r"^https?://[^\s/#?]+$")] | None = Field(
         default=None,
         description="The server's address as the screen will type it (http://host:port):"
@@ -95,6 +104,10 @@ class AccountCreateToken(_AccountMsg):
         ) != (self.table is not None):
             raise PydanticCustomError(
                 "screen_target", "a robot-screen token needs robot, a table-screen token table"
+            )
+        if (self.role == "integration") != (self.scopes is not None):
+            raise PydanticCustomError(
+                "token_scopes", "an integration token needs scopes, and only it takes them"
             )
         return self
 
