@@ -1,11 +1,13 @@
-// Accounts (the owner's): people who log in and the tokens of the robots' and tables' screens,
-// all through the protocol's `account` verb (the server refuses anyone but an owner).
+// Accounts (the owner's): people who log in, the tokens of the robots' and tables' screens and
+// those of programs (programs.js), all through the protocol's `account` verb (the server refuses
+// anyone but an owner).
 // A password or a token is shown once, as the server returns it: it is never asked for again.
 // Each screen's token comes with its setup link and a QR code (SVG from the server, shown as an
 // image); the codes made since the tab was opened gather on a sheet the Print button prints.
 
 import { act, byName, confirmDialog, el, formatTime, KeyedList, toast } from "../ui.js";
 import { onLangChange, roleName, t } from "../i18n.js";
+import { ProgramsSection } from "./programs.js";
 
 const USER_ROLES = ["staff", "owner"];
 
@@ -75,6 +77,8 @@ export class AccountsPanel {
     this.made = el("div", { class: "acc-made", role: "status" });
     this.sheetList = el("ul", { class: "print-sheet", "data-i18n-aria-label": "accounts.sheet" });
     this.tokenList = el("ul", { class: "acc-list", "data-i18n-aria-label": "accounts.screens" });
+    // -- programs (a till's bridge): their own card, fed from the same list of tokens
+    this.programs = new ProgramsSection(conn, () => this.refresh());
 
     root.append(
       el(
@@ -100,6 +104,7 @@ export class AccountsPanel {
           el("div", { class: "form-buttons" }, this.printBtn),
           this.tokenList,
         ),
+        this.programs.section,
       ),
       this.sheetList,
     );
@@ -120,6 +125,7 @@ export class AccountsPanel {
     this.sheetRows = new KeyedList(this.sheetList, { key: (e) => e.url, build: (e) => this._sheetRow(e) });
     onLangChange(() => {
       for (const rows of [this.userRows, this.tokenRows, this.sheetRows]) rows.invalidate();
+      this.programs.invalidate();
       this._render();
     });
     this._render();
@@ -134,6 +140,7 @@ export class AccountsPanel {
       ]);
       this.users = users.users;
       this.tokens = tokens.tokens.filter((tok) => tok.role === "robot-screen" || tok.role === "table-screen");
+      this.programs.update(tokens.tokens.filter((tok) => tok.role === "integration"));
     } catch {
       return; // not an owner, or offline: the lists stay as they were
     }
