@@ -81,6 +81,7 @@ class ServeurProcess:
         try:
             await asyncio.wait_for(asyncio.shield(listening), STARTUP)
         except TimeoutError:
+            await self.kill()  # not left running, orphaned, when the test fails here
             raise AssertionError("server did not start:\n" + "\n".join(self.output)) from None
 
     async def _read(
