@@ -171,6 +171,7 @@ REPLACED = {
     # bar (signed in or not), drawn on signing in and out
     "setup.js": 1,  # the default language's options (the languages ticked), not live data
     "staff/accounts.js": 5,  # the role and kind options; a password or the codes just made
+    "staff/programs.js": 2,  # a program's token, shown once when it is made, and cleared
     "staff/cartrays.js": 2,  # the tray numbers for the one dish tapped (or none), not a list
     "staff/restaurant/buttons.js": 4,  # the kind and table options; a button's address, shown
     # once when it is made, and cleared
