@@ -498,6 +498,30 @@ async def restaurant(
 
 
 @contextlib.asynccontextmanager
+async def intake_app(tmp_path: Path, clock: Clock | None = None) -> AsyncIterator[App]:
+    """A server of the demo room without robots, its order-intake API listening on a port the
+    system chooses (``app.intake.port``): the till's tests and the integration token's."""
+    from serveur.maps.navigation import load_demo
+
+    nav_map, waypoints = load_demo()
+    app = App(
+        tmp_path / "serveur.db",
+        port=0,
+        clock=clock or test_clock(),
+        nav_map=nav_map,
+        waypoints=waypoints,
+        config=CoreConfig(heartbeat=10.0, ack_timeout=5.0),
+        plan_in_child=False,
+        intake_port=0,
+    )
+    await app.start()
+    try:
+        yield app
+    finally:
+        await app.close()
+
+
+@contextlib.asynccontextmanager
 async def served_by(
     tmp_path: Path, make: Callable[[Path | str, Clock, list[RobotSpec], int], App], label: str
 ) -> AsyncIterator[Restaurant]:

@@ -105,7 +105,7 @@ from websockets.exceptions import ConnectionClosed
 from serveur.core.runtime import CoreConfig
 from serveur.security import auth
 from serveur.stats.periods import parse_offset
-from tests.conftest import Client, Restaurant, restaurant
+from tests.conftest import Client, Restaurant, intake_app, restaurant
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "protocol.md"
 ROBOT = "r1"
@@ -953,16 +953,11 @@ async def test_the_order_intake_examples_are_what_the_server_answers(tmp_path: P
     """The ``http`` examples of docs/protocol.md's "Order-intake API", sent in order to a
     server with the API on (``--intake-port``), under a fresh integration token labelled as
     the examples show, with the ``orders`` scope."""
-    from serveur.app import App
     from serveur.clock import FakeClock
-    from serveur.maps.navigation import load_demo
 
     exchanges = read_exchanges(DOC.read_text(encoding="utf-8"))
     assert {ex.status for ex in exchanges} >= {201, 200, 409}
-    _, waypoints = load_demo()
-    app = App(tmp_path / "intake.db", port=0, clock=FakeClock(), waypoints=waypoints, intake_port=0)
-    await app.start()
-    try:
+    async with intake_app(tmp_path, FakeClock()) as app:
         assert app.intake is not None
         token = await app.issue_token("integration", label="pos bridge", scopes=["orders"])
         for ex in exchanges:
@@ -980,8 +975,6 @@ async def test_the_order_intake_examples_are_what_the_server_answers(tmp_path: P
                     " differs:\n  " + "\n  ".join(problems),
                     pytrace=False,
                 )
-    finally:
-        await app.close()
 
 
 async def test_the_order_intake_api_answers_a_database_failure_as_the_servers(
@@ -989,15 +982,10 @@ async def test_the_order_intake_api_answers_a_database_failure_as_the_servers(
 ) -> None:
     """A database that refuses every write (a full disk): the request is not the client's
     fault, and ``store_error`` says "resend it", so the status is a server's (5xx)."""
-    from serveur.app import App
     from serveur.clock import FakeClock
-    from serveur.maps.navigation import load_demo
 
     first = read_exchanges(DOC.read_text(encoding="utf-8"))[0]
-    _, waypoints = load_demo()
-    app = App(tmp_path / "intake.db", port=0, clock=FakeClock(), waypoints=waypoints, intake_port=0)
-    await app.start()
-    try:
+    async with intake_app(tmp_path, FakeClock()) as app:
         assert app.intake is not None
         token = await app.issue_token("integration", label="pos bridge", scopes=["orders"])
         db = app.store._db  # type: ignore[attr-defined]
@@ -1007,8 +995,6 @@ async def test_the_order_intake_api_answers_a_database_failure_as_the_servers(
         await db.execute("PRAGMA query_only = 0")
         assert body["code"] == "store_error", body
         assert status >= 500, (status, body)
-    finally:
-        await app.close()
 
 
 def test_the_curl_example_is_the_first_request() -> None:

@@ -24,10 +24,8 @@ from escpos.printer import Dummy
 from websockets.asyncio.client import connect
 
 from serveur.app import App
-from serveur.core.runtime import CoreConfig
-from serveur.maps.navigation import load_demo
 from serveur.till.tap import PrinterTap
-from tests.conftest import WAIT, Client, budget, poll_until, test_clock
+from tests.conftest import WAIT, Client, budget, intake_app, poll_until
 from tests.till.jobs import GARBLED as GARBLED_JOB
 from tests.till.jobs import LAYOUTS
 
@@ -134,30 +132,19 @@ class Site:
 
 @contextlib.asynccontextmanager
 async def till_site(tmp_path: Path) -> AsyncIterator[Site]:
-    nav_map, waypoints = load_demo()
-    app = App(
-        tmp_path / "serveur.db",
-        port=0,
-        clock=test_clock(),
-        nav_map=nav_map,
-        waypoints=waypoints,
-        config=CoreConfig(heartbeat=2.0, ack_timeout=3.0),
-        plan_in_child=False,
-        intake_port=0,
-    )
-    await app.start()
-    owner = Client(await connect(app.url, max_size=2**24))
-    await owner.ok("login", username="owner", password=app.first_owner_password)
-    token = await app.issue_token("staff", label="kitchen")
-    staff = Client(await connect(app.url, additional_headers={"Authorization": f"Bearer {token}"}))
-    await staff.subscribe("tickets", "orders", "alerts", "till")
-    site = Site(app, owner, staff, free_port(), [owner, staff])
-    try:
-        yield site
-    finally:
-        for c in site.clients:
-            await c.close()
-        await app.close()
+    async with intake_app(tmp_path) as app:
+        owner = Client(await connect(app.url, max_size=2**24))
+        await owner.ok("login", username="owner", password=app.first_owner_password)
+        token = await app.issue_token("staff", label="kitchen")
+        headers = {"Authorization": f"Bearer {token}"}
+        staff = Client(await connect(app.url, additional_headers=headers))
+        await staff.subscribe("tickets", "orders", "alerts", "till")
+        site = Site(app, owner, staff, free_port(), [owner, staff])
+        try:
+            yield site
+        finally:
+            for c in site.clients:
+                await c.close()
 
 
 async def marks_pattern(site: Site, ticket_id: int) -> dict[str, Any]:

@@ -15,16 +15,11 @@ critical violation with the token shown.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import re
-from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
-from serveur.app import App
-from serveur.core.engine import CoreConfig
-from serveur.maps.navigation import load_demo
-from tests.conftest import test_clock
+from tests.conftest import intake_app
 from tests.test_till import post
 from tests.web.conftest import sideways, too_small
 from tests.web.test_a11y import need_axe, violations
@@ -41,27 +36,6 @@ PHONE = {"width": 390, "height": 844}
 ORDER = {"key": "pos-7-1", "table": "T12", "ticket": "7", "dishes": [{"dish": "Laksa"}]}
 SHOWN = """(token) => document.body.innerText.includes(token)
   || [...document.querySelectorAll("input")].some((i) => i.value === token)"""
-
-
-@contextlib.asynccontextmanager
-async def intake_app(tmp_path: Path) -> AsyncIterator[App]:
-    """A server with its order-intake API listening (no robots: none is needed here)."""
-    nav_map, waypoints = load_demo()
-    app = App(
-        tmp_path / "serveur.db",
-        port=0,
-        clock=test_clock(),
-        nav_map=nav_map,
-        waypoints=waypoints,
-        config=CoreConfig(heartbeat=10.0, ack_timeout=5.0),
-        plan_in_child=False,
-        intake_port=0,
-    )
-    await app.start()
-    try:
-        yield app
-    finally:
-        await app.close()
 
 
 async def test_the_owner_connects_a_program_and_revokes_it(tmp_path: Path, browser: Any) -> None:
