@@ -52,6 +52,7 @@ from serveur.stats.periods import parse_offset, parse_when
 from tests.security.test_security import bare_server
 from tests.web.conftest import sideways, too_small
 from tests.web.test_a11y import AXE, violations
+from tests.web.test_stats_ui import FIGURES_MS
 from tests.web.test_ui import (
     SHOTS,
     dismiss_toasts,
@@ -346,7 +347,7 @@ async def test_the_forecast_recommends_a_fleet_and_says_why_the_record_differs(
         w = Words(page)
         await page.get_by_role("tab", name="Statistics").click()
         panel = page.locator("#panel-stats")
-        await expect(panel).not_to_have_attribute("aria-busy", "true")
+        await expect(panel).not_to_have_attribute("aria-busy", "true", timeout=FIGURES_MS)
         section = panel.get_by_role("region", name="How many robots do I need?")
 
         # The day offered: the last one with a service, not yesterday.

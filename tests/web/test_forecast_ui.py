@@ -35,6 +35,7 @@ from tests.replay.test_forecast import record_day
 from tests.security.test_security import bare_server, login
 from tests.web.conftest import sideways, too_small
 from tests.web.test_a11y import AXE, violations
+from tests.web.test_stats_ui import FIGURES_MS
 from tests.web.test_ui import (
     SHOTS,
     TABLET,
@@ -82,7 +83,7 @@ async def test_the_owner_asks_how_many_robots_a_recorded_day_needed(
         await expect(page.locator("body")).to_have_attribute("data-connection", "online")
         await page.get_by_role("tab", name="Statistics").click()
         panel = page.locator("#panel-stats")
-        await expect(panel).not_to_have_attribute("aria-busy", "true")
+        await expect(panel).not_to_have_attribute("aria-busy", "true", timeout=FIGURES_MS)
 
         section = panel.get_by_role("region", name="How many robots do I need?")
         await expect(section).to_be_visible()

@@ -42,6 +42,11 @@ from tests.web.test_ui import (
     pytestmark,  # noqa: F401
 )
 
+#: How long the Statistics tab may say "Adding up the figures…": the server computes them in
+#: two `serveur stats` children (figures, trips) and gives them up to 120 s; here ~3 s alone, but
+#: over 20 s on CI's two cores beside two other workers and Chromium (three runs, 2026-11-29).
+FIGURES_MS = 90_000
+
 ZONE = "Asia/Kuala_Lumpur"  # +08:00, no daylight saving
 OFFSET = "+08:00"
 DAY = "2026-01-01"
@@ -138,7 +143,7 @@ async def show_the_day(page: Any, app: App) -> Any:
     await page.get_by_role("tab", name="Statistics").click()
     panel = page.locator("#panel-stats")
     await expect(page.get_by_role("tabpanel", name="Statistics")).to_be_visible()
-    await expect(panel).not_to_have_attribute("aria-busy", "true")
+    await expect(panel).not_to_have_attribute("aria-busy", "true", timeout=FIGURES_MS)
     await panel.get_by_label("Dates", exact=True).select_option(label="Choose dates…")
     await panel.get_by_label("From", exact=True).fill(DAY)
     await panel.get_by_label("To", exact=True).fill(DAY)
