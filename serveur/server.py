@@ -330,8 +330,8 @@ class Server:
         await self.sessions.audit(
             who, peer, "intake", "ok", data={"ticket": ticket.id, "created": created}
         )
-        reply = {"ticket": ticket, "orders": orders}
-        return (201 if created else 200), json.loads(P.dump(reply)), []
+        # Serialised once, as a websocket reply is: the listener sends the text as it is.
+        return (201 if created else 200), P.dump({"ticket": ticket, "orders": orders}), []
 
     async def _ws_handshake(self, ws: ServerConnection, request: Request) -> Response | None:
         origin = request.headers.get("Origin")

@@ -99,6 +99,11 @@ class Places:
             raise NotFound(f"no waypoint named {name!r}", waypoint=name)
         return wp
 
+    def is_table(self, name: str) -> bool:
+        """Is ``name`` a place of kind table?"""
+        wp = self.waypoints.get(name)
+        return wp is not None and wp.kind is WaypointKind.TABLE
+
     def check_spot(self, x: float, y: float, what: str = "a place cannot be there:") -> None:
         """(x, y) must be on free floor of the map (when there is one): a manual goal, or a
         place put by hand (a table at (9999, -50) was stored, dishes were taken for it and a

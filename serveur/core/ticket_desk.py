@@ -26,7 +26,7 @@ from serveur.clock import Clock
 from serveur.core.alerts import TillFacts
 from serveur.core.places import Places
 from serveur.core.publisher import Publisher
-from serveur.domain import Order, TicketStatus, TillTicket, WaypointKind
+from serveur.domain import Order, TicketStatus, TillTicket
 from serveur.errors import Conflict, InvalidField, NotFound
 from serveur.store.base import NewDish, Store
 from serveur.till.escpos import ENCODINGS, decode_job
@@ -160,8 +160,7 @@ class TicketDesk:
         if reading.problem is not None:
             return await self._unreadable(ticket, reading, reading.problem)
         table = reading.table or ""
-        wp = self._places.waypoints.get(table)
-        if wp is None or wp.kind is not WaypointKind.TABLE:
+        if not self._places.is_table(table):
             return await self._unreadable(ticket, reading, f"{table} is not a table of the map")
         menu = [m.dish for m in await self._store.service.list_menu()]
         dishes = [
@@ -208,8 +207,7 @@ class TicketDesk:
             if first.reading != reading.as_dict():
                 raise Conflict(f"key {req.key!r} was already used for another request", key=req.key)
             return False, first, await self._store.tickets.orders_of(first.id)
-        wp = self._places.waypoints.get(req.table)
-        if wp is None or wp.kind is not WaypointKind.TABLE:
+        if not self._places.is_table(req.table):
             raise NotFound(f"no table {req.table}", table=req.table)
         lines = _lines_of(reading)
         (ticket,) = await self._store.tickets.add_job(
@@ -247,10 +245,8 @@ class TicketDesk:
         ticket = await self._store.tickets.get(msg.ticket)
         marks = [Mark(m.line, MarkAs(m.as_), m.table) for m in msg.marks]
         for m in marks:
-            if m.as_ is MarkAs.TABLE and m.table is not None:
-                wp = self._places.waypoints.get(m.table)
-                if wp is None or wp.kind is not WaypointKind.TABLE:
-                    raise NotFound(f"no table {m.table}", table=m.table)
+            if m.as_ is MarkAs.TABLE and m.table is not None and not self._places.is_table(m.table):
+                raise NotFound(f"no table {m.table}", table=m.table)
         try:
             pattern = propose(ticket.lines, marks)
         except PatternError as exc:

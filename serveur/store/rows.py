@@ -30,6 +30,7 @@ __all__ = [
     "free_robot",
     "get_order",
     "get_robot",
+    "get_settings",
     "get_task",
     "get_tasks",
     "get_waypoint",
@@ -157,6 +158,12 @@ async def remember(
         " VALUES (?, ?, ?, ?, ?)",
         (key, kind, fingerprint, to_json(dict(result)), now),
     )
+
+
+async def get_settings(tx: Tx, table: str) -> dict[str, Any]:
+    """Every named setting of ``table`` (``settings``, ``till_setting``): name -> value."""
+    saved = await tx.all(f"SELECT name, value FROM {table} ORDER BY name")
+    return {str(r["name"]): json.loads(r["value"]) for r in saved}
 
 
 async def put_setting(

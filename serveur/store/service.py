@@ -5,7 +5,6 @@ change is one unit of work that appends its ``events`` row, with who asked (``by
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from typing import Any
 
@@ -122,11 +121,7 @@ class Service:
     async def get_settings(self) -> dict[str, Any]:
         """The settings the owner saved (name -> value); absent ones keep the server's."""
 
-        async def work(tx: Tx) -> dict[str, Any]:
-            saved = await tx.all("SELECT name, value FROM settings ORDER BY name")
-            return {str(r["name"]): json.loads(r["value"]) for r in saved}
-
-        return await self._db.transact(work, "read")
+        return await self._db.transact(lambda tx: rows.get_settings(tx, "settings"), "read")
 
     async def put_settings(
         self, values: Mapping[str, Any], *, now: float, by: str | None = None
@@ -137,7 +132,6 @@ class Service:
             for name, value in values.items():
                 await rows.put_setting(tx, "settings", name, value, now, by)
             await rows.add_event(tx, "settings.changed", now, data={**values, "by": by})
-            saved = await tx.all("SELECT name, value FROM settings ORDER BY name")
-            return {str(r["name"]): json.loads(r["value"]) for r in saved}
+            return await rows.get_settings(tx, "settings")
 
         return await self._db.transact(work, "write")

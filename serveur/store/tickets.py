@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
-from serveur.domain import Order, OrderStatus, TillTicket
+from serveur.domain import ORDER_STEPS, DishAction, Order, OrderStatus, TillTicket
 from serveur.errors import Conflict, NotFound
 from serveur.store import rows
 from serveur.store.checks import check_new_order, to_json
@@ -30,13 +30,8 @@ _TICKET: Final = (
     " t.table_name AS `table`, t.reading, t.problem, t.of_ticket, t.read_at, t.handled_by,"
     " j.source FROM till_ticket AS t JOIN till_job AS j ON j.id = t.job_id"
 )
-#: A dish a void may still withdraw: not yet on a robot.
-_VOIDABLE: Final = (
-    OrderStatus.ORDERED.value,
-    OrderStatus.COOKING.value,
-    OrderStatus.PENDING.value,
-    OrderStatus.RETURNED.value,
-)
+#: A dish a void may still withdraw: the statuses the kitchen's own ``void`` starts from.
+_VOIDABLE: Final = tuple(sorted(s.value for s in ORDER_STEPS[DishAction.VOID][0]))
 
 
 @dataclass(frozen=True, slots=True)
@@ -380,9 +375,7 @@ class Tickets:
     # -- settings ---------------------------------------------------------------------------
 
     async def settings(self) -> dict[str, Any]:
-        sql = "SELECT name, value FROM till_setting ORDER BY name"
-        found = await self._db.transact(lambda tx: tx.all(sql), "auto")
-        return {str(r["name"]): json.loads(r["value"]) for r in found}
+        return await self._db.transact(lambda tx: rows.get_settings(tx, "till_setting"), "auto")
 
     async def put_settings(self, values: dict[str, Any], *, now: float, by: str) -> dict[str, Any]:
         async def work(tx: Tx) -> None:

@@ -42,7 +42,7 @@ _TOO_LARGE: Final = {
 }
 
 #: (method, path, Authorization header or None, Content-Type or None, body, peer) ->
-#: (status, JSON-able reply, extra headers).
+#: (status, reply, extra headers); the reply is JSON text already, or a JSON-able value.
 Handle = Callable[
     [str, str, str | None, str | None, bytes, str],
     Awaitable[tuple[int, Any, list[tuple[str, str]]]],
@@ -161,7 +161,12 @@ class IntakeServer:
         extra: list[tuple[str, str]] | None = None,
         close: bool = False,
     ) -> None:
-        body = json.dumps(reply, ensure_ascii=False, separators=(",", ":")).encode() + b"\n"
+        text = (
+            reply
+            if isinstance(reply, str)
+            else json.dumps(reply, ensure_ascii=False, separators=(",", ":"))
+        )
+        body = text.encode() + b"\n"
         headers = [
             ("Content-Type", "application/json; charset=utf-8"),
             ("Content-Length", str(len(body))),
