@@ -427,3 +427,14 @@ def test_plain_text_prints_as_itself(lines: list[str]) -> None:
         kept.pop(0)
     data = "\n".join(lines).encode("ascii") + b"\n\x1dV\x00"
     assert printed(decode_job(data)) == ([tuple(kept)] if kept else [])
+
+
+def test_the_code_pages_a_client_may_name_are_the_decoders() -> None:
+    """serveur/wire/till.py cannot import the decoder (the wire imports only the domain), so
+    it names the printer's code pages itself: the two lists must stay one."""
+    from typing import get_args
+
+    from serveur.till.escpos import ENCODINGS
+    from serveur.wire.till import ENCODING_NAMES
+
+    assert get_args(ENCODING_NAMES) == ENCODINGS
