@@ -1,0 +1,1 @@
+"""The chain's MQTT broker (issue 34): restaurants ship their events to hq over Mosquitto."""
