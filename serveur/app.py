@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from serveur.chain.address import ChainAddress
+from serveur.chain.shipper import Shipper
 from serveur.clock import Clock, ScaledClock
 from serveur.core.backup_desk import BackupDesk
 from serveur.core.backups import BackupKind
@@ -112,6 +114,8 @@ class App:
         backups: str | Path | None = None,
         mqtt: str | None = None,
         intake_port: int | None = None,
+        chain: ChainAddress | None = None,
+        chain_heartbeat: float = 30.0,
     ) -> None:
         self.clock = clock or ScaledClock(1.0)
         self.store: Store = open_store(str(db))
@@ -138,6 +142,10 @@ class App:
         #: The order-intake API's port (None: no API; 0: any free port, for tests).
         self._intake_port = intake_port
         self.intake: IntakeServer | None = None
+        #: The chain's broker (None: this site is in no chain) and the outbox's shipper.
+        self._chain = chain
+        self._chain_heartbeat = chain_heartbeat
+        self.shipper: Shipper | None = None
         self.tap: PrinterTap | None = None
         #: Set when a restore left no server running (see :meth:`restart_on`).
         self.broken = asyncio.Event()
@@ -224,6 +232,11 @@ class App:
             )
             await self.intake.start()
             self._intake_port = self.intake.port  # a restart listens where integrations knew it
+        if self._chain is not None:
+            self.shipper = Shipper(
+                self.store, self._chain, self.clock, heartbeat=self._chain_heartbeat
+            )
+            self.shipper.start()
         return self
 
     def _staging(self) -> Path:
@@ -339,6 +352,9 @@ class App:
         if self.mqtt_calls is not None:
             await self.mqtt_calls.close()
             self.mqtt_calls = None
+        if self.shipper is not None:
+            await self.shipper.close()
+            self.shipper = None
         if self.tap is not None:
             await self.tap.close()
             self.tap = None

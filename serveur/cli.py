@@ -181,6 +181,17 @@ async def _run(ns: argparse.Namespace) -> int:
         except ValueError as exc:
             print(f"serveur run: cannot start: --mqtt: {exc}", file=sys.stderr)
             return 2
+    chain = None
+    if ns.chain:
+        from serveur.chain.address import ChainAddress
+        from serveur.chain.wire import check_site
+
+        try:
+            chain = ChainAddress.parse(ns.chain, ca=ns.chain_ca)
+            check_site(chain.user)
+        except (ValueError, ServeurError) as exc:
+            print(f"serveur run: cannot start: --chain: {exc}", file=sys.stderr)
+            return 2
     app = App(
         ns.db,
         host=ns.host,
@@ -198,6 +209,8 @@ async def _run(ns: argparse.Namespace) -> int:
         backups=_backups_folder(ns.backups, ns.db),
         mqtt=ns.mqtt,
         intake_port=ns.intake_port,
+        chain=chain,
+        chain_heartbeat=ns.chain_heartbeat,
     )
     try:
         await app.start()
@@ -465,6 +478,22 @@ def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
         " (default: $SERVEUR_MQTT; none)",
     )
     run.add_argument(
+        "--chain",
+        default=os.environ.get("SERVEUR_CHAIN"),
+        metavar="mqtts://SITE[:PASSWORD]@HOST[:PORT]",
+        help="the chain's broker: every event also goes, numbered, to the chain's centre"
+        " (serveur hq; docs/chain.md). SITE is this restaurant's name there; no password:"
+        " $SERVEUR_CHAIN_PASSWORD (default: $SERVEUR_CHAIN; none)",
+    )
+    run.add_argument(
+        "--chain-ca",
+        default=os.environ.get("SERVEUR_CHAIN_CA"),
+        metavar="FILE",
+        help="the chain's CA certificate (PEM) for the broker's TLS (default: the system's)",
+    )
+    # Seconds between the site's heartbeats to the centre (tests shorten it).
+    run.add_argument("--chain-heartbeat", type=float, default=30.0, help=argparse.SUPPRESS)
+    run.add_argument(
         "--intake-port",
         type=int,
         default=int(os.environ["SERVEUR_INTAKE_PORT"])
@@ -543,6 +572,9 @@ def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     from serveur.stats.cli import add_stats_parser
 
     add_stats_parser(sub)
+    from serveur.hq.cli import add_hq_parser
+
+    add_hq_parser(sub)
 
     schema = sub.add_parser("schema", help="print the JSON Schema of every message")
     schema.set_defaults(func=_schema, is_async=False)

@@ -38,6 +38,7 @@ from serveur.store.accounts import Accounts, Audit, TokenRecord, UserRecord
 from serveur.store.calls import Calls
 from serveur.store.events import Events
 from serveur.store.orders import Orders
+from serveur.store.outbox import Outbox
 from serveur.store.robots import Robots
 from serveur.store.rounds import Rounds
 from serveur.store.service import Service
@@ -75,6 +76,7 @@ class Store:
         self.calls = Calls(db)
         self.tickets = Tickets(db)
         self.events = Events(db)
+        self.outbox = Outbox(db)
         self.accounts = Accounts(db)
         self.audit = Audit(db)
         self.service = Service(db)

@@ -14,7 +14,7 @@ from importlib import resources
 
 from serveur.errors import StoreError
 
-__all__ = ["DIALECTS", "Migration", "load_migrations"]
+__all__ = ["DIALECTS", "SITE_HISTORY", "Migration", "load_migrations"]
 
 #: The SQL dialects a migration file may be written for.
 DIALECTS = ("sqlite", "mariadb")
@@ -31,8 +31,13 @@ class Migration:
     sql: str
 
 
-def load_migrations(dialect: str) -> list[Migration]:
-    """The migration history for ``dialect``, oldest first, read from the package data.
+#: The site's history; the chain's centre has its own (``serveur.migrations.hq``).
+SITE_HISTORY = "serveur.migrations"
+
+
+def load_migrations(dialect: str, package: str = SITE_HISTORY) -> list[Migration]:
+    """The migration history for ``dialect``, oldest first, read from the package data
+    ``package`` (the site's, or the centre's: same rules, another schema).
 
     Read with :mod:`importlib.resources` so that it works from a wheel as well as from the
     source tree. A version that exists for some dialect but has neither a file for
@@ -41,7 +46,7 @@ def load_migrations(dialect: str) -> list[Migration]:
     """
     if dialect not in DIALECTS:
         raise StoreError(f"unknown SQL dialect {dialect!r}", dialect=dialect)
-    folder = resources.files("serveur.migrations")
+    folder = resources.files(package)
     found: dict[int, dict[str | None, tuple[str, str]]] = {}
     names: dict[int, str] = {}
     for entry in folder.iterdir():

@@ -79,11 +79,24 @@ async def add_event(
     order_id: int | None = None,
     data: Mapping[str, Any] | None = None,
 ) -> int:
-    """Append the ``events`` row of a change, in the change's own transaction; its id."""
-    return await tx.insert(
+    """Append the ``events`` row of a change, in the change's own transaction; its id.
+
+    The event also takes the site's next outbox number here (migration 013), in the same
+    transaction: committed together or not at all, so the chain's centre receives every
+    event and can tell a missing one by the gap. Bumping ``outbox_state.head`` first locks
+    its row (MariaDB) or holds the write lock (SQLite): numbers follow commit order.
+    """
+    event_id = await tx.insert(
         "INSERT INTO events (ts, kind, robot, task_id, order_id, data) VALUES (?, ?, ?, ?, ?, ?)",
         (now, kind, robot, task_id, order_id, to_json(dict(data or {}))),
     )
+    await tx.run("UPDATE outbox_state SET head = head + 1 WHERE id = 1")
+    head = await one(tx, "SELECT head FROM outbox_state WHERE id = 1")
+    assert head is not None, "migration 013 writes outbox_state's row"
+    await tx.run(
+        "INSERT INTO outbox (seq, event_id, at) VALUES (?, ?, ?)", (head["head"], event_id, now)
+    )
+    return event_id
 
 
 async def get_robot(tx: Tx, name: str, *, lock: bool = False) -> Robot:

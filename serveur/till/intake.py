@@ -42,7 +42,9 @@ _TOO_LARGE: Final = {
 }
 
 #: (method, path, Authorization header or None, Content-Type or None, body, peer) ->
-#: (status, reply, extra headers); the reply is JSON text already, or a JSON-able value.
+#: (status, reply, extra headers); the reply is JSON text already, a JSON-able value, or
+#: bytes sent as they are (a page or a script of the chain's dashboard, its Content-Type
+#: among the extra headers).
 Handle = Callable[
     [str, str, str | None, str | None, bytes, str],
     Awaitable[tuple[int, Any, list[tuple[str, str]]]],
@@ -161,17 +163,28 @@ class IntakeServer:
         extra: list[tuple[str, str]] | None = None,
         close: bool = False,
     ) -> None:
-        text = (
-            reply
-            if isinstance(reply, str)
-            else json.dumps(reply, ensure_ascii=False, separators=(",", ":"))
-        )
-        body = text.encode() + b"\n"
+        extra = list(extra or [])
+        if isinstance(reply, bytes):  # a file, its Content-Type among ``extra``
+            body, kind = reply, []
+        else:
+            text = (
+                reply
+                if isinstance(reply, str)
+                else json.dumps(reply, ensure_ascii=False, separators=(",", ":"))
+            )
+            body, kind = (
+                text.encode() + b"\n",
+                [("Content-Type", "application/json; charset=utf-8")],
+            )
         headers = [
-            ("Content-Type", "application/json; charset=utf-8"),
+            *kind,
             ("Content-Length", str(len(body))),
-            ("Cache-Control", "no-store"),
-            *(extra or []),
+            *(
+                []
+                if any(k == "Cache-Control" for k, _ in extra)
+                else [("Cache-Control", "no-store")]
+            ),
+            *extra,
         ]
         if close:
             headers.append(("Connection", "close"))

@@ -41,6 +41,8 @@ TABLES = (
     "call_button",
     "till_name",
     "till_setting",
+    "outbox",
+    "outbox_state",
 )
 # Every foreign key, as (table, its key, column, parent table, parent key), for the check.
 FOREIGN_KEYS = (

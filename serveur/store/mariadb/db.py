@@ -56,7 +56,7 @@ from asyncmy.cursors import DictCursor
 
 from serveur.errors import Conflict, ServeurError, StoreError
 from serveur.store.mariadb import backup as maintenance
-from serveur.store.migrations import Migration, load_migrations
+from serveur.store.migrations import SITE_HISTORY, Migration, load_migrations
 from serveur.store.sql import MARIADB, Dialect, Mode, Tx
 
 __all__ = [
@@ -275,8 +275,10 @@ def _lost(exc: BaseException) -> bool:
 class Database:
     """A pool of sessions to one MariaDB database, and transactions on it."""
 
-    def __init__(self, config: MariaDBConfig) -> None:
+    def __init__(self, config: MariaDBConfig, history: str = SITE_HISTORY) -> None:
+        """``history``: the migrations package applied at open (the site's by default)."""
         self.config = config
+        self.history = history
         self._pool: asyncmy.Pool | None = None
         self._opening = asyncio.Lock()
         #: Attempts re-run after a surely-uncommitted failure (tests and logs read it).
@@ -493,7 +495,7 @@ class Database:
         The lock is per connection and per database name, and MariaDB frees it by itself if
         the connection dies, so a crashed server cannot leave the next start waiting.
         """
-        history = load_migrations("mariadb")
+        history = load_migrations("mariadb", self.history)
         pool = self._pool
         assert pool is not None
         lock = f"serveur.migrate.{self.config.database}"

@@ -30,7 +30,7 @@ from typing import Any, TypeVar
 import aiosqlite
 
 from serveur.errors import Conflict, InvalidField, ServeurError, StoreError
-from serveur.store.migrations import load_migrations
+from serveur.store.migrations import SITE_HISTORY, load_migrations
 from serveur.store.sql import SQLITE, Dialect, Mode, Tx
 
 __all__ = ["BUSY_TIMEOUT_MS", "SQLiteDb", "split_sql"]
@@ -163,8 +163,10 @@ def _executemany(raw: sqlite3.Connection, sql: str, rows: Sequence[Sequence[Any]
 class SQLiteDb:
     """One SQLite file (``":memory:"`` works for throw-away uses) and its one connection."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, history: str = SITE_HISTORY) -> None:
+        """``history``: the migrations package applied at open (the site's by default)."""
         self.path = path
+        self.history = history
         self.connection: aiosqlite.Connection | None = None
         self._lock = asyncio.Lock()
 
@@ -237,7 +239,7 @@ class SQLiteDb:
             "CREATE TABLE IF NOT EXISTS schema_migrations ("
             " version INTEGER PRIMARY KEY, name TEXT NOT NULL, applied_at REAL NOT NULL) STRICT"
         )
-        history = load_migrations("sqlite")
+        history = load_migrations("sqlite", self.history)
         applied = {r[0] for r in await db.execute_fetchall("SELECT version FROM schema_migrations")}
         unknown = applied - {m.version for m in history}
         if unknown:
