@@ -20,7 +20,9 @@ past ``stored`` while nothing comes asks the same way (the lost batch was the la
 
 **Liveness**, as Home Assistant reports a device's availability: a site is ``up`` when heard
 (any message), ``down`` after :attr:`SiteLedger.down_after` seconds of silence; each change
-is reported once (:meth:`heard` and :meth:`check` return it), not at every tick.
+is reported once (:meth:`heard` and :meth:`check` return it), not at every tick. A centre
+cut off from the broker hears nobody: it judges nobody then, and counts silence from when
+it is back (every site down after a broker restart would be the centre's fault, not theirs).
 """
 
 from __future__ import annotations
@@ -122,12 +124,17 @@ class SiteLedger:
             return Liveness.UP
         return None
 
-    def check(self, now: float) -> Liveness | None:
-        """DOWN if the site has been silent past ``down_after`` and was up (once)."""
+    def check(self, now: float, listening_since: float | None = None) -> Liveness | None:
+        """DOWN if the site has been silent past ``down_after`` and was up (once).
+
+        ``listening_since``: when the centre's own link to the broker last came up. Silence
+        while the centre itself was cut off says nothing of the site, so it counts from
+        then; None: the centre is cut off now, and nobody is judged."""
         if (
             self.state is Liveness.UP
             and self.heard_at is not None
-            and now - self.heard_at >= self.down_after
+            and listening_since is not None
+            and now - max(self.heard_at, listening_since) >= self.down_after
         ):
             self.state = Liveness.DOWN
             return Liveness.DOWN

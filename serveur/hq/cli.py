@@ -53,7 +53,7 @@ async def _run(ns: argparse.Namespace) -> int:
         return 1
     await consumer.start()
     print(
-        f"serveur hq: dashboard on http://{ns.host}:{web.port}/ (broker {address.describe()})",
+        f"serveur hq listening on http://{ns.host}:{web.port}/ (broker {address.describe()})",
         flush=True,
     )
     stop = asyncio.Event()

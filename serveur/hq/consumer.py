@@ -57,6 +57,7 @@ class Consumer:
         self.changed = asyncio.Event()  # set at every stored batch or liveness change
         self._tasks: list[asyncio.Task[None]] = []
         self._down_logged = False
+        self._listening_since: float | None = None  # when the broker link last came up
         self.refused = 0  # payloads that were not messages
 
     async def start(self) -> None:
@@ -104,11 +105,13 @@ class Consumer:
                     if self._down_logged or tries == 0:
                         log.info("hq: connected to %s", a.describe())
                     self._down_logged, tries = False, 0
+                    self._listening_since = self.now()
                     self.connected.set()
                     async for message in client.messages:
                         await self._one(client, str(message.topic), message.payload)
             except aiomqtt.MqttError as exc:
                 self.connected.clear()
+                self._listening_since = None
                 if not self._down_logged:
                     log.warning("hq: broker %s unreachable: %s", a.describe(), exc)
                     self._down_logged = True
@@ -169,6 +172,6 @@ class Consumer:
             await asyncio.sleep(self.tick)
             now = self.now()
             for site, ledger in list(self.ledgers.items()):
-                if (change := ledger.check(now)) is not None:
+                if (change := ledger.check(now, self._listening_since)) is not None:
                     with contextlib.suppress(ServeurError):
                         await self._changed(site, change, now)

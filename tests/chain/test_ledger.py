@@ -66,14 +66,19 @@ def test_a_lost_tail_is_asked_for_by_the_heartbeat() -> None:
 
 def test_liveness_changes_are_reported_once() -> None:
     led = SiteLedger("bistro", down_after=60.0)
-    assert led.check(0.0) is None  # never heard: neither up nor down
+    assert led.check(0.0, 0.0) is None  # never heard: neither up nor down
     assert led.heard(0.0) is Liveness.UP
     assert led.heard(10.0) is None
-    assert [led.check(t) for t in (50.0, 69.9)] == [None, None]
-    assert led.check(70.0) is Liveness.DOWN
-    assert [led.check(t) for t in (80.0, 500.0)] == [None, None]
+    assert [led.check(t, 0.0) for t in (50.0, 69.9)] == [None, None]
+    assert led.check(70.0, 0.0) is Liveness.DOWN
+    assert [led.check(t, 0.0) for t in (80.0, 500.0)] == [None, None]
     assert led.heard(501.0) is Liveness.UP
     assert led.heard(502.0) is None
+    # The centre itself cut off from the broker: nobody is judged, and silence counts from
+    # when it is back.
+    assert led.check(600.0, None) is None
+    assert led.check(600.0, 590.0) is None
+    assert led.check(650.0, 590.0) is Liveness.DOWN
 
 
 def test_any_order_of_delivery_stores_every_event_once_in_order() -> None:
