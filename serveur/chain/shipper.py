@@ -35,10 +35,12 @@ from serveur.clock import Clock
 from serveur.errors import InvalidField
 from serveur.store.base import Store
 
-__all__ = ["BACKOFF", "Shipper"]
+__all__ = ["BACKOFF", "PRUNE_EVERY", "Shipper"]
 
 log = logging.getLogger(__name__)
 
+#: Wall seconds between two prunes of the outbox.
+PRUNE_EVERY = 60.0
 #: Seconds between reconnection attempts (the last one repeats).
 BACKOFF = (1.0, 2.0, 5.0, 10.0, 30.0)
 
@@ -77,6 +79,7 @@ class Shipper:
         self._wake = asyncio.Event()
         self._down_logged = False
         self.published = 0  # batches acknowledged by the broker (for the benchmark)
+        self._pruned_at = -PRUNE_EVERY  # loop time of the last prune
 
     def start(self) -> None:
         if self._task is None:
@@ -174,6 +177,9 @@ class Shipper:
                     self._wake.set()
                 elif found[1] == "confirmed":
                     await self.store.outbox.confirm(read_confirmed(payload).seq)
-                    await self.store.outbox.prune(self.clock.epoch(), self.retention)
+                    now = asyncio.get_running_loop().time()
+                    if now - self._pruned_at >= PRUNE_EVERY:  # not at every batch
+                        self._pruned_at = now
+                        await self.store.outbox.prune(self.clock.epoch(), self.retention)
             except InvalidField as exc:
                 log.warning("chain: a message on %s is not one: %s", message.topic, exc)

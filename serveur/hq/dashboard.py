@@ -10,7 +10,8 @@ Routes (all JSON but the page's files; every ``/api`` route but ``login`` needs
 accounts — never a site's):
 
 * ``GET /`` and the page's scripts, styles and catalogs (``serveur/web/hq/``);
-* ``POST /api/login`` ``{"name", "password"}`` → ``{"token"}``;
+* ``POST /api/login`` ``{"name", "password"}`` → ``{"token"}`` (guessing is slowed as on a
+  site: after 5 failures per address or name, 429 with ``Retry-After``);
 * ``GET /api/sites`` → every site: up or down, what is stored, robots, open alerts, today's
   figures;
 * ``GET /api/figures?by=day|hour`` → each site's figures (``serveur stats --json``'s shape);
@@ -33,10 +34,10 @@ from typing import Any, Final
 from urllib.parse import parse_qs, urlsplit
 
 from serveur.chain.wire import check_site
-from serveur.errors import InvalidField
+from serveur.errors import InvalidField, RateLimited
 from serveur.hq.store import HqStore
 from serveur.hq.views import SiteView
-from serveur.security.auth import verify_password
+from serveur.security.auth import LoginThrottle, verify_password
 from serveur.stats.periods import BY, parse_offset
 from serveur.web.static import SECURITY_HEADERS, StaticSite
 
@@ -70,6 +71,7 @@ class Dashboard:
         self.views: dict[str, SiteView] = {}
         self._sessions: dict[str, float] = {}  # token -> expiry (monotonic)
         self._lock = asyncio.Lock()
+        self._throttle = LoginThrottle()  # the site's own: per address and per name
 
     async def handle(
         self,
@@ -92,7 +94,7 @@ class Dashboard:
         if path == "/api/login":
             if method != "POST":
                 return _error(405, "method_not_allowed", "log in with POST")
-            return await self._login(body)
+            return await self._login(body, peer)
         if not self._allowed(auth):
             return _error(401, "unauthorized", "log in first (POST /api/login)")
         if method != "GET":
@@ -127,7 +129,7 @@ class Dashboard:
         expiry = self._sessions.get(auth.removeprefix("Bearer ").strip())
         return expiry is not None and expiry > time.monotonic()
 
-    async def _login(self, body: bytes) -> Reply:
+    async def _login(self, body: bytes, peer: str) -> Reply:
         try:
             obj = json.loads(body)
             name, password = obj["name"], obj["password"]
@@ -135,13 +137,20 @@ class Dashboard:
                 raise TypeError
         except (ValueError, KeyError, TypeError):
             return _error(400, "invalid_field", 'log in with {"name": ..., "password": ...}')
+        keys = (f"peer:{peer.rsplit(':', 1)[0]}", f"name:{name}")
+        try:
+            self._throttle.check(keys, time.monotonic())
+        except RateLimited as exc:
+            return 429, exc.to_dict(), [("Retry-After", str(int(exc.details["retry_after"]) + 1))]
         stored = await self.store.password_hash(name)
         # scrypt is ~0.1 s of CPU: off the loop; a missing account costs the same time.
         ok = await asyncio.to_thread(
             verify_password, password, stored or "scrypt$16384$8$1$AAAA$AAAA"
         )
         if stored is None or not ok:
+            self._throttle.failure(keys, time.monotonic())
             return _error(401, "unauthorized", "wrong name or password")
+        self._throttle.success(keys)
         now = time.monotonic()
         self._sessions = {t: e for t, e in self._sessions.items() if e > now}
         if len(self._sessions) >= _MAX_SESSIONS:
