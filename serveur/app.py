@@ -237,6 +237,7 @@ class App:
                 self.store, self._chain, self.clock, heartbeat=self._chain_heartbeat
             )
             self.shipper.start()
+            self.server.chain = self.shipper  # what the owner's `chain` verb reads
         return self
 
     def _staging(self) -> Path:

@@ -71,6 +71,7 @@ from serveur.wire.calls import (
     SiteButtons,
     SiteRevokeButton,
 )
+from serveur.wire.chain import ChainInfo, ChainMsg, OutboxInfo
 from serveur.wire.fields import (
     MAX_ANGULAR,
     MAX_COORD,
@@ -199,6 +200,8 @@ __all__ = [
     "CallOpen",
     "CameraMsg",
     "CancelMsg",
+    "ChainInfo",
+    "ChainMsg",
     "ChargeMsg",
     "ClearMsg",
     "ClientMessage",
@@ -234,6 +237,7 @@ __all__ = [
     "NextMsg",
     "OkReply",
     "OrderMsg",
+    "OutboxInfo",
     "PingMsg",
     "PoseData",
     "ReadyMsg",
@@ -805,7 +809,8 @@ ClientMessage: TypeAlias = Annotated[
     | AccountMessage
     | SiteMessage
     | StatsMessage
-    | TillMessage,
+    | TillMessage
+    | ChainMsg,
     Field(discriminator="clientmsg"),
 ]
 _CLIENT: TypeAdapter[ClientMessage] = TypeAdapter(ClientMessage)

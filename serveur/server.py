@@ -32,6 +32,7 @@ from websockets.http11 import Request, Response
 from websockets.protocol import State
 
 from serveur import protocol as P
+from serveur.chain.shipper import Shipper
 from serveur.core.backup_desk import DOWNLOAD_PATH, BackupDesk
 from serveur.core.call_desk import CALL_PATH
 from serveur.core.camera import CameraRelay, CameraViewer
@@ -188,6 +189,8 @@ class Server:
         )
         #: The owner's backups (None: this server keeps none, e.g. a database in memory).
         self.backups = backups
+        #: The chain's shipper, which the app sets once it runs it (None: in no chain).
+        self.chain: Shipper | None = None
         #: The owner's map actions (a robot's files, a floor plan, the plan under the map).
         self.maps = SiteMaps(core.store, core.places, core.clock)
         self.security = sessions.config
@@ -594,6 +597,30 @@ class Server:
     async def _ping(self, conn: _Conn, msg: P.PingMsg) -> dict[str, Any]:
         return {"time": self.core.clock.epoch()}
 
+    async def _chain(self, conn: _Conn, msg: P.ChainMsg) -> dict[str, Any]:
+        """The site's place in a chain and its outbox, read now (the console asks again every
+        20 s while it shows them). Events are numbered with or without a chain."""
+        box = await self.core.store.outbox.state()
+        shipper = self.chain
+        outbox = {
+            "head": box.head,
+            "sent": box.sent,
+            "confirmed": box.confirmed,
+            "unsent": box.unsent,
+            "size": box.size,
+            "oldest_unsent_at": box.oldest_unsent_at,
+            "sent_at": box.sent_at,
+        }
+        return {
+            "chain": {
+                "configured": shipper is not None,
+                "site": None if shipper is None else shipper.site,
+                "broker": None if shipper is None else shipper.address.describe(),
+                "connected": shipper is not None and shipper.connected.is_set(),
+                "outbox": outbox,
+            }
+        }
+
     async def _account(self, conn: _Conn, msg: Any) -> dict[str, Any]:
         return await handle_account(
             self.sessions, conn.principal, msg, public_url=self.core.site.public_url
@@ -648,6 +675,8 @@ class Server:
             or (verb == "control" and msg.action == "teleop")
             # A file's parts: its upload and what it was used for are audited, not each part.
             or (verb == "site" and msg.action == "upload_part")
+            # A read the owner's console repeats while it shows the chain: not a trail's worth.
+            or verb == "chain"
         ):
             return
         p = conn.principal
@@ -764,6 +793,7 @@ _SERVER_VERBS: dict[type, Callable[[Server, _Conn, Any], Awaitable[dict[str, Any
     P.LogoutMsg: Server._logout,
     P.DataMsg: Server._data,
     P.PingMsg: Server._ping,
+    P.ChainMsg: Server._chain,
     P.CameraMsg: Server._camera,
     P.SiteUpload: Server._upload,
     P.SiteUploadPart: Server._upload_part,

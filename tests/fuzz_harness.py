@@ -107,11 +107,12 @@ PAYLOAD = {
     "till import_menu": "rows",
     "till map": "names",
     "till unmapped": "unmapped",
+    "chain": "chain",
 }
 #: The owner's verbs: a fuzz connection (staff) sending one well formed is always refused
 #: ``forbidden`` (or ``rate_limited``), so no robot or table is ever edited or removed, and no
 #: statistics child process or forecast replay runs.
-OWNER_VERBS = frozenset({"account", "site", "stats"})
+OWNER_VERBS = frozenset({"account", "site", "stats", "chain"})
 REPLY_TIMEOUT = 30.0  # wall seconds; generous for a loaded 2-core box
 MAX_QUEUED = 6  # trips waiting for a robot kept by housekeeping
 MAX_PENDING = 40  # dishes waiting at the pass kept by housekeeping

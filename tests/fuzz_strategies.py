@@ -758,6 +758,8 @@ VERB_STRATEGIES: dict[str, st.SearchStrategy[Obj]] = {
     ),
     "site buttons": _site("buttons"),
     "site revoke_button": _site("revoke_button", name=st.sampled_from(("b1", "b2", "b9"))),
+    # The owner's: a fuzz connection (staff) is refused.
+    "chain": st.builds(lambda: obj(clientmsg="chain", id=IdSlot())),
 }
 
 
@@ -943,6 +945,7 @@ _MODELS: dict[str, type[Any]] = {
     "stats trips": P.StatsTrips,
     "stats forecast": P.StatsForecast,
     "stats forecast_cancel": P.StatsForecastCancel,
+    "chain": P.ChainMsg,
 }
 
 

@@ -494,6 +494,8 @@ def test_action_of_and_robot_of() -> None:
         **{f"stats {a}": (None, None) for a in P._SUBTAGS["stats"][1]},
         # the till's tickets and set-up: about tickets and the printer, never a robot
         **{f"till {a}": (None, None) for a in P._SUBTAGS["till"][1]},
+        # the chain's head office and the outbox: the site's, never a robot's
+        "chain": (None, None),
     }
     seen = {}
     for ex in _client_examples():

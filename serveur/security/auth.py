@@ -199,6 +199,8 @@ def required_scope(msg: Any) -> Scope:
         return Scope.STATS
     if verb == "till":
         return _TILL_SCOPES[msg.action]
+    if verb == "chain":  # the site's place in a restaurant chain: its set-up, read
+        return Scope.SITE
     raise Forbidden(f"no rule for {verb!r}")  # a new verb must get a rule before anyone uses it
 
 

@@ -112,6 +112,7 @@ VERBS: Final = (
     "work",
     "cruise",
     "till",
+    "chain",
 )
 
 #: Limits of the work area: far beyond any restaurant, close enough to catch unit mistakes.

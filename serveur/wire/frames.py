@@ -33,6 +33,7 @@ from serveur.domain import (
 )
 from serveur.errors import ServeurError
 from serveur.wire.backups import BackupInfo, RestoreInfo
+from serveur.wire.chain import ChainInfo
 from serveur.wire.fields import RequestId, Topic
 from serveur.wire.uploads import AlignInfo, BackdropInfo
 
@@ -423,6 +424,9 @@ class OkReply(_ServerModel):
     stats: dict[str, Any] | None = Field(
         default=None,
         description="stats: figures ({periods, total}) or the trip history ({trips, more})",
+    )
+    chain: ChainInfo | None = Field(
+        default=None, description="chain: the site's place in a chain and its outbox"
     )
 
 

@@ -136,9 +136,11 @@ MESSAGES: dict[str, dict[str, Any]] = {
     "work": {"clientmsg": "work", **ROBOT},
     "cruise": {"clientmsg": "cruise", "route": ["T1", "T2"], **ROBOT},
     "stats last_service": {"clientmsg": "stats", "action": "last_service", "before": "2026-11-24"},
+    # The chain's head office reached or not, and the outbox: the site's (scope site).
+    "chain": {"clientmsg": "chain"},
 }
 #: The owner's console messages: never staff's, never a screen's.
-SITE = {k for k in MESSAGES if k.startswith("site ")}
+SITE = {k for k in MESSAGES if k.startswith("site ")} | {"chain"}
 #: The backups: every account is in them and a restore sets them all, so they need the accounts
 #: scope, which only an owner's session has (no token can be given it).
 BACKUPS = {"site backups", "site backup_now", "site download_backup", "site restore"}

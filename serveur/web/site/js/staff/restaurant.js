@@ -7,9 +7,10 @@
 // `create zone` with `replace`.
 //
 // This module is the panel: it lays out the sections (restaurant/robots.js, places.js, zones.js,
-// buttons.js, settings.js, map.js, plan.js, align.js, backups.js, ../till/setup.js) and keeps them live. It also follows the `settings` topic (every role may read
-// it): the language pickers offer the site's languages and a device with no choice of its own
-// speaks the site's default.
+// buttons.js, settings.js, map.js, plan.js, align.js, backups.js, ../till/setup.js, and chain.js:
+// the chain's head office, read with the `chain` verb while the tab is shown) and keeps them
+// live. It also follows the `settings` topic (every role may read it): the language pickers
+// offer the site's languages and a device with no choice of its own speaks the site's default.
 
 import { el, showError } from "../ui.js";
 import { applySiteLanguages, onLangChange } from "../i18n.js";
@@ -23,6 +24,7 @@ import { BackupsSection } from "./restaurant/backups.js";
 import { AlignSection } from "./restaurant/align.js";
 import { ButtonsSection } from "./restaurant/buttons.js";
 import { TillSection } from "./till/setup.js";
+import { ChainSection } from "./restaurant/chain.js";
 
 export class RestaurantPanel {
   constructor(root, conn, live) {
@@ -44,10 +46,12 @@ export class RestaurantPanel {
     this.plan = new PlanSection(conn);
     this.align = new AlignSection(conn, live);
     this.backups = new BackupsSection(conn);
+    this.chain = new ChainSection(conn, live, root);
     root.append(
       el(
         "div",
         { class: "rest-grid" },
+        this.chain.section,
         this.robots.section,
         this.places.section,
         this.zones.section,
@@ -80,6 +84,7 @@ export class RestaurantPanel {
       this.buttons.fillKinds();
       this.till.fillCodePages();
       this.settings.fillLanguage();
+      this.chain.render();
       this.render();
     });
     this.settings.fillLanguage();
@@ -90,6 +95,7 @@ export class RestaurantPanel {
   async shown() {
     this.render();
     this.backups.load();
+    this.chain.load();
     this.buttons.load();
     this.till.load();
     try {
