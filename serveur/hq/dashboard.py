@@ -35,7 +35,7 @@ from urllib.parse import parse_qs, urlsplit
 
 from serveur.chain.wire import check_site
 from serveur.errors import InvalidField, RateLimited
-from serveur.hq.store import HqStore
+from serveur.hq.store import HqStore, SiteRow
 from serveur.hq.views import SiteView
 from serveur.security.auth import LoginThrottle, verify_password
 from serveur.stats.periods import BY, parse_offset
@@ -175,20 +175,25 @@ class Dashboard:
         return by
 
     async def _views(self) -> dict[str, SiteView]:
-        """Every site's view, brought up to what is stored (only the new events are read)."""
+        return (await self._read())[1]
+
+    async def _read(self) -> tuple[list[SiteRow], dict[str, SiteView]]:
+        """The sites as stored now, and each one's view brought up to them (only the new
+        events are read). One read of the sites for both: a site that appears meanwhile
+        is in neither, never in one only."""
         async with self._lock:
-            for row in await self.store.sites():
+            rows = await self.store.sites()
+            for row in rows:
                 view = self.views.setdefault(row.site, SiteView(row.site))
                 while view.seq < row.stored:
                     part = await self.store.events(row.site, after=view.seq, limit=5000)
                     if not part:
                         break
                     view.extend(part)
-            return dict(self.views)
+            return rows, dict(self.views)
 
     async def _sites(self, tz: tzinfo | None) -> dict[str, Any]:
-        views = await self._views()
-        rows = await self.store.sites()
+        rows, views = await self._read()
         now = self.now()
         out = []
         for row in rows:
