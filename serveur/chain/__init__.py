@@ -11,7 +11,7 @@ once), :mod:`~serveur.chain.address` (the broker's URL, TLS and credentials) and
 
 aiomqtt is imported only where a chain is configured.
 
-May import: serveur.clock, serveur.domain, serveur.errors, serveur.store.
+May import: serveur.clock, serveur.domain, serveur.errors, serveur.mqtt.session, serveur.store.
 """
 
 __all__: list[str] = []

@@ -11,8 +11,9 @@ then (and after ``retention``) are outbox rows deleted. When the centre misses s
 says ``resend`` and the shipper goes back there.
 
 Every ``heartbeat`` seconds the site says it is alive with its last number (the centre shows
-a silent site as down, and asks for a lost tail). The broker's reachability is logged once
-down and once up, as Home Assistant logs a device's.
+a silent site as down, and asks for a lost tail).
+The connection is kept by :func:`serveur.mqtt.session.keep_session` (the broker logged once
+down and once up).
 """
 
 from __future__ import annotations
@@ -33,16 +34,15 @@ from serveur.chain.wire import (
 )
 from serveur.clock import Clock
 from serveur.errors import InvalidField
+from serveur.mqtt.session import BACKOFF, keep_session
 from serveur.store.base import Store
 
-__all__ = ["BACKOFF", "PRUNE_EVERY", "Shipper"]
+__all__ = ["PRUNE_EVERY", "Shipper"]
 
 log = logging.getLogger(__name__)
 
 #: Wall seconds between two prunes of the outbox.
 PRUNE_EVERY = 60.0
-#: Seconds between reconnection attempts (the last one repeats).
-BACKOFF = (1.0, 2.0, 5.0, 10.0, 30.0)
 
 
 class Shipper:
@@ -77,7 +77,6 @@ class Shipper:
         self._task: asyncio.Task[None] | None = None
         self._rewind: int | None = None
         self._wake = asyncio.Event()
-        self._down_logged = False
         self.published = 0  # batches acknowledged by the broker (for the benchmark)
         self._pruned_at = -PRUNE_EVERY  # loop time of the last prune
 
@@ -99,39 +98,41 @@ class Shipper:
         import aiomqtt  # only where a chain is configured
 
         a = self.address
-        tries = 0
-        while True:
+
+        def client() -> aiomqtt.Client:
+            return aiomqtt.Client(
+                a.host,
+                a.port,
+                username=a.user,
+                password=a.password,
+                identifier=f"serveur-site-{self.site}",
+                tls_context=a.ssl_context(),
+                timeout=10,
+                keepalive=30,
+            )
+
+        async def setup(client: aiomqtt.Client) -> None:
+            await client.subscribe(topic(self.site, "resend"), qos=1)
+            await client.subscribe(topic(self.site, "confirmed"), qos=1)
+
+        async def session(client: aiomqtt.Client) -> None:
+            listen = asyncio.create_task(self._listen(client))
             try:
-                async with aiomqtt.Client(
-                    a.host,
-                    a.port,
-                    username=a.user,
-                    password=a.password,
-                    identifier=f"serveur-site-{self.site}",
-                    tls_context=a.ssl_context(),
-                    timeout=10,
-                    keepalive=30,
-                ) as client:
-                    await client.subscribe(topic(self.site, "resend"), qos=1)
-                    await client.subscribe(topic(self.site, "confirmed"), qos=1)
-                    if self._down_logged or tries == 0:
-                        log.info("chain: connected to %s as site %r", a.describe(), self.site)
-                    self._down_logged, tries = False, 0
-                    self.connected.set()
-                    listen = asyncio.create_task(self._listen(client))
-                    try:
-                        await self._send(client)
-                    finally:
-                        listen.cancel()
-                        with contextlib.suppress(asyncio.CancelledError, aiomqtt.MqttError):
-                            await listen
-            except aiomqtt.MqttError as exc:
-                self.connected.clear()
-                if not self._down_logged:
-                    log.warning("chain: broker %s unreachable: %s", a.describe(), exc)
-                    self._down_logged = True
-                await asyncio.sleep(self.backoff[min(tries, len(self.backoff) - 1)])
-                tries += 1
+                await self._send(client)
+            finally:
+                listen.cancel()
+                with contextlib.suppress(asyncio.CancelledError, aiomqtt.MqttError):
+                    await listen
+
+        await keep_session(
+            f"chain: site {self.site!r} on {a.describe()}",
+            client,
+            setup,
+            session,
+            connected=self.connected,
+            log=log,
+            backoff=self.backoff,
+        )
 
     async def _send(self, client: Any) -> None:
         state = await self.store.outbox.state()

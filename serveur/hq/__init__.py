@@ -7,7 +7,7 @@ what the dashboard shows of a site, with the site's own statistics code),
 :mod:`~serveur.hq.dashboard` (its HTTP routes) and :mod:`~serveur.hq.cli` (the subcommand).
 A site never imports it.
 
-May import: serveur.chain, serveur.clock, serveur.domain, serveur.errors,
+May import: serveur.chain, serveur.clock, serveur.domain, serveur.errors, serveur.mqtt.session,
 serveur.security.auth, serveur.stats, serveur.store, serveur.till.intake, serveur.web.static.
 """
 

@@ -27,12 +27,11 @@ from serveur.chain.ledger import Liveness, SiteLedger, Verdict
 from serveur.chain.wire import Confirmed, Resend, read_alive, read_batch, site_of, topic
 from serveur.errors import InvalidField, ServeurError
 from serveur.hq.store import HqStore
+from serveur.mqtt.session import BACKOFF, keep_session
 
 __all__ = ["Consumer"]
 
 log = logging.getLogger(__name__)
-
-BACKOFF = (1.0, 2.0, 5.0, 10.0, 30.0)
 
 
 class Consumer:
@@ -56,7 +55,6 @@ class Consumer:
         self.connected = asyncio.Event()
         self.changed = asyncio.Event()  # set at every stored batch or liveness change
         self._tasks: list[asyncio.Task[None]] = []
-        self._down_logged = False
         self._listening_since: float | None = None  # when the broker link last came up
         self.refused = 0  # payloads that were not messages
 
@@ -85,38 +83,43 @@ class Consumer:
         import aiomqtt  # only where the centre runs
 
         a = self.address
-        tries = 0
-        while True:
-            try:
-                async with aiomqtt.Client(
-                    a.host,
-                    a.port,
-                    username=a.user,
-                    password=a.password,
-                    identifier=f"serveur-{a.user}",
-                    clean_session=False,
-                    tls_context=a.ssl_context(),
-                    timeout=10,
-                    keepalive=30,
-                    max_queued_incoming_messages=10000,
-                ) as client:
-                    await client.subscribe("chain/+/events", qos=1)
-                    await client.subscribe("chain/+/alive", qos=1)
-                    if self._down_logged or tries == 0:
-                        log.info("hq: connected to %s", a.describe())
-                    self._down_logged, tries = False, 0
-                    self._listening_since = self.now()
-                    self.connected.set()
-                    async for message in client.messages:
-                        await self._one(client, str(message.topic), message.payload)
-            except aiomqtt.MqttError as exc:
-                self.connected.clear()
-                self._listening_since = None
-                if not self._down_logged:
-                    log.warning("hq: broker %s unreachable: %s", a.describe(), exc)
-                    self._down_logged = True
-                await asyncio.sleep(self.backoff[min(tries, len(self.backoff) - 1)])
-                tries += 1
+
+        def client() -> aiomqtt.Client:
+            return aiomqtt.Client(
+                a.host,
+                a.port,
+                username=a.user,
+                password=a.password,
+                identifier=f"serveur-{a.user}",
+                clean_session=False,
+                tls_context=a.ssl_context(),
+                timeout=10,
+                keepalive=30,
+                max_queued_incoming_messages=10000,
+            )
+
+        async def setup(client: aiomqtt.Client) -> None:
+            await client.subscribe("chain/+/events", qos=1)
+            await client.subscribe("chain/+/alive", qos=1)
+            self._listening_since = self.now()
+
+        async def session(client: aiomqtt.Client) -> None:
+            async for message in client.messages:
+                await self._one(client, str(message.topic), message.payload)
+
+        def down() -> None:
+            self._listening_since = None
+
+        await keep_session(
+            f"hq on {a.describe()}",
+            client,
+            setup,
+            session,
+            connected=self.connected,
+            log=log,
+            backoff=self.backoff,
+            on_down=down,
+        )
 
     async def _one(self, client: Any, name: str, payload: object) -> None:
         found = site_of(name)

@@ -8,8 +8,8 @@ press is then exactly the HTTP one (:meth:`serveur.core.call_desk.CallDesk.press
 token check, merge and rate limit), and its answer is published on ``<prefix>/call/result``
 as ``{"status": 200, "text": "called: waiter at T3 (call 7)"}`` for whoever wants to show it.
 
-The connection is kept up by a reconnect loop; the broker's availability is logged once down
-and once up (as Home Assistant logs a device's), not at every retry.
+The connection is kept up by :func:`serveur.mqtt.session.keep_session`, the reconnect loop
+every MQTT client here shares (the broker logged once down and once up).
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from typing import Any
 from urllib.parse import unquote, urlsplit
 
 from serveur.core.call_desk import Press
+from serveur.mqtt.session import keep_session
 
 __all__ = ["BrokerAddress", "MqttCalls", "parse_press"]
 
@@ -30,8 +31,6 @@ log = logging.getLogger(__name__)
 
 #: The most a press's payload may be (a token is 47 characters): anything longer is not one.
 MAX_PAYLOAD = 512
-#: Seconds between reconnection attempts (doubling up to the last).
-BACKOFF = (1.0, 2.0, 5.0, 10.0, 30.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -101,7 +100,6 @@ class MqttCalls:
         self._after = after
         self._task: asyncio.Task[None] | None = None
         self.connected = asyncio.Event()
-        self._down_logged = False
 
     @property
     def topic(self) -> str:
@@ -121,26 +119,28 @@ class MqttCalls:
         import aiomqtt  # only where a broker is configured
 
         a = self.address
-        tries = 0
-        while True:
-            try:
-                async with aiomqtt.Client(
-                    a.host, a.port, username=a.username, password=a.password, timeout=10
-                ) as client:
-                    await client.subscribe(self.topic, qos=1)
-                    log.info("MQTT: call buttons on %s:%d %s", a.host, a.port, self.topic)
-                    self._down_logged, tries = False, 0
-                    self.connected.set()
-                    async for message in client.messages:
-                        reply = await self._one(_bytes(message.payload))
-                        await client.publish(f"{self.topic}/result", reply, qos=0)
-            except aiomqtt.MqttError as exc:
-                self.connected.clear()
-                if not self._down_logged:
-                    log.warning("MQTT: broker %s:%d unreachable: %s", a.host, a.port, exc)
-                    self._down_logged = True
-                await asyncio.sleep(BACKOFF[min(tries, len(BACKOFF) - 1)])
-                tries += 1
+
+        def client() -> aiomqtt.Client:
+            return aiomqtt.Client(
+                a.host, a.port, username=a.username, password=a.password, timeout=10
+            )
+
+        async def setup(client: aiomqtt.Client) -> None:
+            await client.subscribe(self.topic, qos=1)
+
+        async def session(client: aiomqtt.Client) -> None:
+            async for message in client.messages:
+                reply = await self._one(_bytes(message.payload))
+                await client.publish(f"{self.topic}/result", reply, qos=0)
+
+        await keep_session(
+            f"MQTT call buttons on {a.host}:{a.port} {self.topic}",
+            client,
+            setup,
+            session,
+            connected=self.connected,
+            log=log,
+        )
 
     async def _one(self, payload: bytes) -> str:
         found = parse_press(payload)
