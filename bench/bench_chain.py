@@ -11,9 +11,9 @@ chain's broker over MQTT QoS 1 (:class:`serveur.chain.shipper.Shipper`), from wh
   store (:class:`~serveur.store.sqlite.store.SQLiteStore`, a fresh file each time) and
   records events with ``store.events.add_event`` (the real write path, the outbox number
   included), with or without a ``Shipper`` as ``serveur run --chain`` starts it (``poll``
-  0.2 s, ``heartbeat`` 30 s). The child is confined to ``--quota`` of one core (25 % by
-  default: a cgroup v1 ``cpu`` quota, bench/bench_camera.py's ``limit``, weighted as the
-  deployed ``Nice=-5``, as bench/bench_pi.py and bench/bench_till.py do);
+  1 s, ``spacing`` 0.25 s, ``heartbeat`` 30 s). The child is confined to ``--quota`` of one
+  core (25 % by default: a cgroup v1 ``cpu`` quota, bench/bench_camera.py's ``limit``,
+  weighted as the deployed ``Nice=-5``, as bench/bench_pi.py and bench/bench_till.py do);
 * **the centre**: a ``Consumer`` and an ``HqStore`` on a SQLite file in this process (not
   confined: the centre is a server elsewhere), its ``take`` timed.
 
@@ -32,9 +32,9 @@ Three parts:
    ``add_event`` p50 / p99, the quota's throttling; with the shipper on, each event's
    **latency to the centre**: from ``add_event`` returning at the site (its commit) to the
    centre's ``take`` returning with that number stored (its commit), both on this host's wall
-   clock. ``--wake`` adds a third run in which the site calls ``Shipper.wake()`` after each
-   event (``serveur run`` does not: its shipper looks every ``poll``), to see what the poll
-   costs in latency.
+   clock. A third run wakes the shipper after each event, as ``serveur run`` does (its
+   publisher's flush of new events calls ``Shipper.wake()``); the second, poll only, shows
+   what a shipper that only looks every ``poll`` would cost and take.
 
 3. **Catch-up after a day offline**: a site database holding ``--backlog`` events never sent
    (written with ``rows.add_event``, numbered as the site numbers them, 1,000 to a
@@ -52,8 +52,8 @@ second is 12x that minute: a deliberately heavy service (``--rate 1.7`` is the r
 The backlog: 50,000 events are 8,600 dishes at 5.8 a dish, 14 hours at 600 dishes an hour: a
 long day of a large restaurant (bench_backup.py's year of a busy restaurant is ~3,000 a day).
 
-Run: ``flock /tmp/bench.lock python3 bench/bench_chain.py`` (under 4 minutes with the
-defaults, 4.5 with ``--wake``; ``--duration 20 --backlog 10000`` for a quick look; ``--json
+Run: ``flock /tmp/bench.lock python3 bench/bench_chain.py`` (about 5 minutes with the
+defaults; ``--duration 20 --backlog 10000`` for a quick look; ``--json
 FILE`` writes everything). Loopback only; every wait is bounded; the children run in process
 groups of their own and are killed, and the quota groups removed, however the bench ends;
 the broker is stopped with it.
@@ -787,7 +787,7 @@ async def main(ns: argparse.Namespace) -> int:
             await consumer.start()
             try:
                 await asyncio.wait_for(consumer.connected.wait(), WAIT)
-                for name in ("off", "on", "on, woken")[: 3 if ns.wake else 2]:
+                for name in ("off", "on", "on, woken"):
                     r = await part_service(ns, tmp, hq, broker, name)
                     res[r["shipper"]] = r
                     print(json.dumps(r), file=sys.stderr, flush=True)
@@ -824,11 +824,6 @@ if __name__ == "__main__":
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument(
         "--shares", type=int, default=3121, help="the site's cpu.shares (3121: Nice=-5)"
-    )
-    ap.add_argument(
-        "--wake",
-        action="store_true",
-        help="a third run: the site wakes the shipper at each event (serveur run does not)",
     )
     ap.add_argument("--json")
     ap.add_argument("--child", help=argparse.SUPPRESS)

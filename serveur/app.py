@@ -238,6 +238,7 @@ class App:
             )
             self.shipper.start()
             self.server.chain = self.shipper  # what the owner's `chain` verb reads
+            self.core.publisher.on_events = self.shipper.wake  # ship as they are recorded
         return self
 
     def _staging(self) -> Path:

@@ -10,7 +10,7 @@ publish through.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from serveur import protocol as P
@@ -35,6 +35,9 @@ class Publisher:
         self._task_robots: dict[int, str] = {}  # task id -> robot, for screens' views
         self._last_event = 0
         self._events_lock = asyncio.Lock()
+        #: Called when a flush found new events (the chain's shipper: ship them now rather
+        #: than at its next look).
+        self.on_events: Callable[[], None] | None = None
 
     async def skip_stored_events(self) -> None:
         """Start the feed after the events already stored (those of earlier runs)."""
@@ -75,6 +78,8 @@ class Publisher:
                 since_id=self._last_event, limit=_EVENTS_BATCH
             ):
                 self._last_event = batch[-1].id
+                if self.on_events is not None:
+                    self.on_events()
                 if self._hub.watched("events"):
                     for ev in batch:
                         self._hub.publish("events", P.dump(ev))
