@@ -1,8 +1,8 @@
 """Twenty restaurants, one centre, a broker that crashes (issue 34's "done when").
 
 Every part is real: twenty ``serveur run`` processes, each on its own copy of a replayed
-service's SQLite database (the service recorded while the chain was unreachable: an hour of
-dinner waiting in each outbox), a TLS Mosquitto with per-site passwords and the production
+service's SQLite database (the service recorded while the chain was unreachable: a dinner's
+events waiting in each outbox), a TLS Mosquitto with per-site passwords and the production
 ACL (deploy/chain/acl), ``serveur hq run`` as a process on a real MariaDB. While they ship,
 the test writes new events into running sites, kills sites with SIGKILL and starts them
 again, keeps one site dead past the centre's down limit, kills the centre, and crashes the
@@ -56,10 +56,15 @@ pytestmark = [pytest.mark.slow, pytest.mark.timeout(400)]
 SITES = [f"site{k:02d}" for k in range(1, 21)]
 DEAD = "site07"  # kept dead past the centre's down limit
 DOWN_AFTER = 4.0
-# An hour of dinner: a dish every 150 s at eight tables.
+# A short dinner: a dish every 45 s at eight tables (the replay's cost follows the virtual
+# time its robots drive; a longer service adds events of the same kinds, not new cases).
 LOG = "ready_at,table,dish\n" + "".join(
-    f"{10 + 150 * i}.0,T{1 + i % 8},Dish {i}\n" for i in range(24)
+    f"{10 + 45 * i}.0,T{1 + i % 8},Dish {i}\n" for i in range(16)
 )
+# The sites and the centre run at a lower priority than the other tests' processes (20
+# servers starting on a 2-core machine would otherwise starve a neighbour's child processes
+# past their limits); on a quiet machine it changes nothing.
+NICE = ["nice", "-n", "5"]
 
 
 @pytest.fixture(scope="module")
@@ -68,6 +73,7 @@ def service_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
     opts = ReplayOptions(robots=2, seed=3, progress=False)
     with asyncio.Runner(loop_factory=VirtualTimeLoop) as runner:
         runner.run(replay_policy(parse_orders(LOG), opts, "serveur", work))
+    mark("replayed")
     return work / "serveur.db"
 
 
@@ -96,6 +102,7 @@ class Chain:
             shutil.copy(service, self.dbs[site])
         self.hq = ServeurProcess(
             [
+                *NICE,
                 sys.executable,
                 "-m",
                 "serveur.cli",
@@ -118,6 +125,7 @@ class Chain:
         for site in SITES:
             self.sites[site] = ServeurProcess(
                 [
+                    *NICE,
                     sys.executable,
                     "-m",
                     "serveur.cli",
@@ -218,6 +226,7 @@ async def add_events(db: Path, n: int, rng: random.Random) -> None:
 @pytest.fixture
 async def chain(tmp_path: Path, service_db: Path, mariadb_url: str) -> AsyncIterator[Chain]:
     need_mosquitto()
+    mark("mariadb")
     c = Chain(tmp_path, service_db, mariadb_url)
     os.environ["SERVEUR_HQ_PASSWORD"] = "lookout-tower-9"  # the child's password, not asked
     try:
@@ -240,6 +249,7 @@ async def test_twenty_sites_reach_the_centre_exactly_once_through_crashes(chain:
     c = chain
     rng = random.Random(34)
     # The sites start with the broker down: their service waits in their outboxes.
+    mark("set up")
     await c.hq.start()
     await c.start_sites(SITES)
     mark("sites started")
@@ -278,14 +288,14 @@ async def test_twenty_sites_reach_the_centre_exactly_once_through_crashes(chain:
     # Chaos: sites killed and started again, events written into running sites, one site
     # dead past the down limit, a clean broker restart.
     await c.sites[DEAD].kill()
-    for round_ in range(4):
-        victims = rng.sample([s for s in SITES if s != DEAD], 3)
+    for round_ in range(3):
+        victims = rng.sample([s for s in SITES if s != DEAD], 2)
         await asyncio.gather(*(c.sites[v].kill() for v in victims))
         await add_events(c.dbs[rng.choice(SITES)], 25, rng)
         for v in victims:
             await add_events(c.dbs[v], 10, rng)  # recorded while its server is down
         await c.start_sites(victims)
-        if round_ == 2:
+        if round_ == 1:
             await asyncio.to_thread(c.broker.restart)
     mark("chaos")
     await until(lambda: dead_is("down"), 30, f"{DEAD} shown down")
