@@ -16,7 +16,8 @@ design. Importing ``serveur.a.b`` also imports the packages ``serveur`` and ``se
    or a package prefix; ``serveur.errors`` is always allowed);
 4. the pure rules (``PURE``) import, directly or not, only pure serveur modules and no I/O
    library;
-5. no circle of imports among the web UI's scripts (``serveur/web/site/**/*.js``): every static
+5. no circle of imports among the web UI's scripts (``serveur/web/site/**/*.js``, and the
+   chain's dashboard's ``serveur/web/hq/**/*.js``): every static
    ``import … from "./x.js"`` / ``export … from "./x.js"`` / ``import "./x.js"`` and every
    dynamic ``import("./x.js")`` with a relative path (or one from the site's root, "/js/x.js")
    counts; comments and other strings do not.
@@ -39,6 +40,8 @@ MAX_TOP = 12
 PURE = ("serveur.protocol", "serveur.status", "serveur.scheduler")
 # Modules the pure rules may lean on (themselves pure: no sockets, no files, no database).
 PURE_ALLOWED = ("serveur.domain", "serveur.errors", "serveur.wire", *PURE)
+#: The web pages' roots under serveur/web: the site's and the chain centre's dashboard.
+WEB_ROOTS = ("site", "hq")
 IO_LIBRARIES = ("websockets", "aiosqlite", "asyncmy", "sqlite3", "socket", "ssl", "http")
 ALWAYS_ALLOWED = ("serveur.errors",)
 
@@ -204,9 +207,10 @@ def check(root: Path) -> list[str]:
             if bad:
                 problems.append(f"{pure} (pure) reaches {m}, which imports {sorted(bad)}")
             todo.extend(graph[m])
-    site = root / "web" / "site"
-    if site.is_dir():
-        problems += check_js(site)
+    for pages in WEB_ROOTS:  # each served from its own root: a circle stays inside one
+        site = root / "web" / pages
+        if site.is_dir():
+            problems += check_js(site)
     return problems
 
 
@@ -327,7 +331,7 @@ def main() -> int:
     for p in problems:
         print(p)
     modules = discover(root)
-    scripts = sum(1 for _ in (root / "web" / "site").rglob("*.js"))
+    scripts = sum(1 for pages in WEB_ROOTS for _ in (root / "web" / pages).rglob("*.js"))
     print(
         f"{len(modules)} modules, {sum(1 for p in root.glob('*.py'))} at the top, "
         f"{scripts} scripts, {len(problems)} problem(s)"
