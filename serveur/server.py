@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import fcntl
 import http
 import json
@@ -602,15 +603,7 @@ class Server:
         20 s while it shows them). Events are numbered with or without a chain."""
         box = await self.core.store.outbox.state()
         shipper = self.chain
-        outbox = {
-            "head": box.head,
-            "sent": box.sent,
-            "confirmed": box.confirmed,
-            "unsent": box.unsent,
-            "size": box.size,
-            "oldest_unsent_at": box.oldest_unsent_at,
-            "sent_at": box.sent_at,
-        }
+        outbox = {**dataclasses.asdict(box), "unsent": box.unsent}
         return {
             "chain": {
                 "configured": shipper is not None,

@@ -12,6 +12,10 @@ from __future__ import annotations
 import os
 import ssl
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import aiomqtt
 from urllib.parse import unquote, urlsplit
 
 __all__ = ["ChainAddress"]
@@ -50,6 +54,23 @@ class ChainAddress:
         if not self.tls:
             return None
         return ssl.create_default_context(cafile=self.ca)
+
+    def client(self, identifier: str, **options: Any) -> aiomqtt.Client:
+        """An aiomqtt client for this broker as ``identifier`` (the site's shipper and the
+        centre's consumer both), with ``options`` for what differs between them."""
+        import aiomqtt  # only where a chain is configured
+
+        return aiomqtt.Client(
+            self.host,
+            self.port,
+            username=self.user,
+            password=self.password,
+            identifier=identifier,
+            tls_context=self.ssl_context(),
+            timeout=10,
+            keepalive=30,
+            **options,
+        )
 
     def describe(self) -> str:
         return f"{'mqtts' if self.tls else 'mqtt'}://{self.user}@{self.host}:{self.port}"

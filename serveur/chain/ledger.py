@@ -28,7 +28,7 @@ it is back (every site down after a broker restart would be the centre's fault, 
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from serveur.chain.wire import Batch
 from serveur.domain import EventRecord
@@ -73,7 +73,6 @@ class SiteLedger:
     asked_at: float | None = None
     asked_from: int = 0
     state: Liveness | None = None
-    counts: dict[Verdict, int] = field(default_factory=lambda: dict.fromkeys(Verdict, 0))
 
     def judge(self, batch: Batch, now: float) -> Decision:
         """What to do with ``batch`` (call :meth:`stored_up_to` once it is stored)."""
@@ -85,7 +84,6 @@ class SiteLedger:
         else:
             skip = self.stored + 1 - batch.first
             verdict = Decision(Verdict.TAKE, batch.events[skip:], self.stored + 1)
-        self.counts[verdict.verdict] += 1
         return verdict
 
     def stored_up_to(self, seq: int, now: float) -> None:

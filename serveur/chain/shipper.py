@@ -105,16 +105,7 @@ class Shipper:
         a = self.address
 
         def client() -> aiomqtt.Client:
-            return aiomqtt.Client(
-                a.host,
-                a.port,
-                username=a.user,
-                password=a.password,
-                identifier=f"serveur-site-{self.site}",
-                tls_context=a.ssl_context(),
-                timeout=10,
-                keepalive=30,
-            )
+            return a.client(f"serveur-site-{self.site}")
 
         async def setup(client: aiomqtt.Client) -> None:
             await client.subscribe(topic(self.site, "resend"), qos=1)

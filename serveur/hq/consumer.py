@@ -85,17 +85,9 @@ class Consumer:
         a = self.address
 
         def client() -> aiomqtt.Client:
-            return aiomqtt.Client(
-                a.host,
-                a.port,
-                username=a.user,
-                password=a.password,
-                identifier=f"serveur-{a.user}",
-                clean_session=False,
-                tls_context=a.ssl_context(),
-                timeout=10,
-                keepalive=30,
-                max_queued_incoming_messages=10000,
+            # A persistent session: the broker queues what the sites send while we are away.
+            return a.client(
+                f"serveur-{a.user}", clean_session=False, max_queued_incoming_messages=10000
             )
 
         async def setup(client: aiomqtt.Client) -> None:

@@ -169,16 +169,6 @@ class HqStore:
             out.append((seq, EventRecord(**r)))
         return out
 
-    async def all_events(self, site: str, *, page: int = 5000) -> list[EventRecord]:
-        out: list[EventRecord] = []
-        last = 0
-        while batch := await self.events(site, after=last, limit=page):
-            out += [e for _, e in batch]
-            last = batch[-1][0]
-            if len(batch) < page:
-                break
-        return out
-
     async def add_user(self, name: str, password_hash: str, now: float) -> None:
         if not name or len(name) > 255:
             raise InvalidField("a name is 1-255 characters", field="name")

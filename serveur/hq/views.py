@@ -14,7 +14,7 @@ from datetime import tzinfo
 from typing import Any
 
 from serveur.domain import EventRecord
-from serveur.stats.compute import read_events, table
+from serveur.stats.compute import ServiceLog, read_events, table
 from serveur.stats.document import figures_document, trips_document
 from serveur.stats.periods import period_of
 
@@ -74,6 +74,14 @@ class SiteView:
         self.site = site
         self.events: list[EventRecord] = []
         self.seq = 0
+        self._log: tuple[int, ServiceLog] | None = None  # read at ``seq``
+
+    def log(self) -> ServiceLog:
+        """The events read back into dishes, trips and timelines: once per new stored part,
+        not at every dashboard refresh (the figures, trips and summary only read it)."""
+        if self._log is None or self._log[0] != self.seq:
+            self._log = (self.seq, read_events(self.events))
+        return self._log[1]
 
     def extend(self, numbered: Sequence[tuple[int, EventRecord]]) -> None:
         for seq, event in numbered:
@@ -90,13 +98,11 @@ class SiteView:
         end: float | None = None,
         day_start: int = 4,
     ) -> dict[str, Any]:
-        rows, total = table(
-            read_events(self.events), by, tz, start=start, end=end, day_start=day_start
-        )
+        rows, total = table(self.log(), by, tz, start=start, end=end, day_start=day_start)
         return figures_document(rows, total)
 
     def trips(self, start: float | None, end: float | None, limit: int = 200) -> dict[str, Any]:
-        return trips_document(read_events(self.events), start, end, limit=limit)
+        return trips_document(self.log(), start, end, limit=limit)
 
     def summary(self, now: float, tz: tzinfo | None, day_start: int = 4) -> dict[str, Any]:
         """Robots, open alerts and the current service day's figures (the overview's row)."""
